@@ -1,0 +1,232 @@
+"""One contact step: the bound-constrained QP of formulation §3, solved by TAO on the contact window.
+
+Given the known height h = Z + u of every cell (body profile plus preceding displacement, m, positive into
+the half-space) and the effective compliance J (1/Pa), the pressure p >= 0 (Pa) minimises
+
+    1/2 p^T (J A) p - p^T (delta - h)        (A: Love's coefficients, cell area folded in)
+
+whose optimality conditions are the contact conditions p >= 0, gap = J A p + h - delta >= 0, p gap = 0.
+Only cells of positive rigid interference delta - h can carry pressure (A > 0), so the QP is posed on the
+bounding box of those cells (the *window*), exactly. It is solved in scaled variables,
+p = p_hat w_ref / (J A_00) with w_ref the largest interference, so that the Hessian A / A_00 has a unit
+diagonal and the scaled gap is O(1) whatever the units: ``tol`` is a relative tolerance on the contact
+conditions, max |min(p_hat, gap / w_ref)| <= tol, checked after every solve.
+
+Load control (a total force F instead of delta) finds delta by a safeguarded secant iteration on
+(F(delta) / F)^(2/3) - 1, which is linear in delta for a Hertzian contact.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from mpi4py import MPI
+
+from petroll.errors import SolverError
+from petroll.grid import Grid, RowPartition, move_rows
+from petroll.influence import InfluenceOperator, shell_matrix
+
+TAO_TYPES = ("gpcg", "tron", "bqpip", "bncg", "blmvm", "bqnls", "bntr", "bnls", "bntl")
+"""TAO solvers that accept bound constraints (all handle this convex QP)."""
+
+DEFAULT_TAO_TYPE = "blmvm"
+"""Chosen by measurement: see docs/solvers.md."""
+
+
+@dataclass
+class StepSolution:
+    """A solved contact step. ``pressure`` holds this rank's grid rows (Pa); the rest are global values."""
+
+    pressure: np.ndarray
+    delta: float  # penetration, m
+    force: float  # total normal force, N
+    iterations: int  # TAO iterations, summed over the QPs of a load-control step
+    applications: int  # influence-operator applications (Hessian mults and gradient evaluations)
+    residual: float  # max |min(p_hat, gap_hat)|, the scaled contact-condition residual
+    window: tuple[int, int, int, int]  # cells [i0, i1) x [j0, j1) on which the QP was posed
+
+
+class ContactSolver:
+    """Solves contact steps on ``grid`` (rows split over ``comm``) with TAO, options prefix ``prefix``.
+
+    Command-line options with that prefix (``-petroll_tao_type tron``, ``-petroll_tao_monitor``, ...)
+    override the scene's settings; they never reach other solvers.
+    """
+
+    def __init__(self, grid: Grid, comm: MPI.Comm, tao_type: str = DEFAULT_TAO_TYPE, tol: float = 1e-8,
+                 prefix: str = "petroll_", max_iterations: int = 10000):
+        self.grid, self.comm, self.tol, self.prefix = grid, comm, tol, prefix
+        self.tao_type, self.max_iterations = tao_type, max_iterations
+        self.influence = InfluenceOperator(grid.dx, grid.dy, comm)
+        self.rows = RowPartition(grid.nx, comm.size)
+        self.r0, self.r1 = self.rows.range(comm.rank)
+
+    @property
+    def local_shape(self) -> tuple[int, int]:
+        return (self.r1 - self.r0, self.grid.ny)
+
+    # -- displacement control ---------------------------------------------------------------------------
+    def solve_penetration(self, height: np.ndarray, compliance: float, delta: float,
+                          warm: np.ndarray | None = None) -> StepSolution:
+        """Pressure for a given penetration ``delta`` (m); ``height`` is h = Z + u on this rank's rows (m)."""
+        pressure, its, apps, residual, window = self._solve_qp(delta - height, compliance, warm)
+        force = self.comm.allreduce(float(pressure.sum())) * self.grid.cell_area
+        return StepSolution(pressure, delta, force, its, apps, residual, window)
+
+    # -- load control -----------------------------------------------------------------------------------
+    def solve_load(self, height: np.ndarray, compliance: float, load: float, radius_hint: float,
+                   delta_guess: float | None = None, warm: np.ndarray | None = None) -> StepSolution:
+        """Pressure and penetration for a total normal force ``load`` (N) > 0.
+
+        The first guess is ``delta_guess`` or, without one, Hertz's penetration for a sphere of radius
+        ``radius_hint`` above the lowest height.
+        """
+        base = self.comm.allreduce(float(np.min(height, initial=np.inf)), op=MPI.MIN)
+        if delta_guess is None or delta_guess <= base:
+            delta_guess = base + (3 * compliance * load / (4 * math.sqrt(radius_hint))) ** (2 / 3)
+        rtol = 10 * self.tol
+        iterations = applications = 0
+        lo = hi = None  # bracketing (delta, phi) pairs with phi < 0 and phi > 0
+        previous = None
+        delta = delta_guess
+        for _ in range(60):
+            step = self.solve_penetration(height, compliance, delta, warm)
+            iterations += step.iterations
+            applications += step.applications
+            step.iterations, step.applications = iterations, applications
+            if abs(step.force / load - 1) <= rtol:
+                return step
+            warm = step.pressure
+            phi = (step.force / load) ** (2 / 3) - 1
+            if phi < 0:
+                lo = (delta, phi)
+            else:
+                hi = (delta, phi)
+            if step.force == 0:
+                candidate = base + 2 * (delta - base)
+            elif previous is None or previous[1] == phi:
+                candidate = base + (delta - base) / (1 + phi)  # Hertz scaling F ~ (delta - base)^1.5
+            else:
+                candidate = delta - phi * (delta - previous[0]) / (phi - previous[1])
+            if lo is not None and hi is not None and not (lo[0] < candidate < hi[0]):
+                candidate = 0.5 * (lo[0] + hi[0])
+            previous = (delta, phi)
+            delta = candidate
+        raise SolverError(f"load control did not reach the load {load:g} N within 60 penetrations "
+                          f"(last force {step.force:g} N); check the scene's load and body")
+
+    # -- the QP -----------------------------------------------------------------------------------------
+    def _solve_qp(self, interference: np.ndarray, compliance: float, warm: np.ndarray | None):
+        grid, comm = self.grid, self.comm
+        pressure = np.zeros(self.local_shape)
+        window = self._window(interference > 0)
+        if window is None:
+            return pressure, 0, 0, 0.0, (0, 0, 0, 0)
+        i0, i1, j0, j1 = window
+        grid_ranges = [self.rows.range(r) for r in range(comm.size)]
+        part = RowPartition(i1 - i0, comm.size)
+        window_ranges = [(i0 + a, i0 + b) for a, b in (part.range(r) for r in range(comm.size))]
+        target = move_rows(interference[:, j0:j1], grid_ranges, window_ranges, comm)
+        w_ref = comm.allreduce(float(target.max(initial=0.0)), op=MPI.MAX)
+        diagonal = self.influence.diagonal
+        to_pressure = w_ref / (compliance * diagonal)  # p = to_pressure * p_hat
+
+        conv = self.influence.window(i1 - i0, j1 - j0)
+        hessian = shell_matrix(conv, 1.0 / diagonal)
+        x, rhs = hessian.createVecs()
+        rhs.setArray(-target.ravel() / w_ref)
+        if warm is not None:
+            start = move_rows(warm[:, j0:j1], grid_ranges, window_ranges, comm)
+            x.setArray(np.maximum(start.ravel() / to_pressure, 0.0))
+        else:
+            x.set(0.0)
+        its = self._run_tao(hessian, rhs, x)
+        gap = rhs.duplicate()
+        hessian.mult(x, gap)
+        gap.axpy(1.0, rhs)
+        residual = comm.allreduce(float(np.abs(np.minimum(x.array_r, gap.array_r)).max(initial=0.0)),
+                                  op=MPI.MAX)
+        if not residual <= self.tol:
+            raise SolverError(f"TAO ({self.tao_type}) stopped with the contact conditions violated by "
+                              f"{residual:.3g} (relative; [solver] tol = {self.tol:g}); try another "
+                              f"-{self.prefix}tao_type or a larger [solver] tol")
+        p_window = np.maximum(x.array_r, 0.0).reshape(-1, j1 - j0) * to_pressure
+        applications = hessian.getPythonContext().applications
+        for obj in (hessian, x, rhs, gap):
+            obj.destroy()
+        dst = [_clip(r, i0, i1) for r in grid_ranges]
+        a, b = dst[comm.rank]
+        pressure[a - self.r0 : b - self.r0, j0:j1] = move_rows(p_window, window_ranges, dst, comm)
+        return pressure, its, applications, residual, window
+
+    def _run_tao(self, hessian, rhs, x) -> int:
+        from petsc4py import PETSc
+
+        def objective_gradient(tao, p, grad):
+            hessian.mult(p, grad)
+            grad.axpy(1.0, rhs)
+            return 0.5 * (p.dot(grad) + p.dot(rhs))
+
+        options = PETSc.Options(self.prefix)
+        if not options.hasName("pc_type"):  # Hessian-based types: no preconditioner fits a shell matrix
+            options.setValue("pc_type", "none")
+        tao = PETSc.TAO().create(self.comm)
+        tao.setOptionsPrefix(self.prefix)
+        tao.setType(self.tao_type)
+        tao.setObjectiveGradient(objective_gradient, rhs.duplicate())
+        tao.setHessian(lambda tao, p, H, P: None, hessian, hessian)
+        lower = x.duplicate()
+        lower.set(0.0)
+        upper = x.duplicate()
+        upper.set(PETSc.INFINITY)
+        tao.setVariableBounds((lower, upper))
+        tao.setTolerances(gatol=self.tol, grtol=0.0, gttol=0.0)
+        tao.setMaximumIterations(self.max_iterations)
+        tao.setMaximumFunctionEvaluations(10 * self.max_iterations)
+        tao.setFromOptions()
+        tao.solve(x)
+        reason, its, kind = tao.getConvergedReason(), tao.getIterationNumber(), tao.getType()
+        tao.destroy()
+        for v in (lower, upper):
+            v.destroy()
+        if reason < 0:
+            raise SolverError(f"TAO ({kind}) did not converge (reason {_reason_name(reason)} after {its} "
+                              f"iterations); try another -{self.prefix}tao_type, a larger [solver] tol or "
+                              f"-{self.prefix}tao_max_it")
+        return its
+
+    def _window(self, candidates: np.ndarray) -> tuple[int, int, int, int] | None:
+        """Bounding box [i0, i1) x [j0, j1) of the candidate cells over all ranks; None when there are none."""
+        rows = np.flatnonzero(candidates.any(axis=1)) + self.r0
+        cols = np.flatnonzero(candidates.any(axis=0))
+        big = self.grid.nx + self.grid.ny
+        lo = np.array([rows.min(initial=big), cols.min(initial=big)])
+        hi = np.array([rows.max(initial=-1), cols.max(initial=-1)])
+        self.comm.Allreduce(MPI.IN_PLACE, lo, op=MPI.MIN)
+        self.comm.Allreduce(MPI.IN_PLACE, hi, op=MPI.MAX)
+        if hi[0] < 0:
+            return None
+        i0, j0, i1, j1 = int(lo[0]), int(lo[1]), int(hi[0]) + 1, int(hi[1]) + 1
+        if i0 == 0 or j0 == 0 or i1 == self.grid.nx or j1 == self.grid.ny:
+            g = self.grid
+            raise SolverError(
+                f"[grid]: the contact region (cells where the body interferes with the surface, X in "
+                f"[{g.x0 + i0 * g.dx:g}, {g.x0 + i1 * g.dx:g}], Y in [{g.y0 + j0 * g.dy:g}, "
+                f"{g.y0 + j1 * g.dy:g}]) reaches the grid edge; enlarge [grid] x and y or reduce the "
+                f"penetration or load")
+        return i0, i1, j0, j1
+
+
+def _clip(rows: tuple[int, int], i0: int, i1: int) -> tuple[int, int]:
+    """The part of the row range ``rows`` inside [i0, i1) (an empty range at its start if none)."""
+    a = max(rows[0], i0)
+    return a, max(min(rows[1], i1), a)
+
+
+def _reason_name(reason: int) -> str:
+    from petsc4py import PETSc
+
+    names = {v: k for k, v in vars(PETSc.TAO.Reason).items() if isinstance(v, int)}
+    return f"{names.get(reason, 'UNKNOWN')} ({reason})"

@@ -1,0 +1,99 @@
+"""The material-frame grid of uniformly loaded rectangles and how its rows are split over MPI ranks.
+
+Fields on the grid are numpy arrays of shape (nx, ny), axis 0 along X; a flattened field has index
+ix * ny + iy. Under MPI every field is split by rows: a rank owns the contiguous X-rows of its
+:class:`RowPartition` range and all ny columns of them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class RowPartition:
+    """An even split of ``n`` rows over ``size`` ranks: rank r owns rows ``starts[r]:starts[r+1]``."""
+
+    n: int
+    size: int
+
+    @cached_property
+    def starts(self) -> np.ndarray:
+        counts = np.full(self.size, self.n // self.size)
+        counts[: self.n % self.size] += 1
+        return np.concatenate([[0], np.cumsum(counts)])
+
+    @property
+    def counts(self) -> np.ndarray:
+        return np.diff(self.starts)
+
+    def range(self, rank: int) -> tuple[int, int]:
+        return int(self.starts[rank]), int(self.starts[rank + 1])
+
+
+@dataclass(frozen=True)
+class Grid:
+    """nx x ny cells covering [x0, x1] x [y0, y1] in the material frame (lengths in scene units, e.g. m)."""
+
+    nx: int
+    ny: int
+    x0: float
+    x1: float
+    y0: float
+    y1: float
+
+    @property
+    def dx(self) -> float:
+        return (self.x1 - self.x0) / self.nx
+
+    @property
+    def dy(self) -> float:
+        return (self.y1 - self.y0) / self.ny
+
+    @property
+    def cell_area(self) -> float:
+        return self.dx * self.dy
+
+    @property
+    def x(self) -> np.ndarray:
+        """Cell-centre X coordinates, shape (nx,)."""
+        return self.x0 + (np.arange(self.nx) + 0.5) * self.dx
+
+    @property
+    def y(self) -> np.ndarray:
+        """Cell-centre Y coordinates, shape (ny,)."""
+        return self.y0 + (np.arange(self.ny) + 0.5) * self.dy
+
+
+def move_rows(local: np.ndarray, src: list[tuple[int, int]], dst: list[tuple[int, int]], comm) -> np.ndarray:
+    """Re-split the rows of a distributed 2-D array.
+
+    ``local`` holds global rows ``src[rank]`` (all its columns); the result holds rows ``dst[rank]``. Every
+    row a rank asks for must be owned by some rank in ``src``. Only the rows that change hands travel.
+    """
+    rank = comm.rank
+    ncol = local.shape[1]
+    (s0, s1), (d0, d1) = src[rank], dst[rank]
+    if comm.size == 1:
+        return local[d0 - s0 : d1 - s0]
+    send = [_overlap(src[rank], dst[r]) for r in range(comm.size)]
+    recv = [_overlap(src[r], dst[rank]) for r in range(comm.size)]
+    sendbuf = np.concatenate([local[a - s0 : b - s0].ravel() for a, b in send])
+    out = np.empty((d1 - d0, ncol), dtype=local.dtype)
+    sendcounts = [(b - a) * ncol for a, b in send]
+    recvcounts = [(b - a) * ncol for a, b in recv]
+    recvbuf = np.empty(sum(recvcounts), dtype=local.dtype)
+    comm.Alltoallv([np.ascontiguousarray(sendbuf), sendcounts], [recvbuf, recvcounts])
+    offset = 0
+    for (a, b), count in zip(recv, recvcounts):
+        out[a - d0 : b - d0] = recvbuf[offset : offset + count].reshape(b - a, ncol)
+        offset += count
+    return out
+
+
+def _overlap(a: tuple[int, int], b: tuple[int, int]) -> tuple[int, int]:
+    lo, hi = max(a[0], b[0]), min(a[1], b[1])
+    return (lo, max(lo, hi))

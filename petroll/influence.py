@@ -1,0 +1,202 @@
+"""The influence operator: surface displacement at cell centres from uniform pressure on rectangular cells.
+
+For unit surface compliance (J = 1) the displacement at the centre of cell i from unit pressure on cell j is
+Love's (1929) rectangle formula A_ij (formulation §2); A has units of length, so w = J A p with J in 1/Pa and
+p in Pa gives w in m, positive into the half-space. A is block-Toeplitz, so A p is a linear (not periodic)
+convolution, applied with zero-padded FFTs (DC-FFT) on a grid whose rows are split over MPI ranks:
+
+    rows:    real FFT along Y (zero-padded to 2 ny) on the local rows
+    -> all-to-all transpose: every rank gets all rows of a slab of Y-frequencies
+    -> FFT along X (zero-padded to 2 nx), multiply by the kernel spectrum, inverse FFT along X
+    -> transpose back, inverse real FFT along Y, keep the first nx x ny values.
+
+Only the nx x (ny + 1) non-zero half travels in each transpose (the X padding is added after it), so the
+communication is half that of a distributed FFT of the padded 2 nx x 2 ny array (e.g. mpi4py-fft), and no
+rank ever holds the whole field.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from mpi4py import MPI
+
+from petroll.grid import RowPartition
+
+
+def love_coefficients(nx: int, ny: int, dx: float, dy: float) -> np.ndarray:
+    """Love's coefficients A(ix, iy) for cell offsets 0 <= ix < nx, 0 <= iy < ny (units of dx).
+
+    The displacement at a cell centre offset by (ix dx, iy dy) from a dx x dy cell carrying unit pressure,
+    for unit surface compliance. A is even in both offsets, so these values give every pair of cells.
+    """
+    x = np.arange(nx)[:, None] * dx
+    y = np.arange(ny)[None, :] * dy
+    a, b = dx / 2, dy / 2
+    return (_f(x + a, y + b) - _f(x + a, y - b) - _f(x - a, y + b) + _f(x - a, y - b)) / np.pi
+
+
+def _f(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """u asinh(v/|u|) + v asinh(u/|v|), with the limit 0 of each term where its divisor is 0."""
+    u, v = np.broadcast_arrays(u, v)
+    au, av = np.abs(u), np.abs(v)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t1 = np.where(au > 0, u * np.arcsinh(v / np.where(au > 0, au, 1.0)), 0.0)
+        t2 = np.where(av > 0, v * np.arcsinh(u / np.where(av > 0, av, 1.0)), 0.0)
+    return t1 + t2
+
+
+def dense_influence(coefficients: np.ndarray) -> np.ndarray:
+    """The assembled (nx ny) x (nx ny) influence matrix of a whole grid: a small-grid reference."""
+    nx, ny = coefficients.shape
+    ix, iy = np.divmod(np.arange(nx * ny), ny)
+    return coefficients[np.abs(ix[:, None] - ix[None, :]), np.abs(iy[:, None] - iy[None, :])]
+
+
+class Convolution:
+    """y = A x on an (nx, ny) grid whose rows are split over ``comm`` by :class:`RowPartition`.
+
+    ``coefficients`` is a Love table at least nx x ny (a larger one is cut); x and y are the local rows,
+    shape (local rows, ny). One instance per grid shape: the kernel spectrum is computed once.
+    """
+
+    def __init__(self, coefficients: np.ndarray, nx: int, ny: int, comm: MPI.Comm = MPI.COMM_SELF):
+        self.nx, self.ny, self.comm = nx, ny, comm
+        self.rows = RowPartition(nx, comm.size)
+        self.freqs = RowPartition(ny + 1, comm.size)  # Y-frequencies of the real FFT, split after transposing
+        self.r0, self.r1 = self.rows.range(comm.rank)
+        self.diagonal = float(coefficients[0, 0])
+        self.spectrum = self._kernel_spectrum(np.asarray(coefficients)[:nx, :ny])
+
+    def _kernel_spectrum(self, table: np.ndarray) -> np.ndarray:
+        """The kernel's 2 nx x 2 ny DFT (real: the kernel is even), for this rank's Y-frequencies."""
+        nx, ny = self.nx, self.ny
+        padded_rows = RowPartition(2 * nx, self.comm.size)
+        k0, k1 = padded_rows.range(self.comm.rank)
+        offsets_x = _wrapped_offsets(2 * nx)[k0:k1]
+        offsets_y = _wrapped_offsets(2 * ny)
+        kernel = np.zeros((k1 - k0, 2 * ny))
+        valid = (np.abs(offsets_x) < nx)[:, None] & (np.abs(offsets_y) < ny)[None, :]
+        ax, ay = np.broadcast_arrays(np.abs(offsets_x)[:, None], np.abs(offsets_y)[None, :])
+        kernel[valid] = table[np.minimum(ax, nx - 1), np.minimum(ay, ny - 1)][valid]
+        half = np.fft.rfft(kernel, axis=1)
+        columns = _rows_to_columns(half, padded_rows, self.freqs, self.comm)
+        return np.ascontiguousarray(np.fft.fft(columns, axis=0).real)
+
+    def __call__(self, x: np.ndarray) -> np.ndarray:
+        nx, ny = self.nx, self.ny
+        half = np.fft.rfft(x, n=2 * ny, axis=1)
+        columns = _rows_to_columns(half, self.rows, self.freqs, self.comm)
+        spectrum = np.fft.fft(columns, n=2 * nx, axis=0)
+        spectrum *= self.spectrum
+        columns = np.fft.ifft(spectrum, axis=0)[:nx]
+        half = _columns_to_rows(columns, self.rows, self.freqs, self.comm)
+        return np.fft.irfft(half, n=2 * ny, axis=1)[:, :ny]
+
+
+def _wrapped_offsets(n: int) -> np.ndarray:
+    """Offsets 0, 1, ..., n/2 - 1, n/2 (unused: marks the padding), -(n/2 - 1), ..., -1 of an n-point DFT."""
+    k = np.arange(n)
+    return np.where(k < n // 2, k, k - n)
+
+
+def _rows_to_columns(a: np.ndarray, rows: RowPartition, cols: RowPartition, comm: MPI.Comm) -> np.ndarray:
+    """Local rows (all columns) -> all rows of the local columns (an all-to-all transpose)."""
+    if comm.size == 1:
+        return a
+    me = comm.rank
+    c = cols.starts
+    send = np.concatenate([a[:, c[s] : c[s + 1]].ravel() for s in range(comm.size)])
+    my_cols = cols.counts[me]
+    recvcounts = rows.counts * my_cols
+    recv = np.empty(int(recvcounts.sum()), dtype=a.dtype)
+    comm.Alltoallv([send, a.shape[0] * cols.counts], [recv, recvcounts])
+    return recv.reshape(rows.n, my_cols)
+
+
+def _columns_to_rows(a: np.ndarray, rows: RowPartition, cols: RowPartition, comm: MPI.Comm) -> np.ndarray:
+    """All rows of the local columns -> local rows (all columns): the inverse of :func:`_rows_to_columns`."""
+    if comm.size == 1:
+        return a
+    me = comm.rank
+    my_rows = rows.counts[me]
+    send = np.ascontiguousarray(a)
+    recv = np.empty(my_rows * cols.n, dtype=a.dtype)
+    comm.Alltoallv([send, rows.counts * a.shape[1]], [recv, my_rows * cols.counts])
+    out = np.empty((my_rows, cols.n), dtype=a.dtype)
+    c, offset = cols.starts, 0
+    for s in range(comm.size):
+        width = c[s + 1] - c[s]
+        out[:, c[s] : c[s + 1]] = recv[offset : offset + my_rows * width].reshape(my_rows, width)
+        offset += my_rows * width
+    return out
+
+
+class InfluenceOperator:
+    """Love-coefficient convolutions on windows of one grid's cells (dx x dy), with kernels built once.
+
+    ``window(nx, ny)`` returns the :class:`Convolution` for an nx x ny block of cells; the Love table and
+    each window shape's kernel spectrum are computed on first use and kept.
+    """
+
+    def __init__(self, dx: float, dy: float, comm: MPI.Comm = MPI.COMM_SELF):
+        self.dx, self.dy, self.comm = dx, dy, comm
+        self._table = love_coefficients(1, 1, dx, dy)
+        self._windows: dict[tuple[int, int], Convolution] = {}
+
+    @property
+    def diagonal(self) -> float:
+        """A_ii, the displacement at a loaded cell's own centre per unit pressure (unit compliance)."""
+        return float(self._table[0, 0])
+
+    def window(self, nx: int, ny: int) -> Convolution:
+        key = (nx, ny)
+        if key not in self._windows:
+            if nx > self._table.shape[0] or ny > self._table.shape[1]:
+                big = (max(nx, self._table.shape[0]), max(ny, self._table.shape[1]))
+                self._table = love_coefficients(*big, self.dx, self.dy)
+            self._windows[key] = Convolution(self._table, nx, ny, self.comm)
+        return self._windows[key]
+
+
+class ShellInfluence:
+    """Context of a PETSc Python (shell) matrix y = scale A x over a distributed window of cells.
+
+    Vectors hold the window's local rows flattened (index ix * ny + iy). The matrix is symmetric positive
+    definite; ``applications`` counts the mults (the operator applications of a solve).
+    """
+
+    def __init__(self, conv: Convolution, scale: float = 1.0):
+        self.conv, self.scale, self.applications = conv, scale, 0
+        self.shift = 0.0  # a diagonal added by MatDiagonalSet (TAO's bqpip does that): scalar or array
+
+    def mult(self, mat, x, y) -> None:
+        local = x.getArray(readonly=True)
+        y.setArray(self.conv(local.reshape(-1, self.conv.ny)).ravel() * self.scale + self.shift * local)
+        self.applications += 1
+
+    def multTranspose(self, mat, x, y) -> None:
+        self.mult(mat, x, y)
+
+    def getDiagonal(self, mat, d) -> None:
+        d.setArray(self.conv.diagonal * self.scale + self.shift * np.ones(d.getLocalSize()))
+
+    def setDiagonal(self, mat, d, addv) -> None:
+        from petsc4py import PETSc
+
+        values = d.getArray(readonly=True).copy()
+        if addv == PETSc.InsertMode.ADD_VALUES:
+            self.shift = self.shift + values
+        else:
+            self.shift = values - self.conv.diagonal * self.scale
+
+
+def shell_matrix(conv: Convolution, scale: float = 1.0):
+    """A PETSc shell matrix applying ``scale * A`` with the FFT convolution ``conv`` (on conv's comm)."""
+    from petsc4py import PETSc
+
+    n_local = (conv.r1 - conv.r0) * conv.ny
+    n = conv.nx * conv.ny
+    mat = PETSc.Mat().createPython([(n_local, n), (n_local, n)], ShellInfluence(conv, scale), comm=conv.comm)
+    mat.setOption(PETSc.Mat.Option.SYMMETRIC, True)
+    mat.setUp()
+    return mat

@@ -1,0 +1,23 @@
+#!/usr/bin/env bash
+# The test suite, serially and under `mpirun -n 2` (rank 1's report goes to a log shown when it fails).
+# Extra arguments are passed to pytest (e.g. `scripts/test.sh -k hertz`).
+set -uo pipefail
+cd "$(dirname "$0")/.."
+py=.venv/bin/python
+export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 OMPI_MCA_rmaps_base_oversubscribe=1
+export OMPI_MCA_btl_vader_single_copy_mechanism=none PYTHONDONTWRITEBYTECODE=1
+
+echo "== serial: pytest =="
+"$py" -m pytest -q "$@" tests
+serial=$?
+
+echo "== parallel: mpirun -n 2 pytest =="
+log=$(mktemp)
+timeout 1800 mpirun -n 1 "$py" -m pytest -q -p no:cacheprovider "$@" tests \
+  : -n 1 sh -c "\"$py\" -m pytest -q -p no:cacheprovider $* tests > \"$log\" 2>&1"
+parallel=$?
+if [ $parallel -ne 0 ]; then echo "== rank 1 report =="; cat "$log"; fi
+rm -f "$log"
+
+echo "serial exit $serial, parallel exit $parallel"
+[ $serial -eq 0 ] && [ $parallel -eq 0 ]
