@@ -28,10 +28,10 @@ from petroll.errors import SolverError
 from petroll.grid import Grid, RowPartition, move_rows
 from petroll.influence import InfluenceOperator, shell_matrix
 
-TAO_TYPES = ("gpcg", "tron", "bqpip", "bncg", "blmvm", "bqnls", "bntr", "bnls", "bntl")
-"""TAO solvers that accept bound constraints (all handle this convex QP)."""
+TAO_TYPES = ("tron", "gpcg", "bntr", "bncg", "blmvm", "bqnls", "bnls", "bntl")
+"""TAO's bound-constrained solvers that handle this QP (bqpip is left out: it needs finite upper bounds)."""
 
-DEFAULT_TAO_TYPE = "blmvm"
+DEFAULT_TAO_TYPE = "tron"
 """Chosen by measurement: see docs/solvers.md."""
 
 
@@ -136,26 +136,28 @@ class ContactSolver:
         conv = self.influence.window(i1 - i0, j1 - j0)
         hessian = shell_matrix(conv, 1.0 / diagonal)
         x, rhs = hessian.createVecs()
-        rhs.setArray(-target.ravel() / w_ref)
-        if warm is not None:
-            start = move_rows(warm[:, j0:j1], grid_ranges, window_ranges, comm)
-            x.setArray(np.maximum(start.ravel() / to_pressure, 0.0))
-        else:
-            x.set(0.0)
-        its = self._run_tao(hessian, rhs, x)
         gap = rhs.duplicate()
-        hessian.mult(x, gap)
-        gap.axpy(1.0, rhs)
-        residual = comm.allreduce(float(np.abs(np.minimum(x.array_r, gap.array_r)).max(initial=0.0)),
-                                  op=MPI.MAX)
+        try:
+            rhs.setArray(-target.ravel() / w_ref)
+            if warm is not None:
+                start = move_rows(warm[:, j0:j1], grid_ranges, window_ranges, comm)
+                x.setArray(np.maximum(start.ravel() / to_pressure, 0.0))
+            else:
+                x.set(0.0)
+            its = self._run_tao(hessian, rhs, x)
+            hessian.mult(x, gap)
+            gap.axpy(1.0, rhs)
+            natural = np.minimum(x.array_r, gap.array_r)
+            residual = comm.allreduce(float(np.abs(natural).max(initial=0.0)), op=MPI.MAX)
+            p_window = np.maximum(x.array_r, 0.0).reshape(-1, j1 - j0) * to_pressure
+            applications = hessian.getPythonContext().applications
+        finally:
+            for obj in (hessian, x, rhs, gap):
+                obj.destroy()
         if not residual <= self.tol:
             raise SolverError(f"TAO ({self.tao_type}) stopped with the contact conditions violated by "
                               f"{residual:.3g} (relative; [solver] tol = {self.tol:g}); try another "
                               f"-{self.prefix}tao_type or a larger [solver] tol")
-        p_window = np.maximum(x.array_r, 0.0).reshape(-1, j1 - j0) * to_pressure
-        applications = hessian.getPythonContext().applications
-        for obj in (hessian, x, rhs, gap):
-            obj.destroy()
         dst = [_clip(r, i0, i1) for r in grid_ranges]
         a, b = dst[comm.rank]
         pressure[a - self.r0 : b - self.r0, j0:j1] = move_rows(p_window, window_ranges, dst, comm)
@@ -173,24 +175,24 @@ class ContactSolver:
         if not options.hasName("pc_type"):  # Hessian-based types: no preconditioner fits a shell matrix
             options.setValue("pc_type", "none")
         tao = PETSc.TAO().create(self.comm)
-        tao.setOptionsPrefix(self.prefix)
-        tao.setType(self.tao_type)
-        tao.setObjectiveGradient(objective_gradient, rhs.duplicate())
-        tao.setHessian(lambda tao, p, H, P: None, hessian, hessian)
-        lower = x.duplicate()
-        lower.set(0.0)
-        upper = x.duplicate()
-        upper.set(PETSc.INFINITY)
-        tao.setVariableBounds((lower, upper))
-        tao.setTolerances(gatol=self.tol, grtol=0.0, gttol=0.0)
-        tao.setMaximumIterations(self.max_iterations)
-        tao.setMaximumFunctionEvaluations(10 * self.max_iterations)
-        tao.setFromOptions()
-        tao.solve(x)
-        reason, its, kind = tao.getConvergedReason(), tao.getIterationNumber(), tao.getType()
-        tao.destroy()
-        for v in (lower, upper):
-            v.destroy()
+        lower, upper, grad = x.duplicate(), x.duplicate(), x.duplicate()
+        try:
+            tao.setOptionsPrefix(self.prefix)
+            tao.setType(self.tao_type)
+            tao.setObjectiveGradient(objective_gradient, grad)
+            tao.setHessian(lambda tao, p, H, P: None, hessian, hessian)
+            lower.set(0.0)
+            upper.set(PETSc.INFINITY)
+            tao.setVariableBounds((lower, upper))
+            tao.setTolerances(gatol=self.tol, grtol=0.0, gttol=0.0)
+            tao.setMaximumIterations(self.max_iterations)
+            tao.setMaximumFunctionEvaluations(10 * self.max_iterations)
+            tao.setFromOptions()
+            tao.solve(x)
+            reason, its, kind = tao.getConvergedReason(), tao.getIterationNumber(), tao.getType()
+        finally:
+            for obj in (tao, lower, upper, grad):
+                obj.destroy()
         if reason < 0:
             raise SolverError(f"TAO ({kind}) did not converge (reason {_reason_name(reason)} after {its} "
                               f"iterations); try another -{self.prefix}tao_type, a larger [solver] tol or "

@@ -167,27 +167,17 @@ class ShellInfluence:
 
     def __init__(self, conv: Convolution, scale: float = 1.0):
         self.conv, self.scale, self.applications = conv, scale, 0
-        self.shift = 0.0  # a diagonal added by MatDiagonalSet (TAO's bqpip does that): scalar or array
 
     def mult(self, mat, x, y) -> None:
-        local = x.getArray(readonly=True)
-        y.setArray(self.conv(local.reshape(-1, self.conv.ny)).ravel() * self.scale + self.shift * local)
+        local = x.getArray(readonly=True).reshape(-1, self.conv.ny)
+        y.setArray(self.conv(local).ravel() * self.scale)
         self.applications += 1
 
     def multTranspose(self, mat, x, y) -> None:
         self.mult(mat, x, y)
 
     def getDiagonal(self, mat, d) -> None:
-        d.setArray(self.conv.diagonal * self.scale + self.shift * np.ones(d.getLocalSize()))
-
-    def setDiagonal(self, mat, d, addv) -> None:
-        from petsc4py import PETSc
-
-        values = d.getArray(readonly=True).copy()
-        if addv == PETSc.InsertMode.ADD_VALUES:
-            self.shift = self.shift + values
-        else:
-            self.shift = values - self.conv.diagonal * self.scale
+        d.set(self.conv.diagonal * self.scale)
 
 
 def shell_matrix(conv: Convolution, scale: float = 1.0):

@@ -1,0 +1,95 @@
+"""The influence operator: Love's coefficients, the DC-FFT convolution and its PETSc shell matrix."""
+
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+from petroll.grid import RowPartition, move_rows
+from petroll.influence import Convolution, InfluenceOperator, dense_influence, love_coefficients, shell_matrix
+
+
+def test_centre_of_a_square_cell():
+    h = 0.37
+    assert love_coefficients(1, 1, 2 * h, 2 * h)[0, 0] == pytest.approx(8 * h * np.arcsinh(1) / np.pi, rel=1e-14)
+    assert love_coefficients(1, 1, 2 * h, 2 * h)[0, 0] == pytest.approx(2.2444 * h, rel=1e-4)
+
+
+def test_far_field_is_a_point_load():
+    dx, dy = 0.5, 0.3
+    table = love_coefficients(401, 401, dx, dy)
+    for ix, iy in [(200, 0), (0, 400), (150, 230), (400, 400)]:
+        r = np.hypot(ix * dx, iy * dy)
+        # the point-load value dx dy / (pi r) is reached to second order in the cell size / distance
+        assert table[ix, iy] == pytest.approx(dx * dy / (np.pi * r), rel=2 * (max(dx, dy) / r) ** 2)
+
+
+def test_rectangle_against_numerical_quadrature():
+    """Love's closed form equals a direct 2-D quadrature of 1/(pi r) over a cell not containing the point."""
+    dx, dy, x, y = 1.0, 0.5, 2.0, 1.5
+    n = 2000
+    s = (np.arange(n) + 0.5) / n
+    xi, eta = (s - 0.5) * dx, (s - 0.5) * dy
+    quad = np.sum(1 / np.hypot(x - xi[:, None], y - eta[None, :])) * dx * dy / n**2 / np.pi
+    assert love_coefficients(5, 5, dx, dy)[2, 3] == pytest.approx(quad, rel=1e-6)
+
+
+def dense_reference(nx, ny, dx, dy, x):
+    return (dense_influence(love_coefficients(nx, ny, dx, dy)) @ x.ravel()).reshape(nx, ny)
+
+
+@pytest.mark.parametrize("nx,ny", [(1, 1), (2, 9), (13, 7), (16, 16), (5, 24)])
+def test_convolution_equals_dense_matrix(comm, nx, ny):
+    dx, dy = 0.3, 0.2
+    x = np.random.default_rng(nx * 100 + ny).random((nx, ny))
+    conv = Convolution(love_coefficients(nx, ny, dx, dy), nx, ny, comm)
+    ref = dense_reference(nx, ny, dx, dy, x)
+    y = conv(x[conv.r0 : conv.r1])
+    assert np.abs(y - ref[conv.r0 : conv.r1]).max(initial=0.0) <= 1e-12 * np.abs(ref).max()
+
+
+def test_shell_matrix_mult_symmetry_and_rank_independence(comm):
+    nx, ny, dx, dy = 20, 11, 1e-4, 2e-4
+    op = InfluenceOperator(dx, dy, comm)
+    conv = op.window(nx, ny)
+    mat = shell_matrix(conv, 2.5)
+    x, y = mat.createVecs()
+    rng = np.random.default_rng(7)
+    full_x, full_z = rng.random((nx, ny)), rng.random((nx, ny))
+    x.setArray(full_x[conv.r0 : conv.r1].ravel())
+    mat.mult(x, y)
+    ref = 2.5 * dense_reference(nx, ny, dx, dy, full_x)
+    assert np.abs(y.array.reshape(-1, ny) - ref[conv.r0 : conv.r1]).max() <= 1e-12 * np.abs(ref).max()
+    # symmetric: z.(A x) == x.(A z)
+    z, az = mat.createVecs()
+    z.setArray(full_z[conv.r0 : conv.r1].ravel())
+    mat.mult(z, az)
+    assert z.dot(y) == pytest.approx(x.dot(az), rel=1e-13)
+    diagonal = x.duplicate()
+    mat.getDiagonal(diagonal)
+    assert np.all(diagonal.array == pytest.approx(2.5 * love_coefficients(1, 1, dx, dy)[0, 0], rel=1e-14))
+    # the same product on one rank (COMM_SELF) agrees with the distributed one to round-off
+    serial = InfluenceOperator(dx, dy, MPI.COMM_SELF).window(nx, ny)(full_x) * 2.5
+    assert np.abs(y.array.reshape(-1, ny) - serial[conv.r0 : conv.r1]).max() <= 1e-13 * np.abs(serial).max()
+    assert mat.getPythonContext().applications == 2
+    for obj in (mat, x, y, z, az, diagonal):
+        obj.destroy()
+
+
+@pytest.mark.parametrize("n,size", [(10, 3), (2, 4), (7, 1)])
+def test_row_partition_covers_every_row_once(n, size):
+    part = RowPartition(n, size)
+    rows = np.concatenate([np.arange(*part.range(r)) for r in range(size)])
+    assert np.array_equal(rows, np.arange(n))
+    assert part.counts.max() - part.counts.min() <= 1
+
+
+def test_move_rows_between_partitions(comm):
+    """Rows 3..14 of a 17-row field, split evenly, re-split as a window: every rank gets exactly its rows."""
+    field = np.arange(17 * 4, dtype=float).reshape(17, 4)
+    grid = [RowPartition(17, comm.size).range(r) for r in range(comm.size)]
+    window_part = RowPartition(12, comm.size)
+    window = [(3 + a, 3 + b) for a, b in (window_part.range(r) for r in range(comm.size))]
+    a, b = grid[comm.rank]
+    moved = move_rows(field[a:b], grid, window, comm)
+    c, d = window[comm.rank]
+    assert np.array_equal(moved, field[c:d])
