@@ -20,6 +20,7 @@ def _parser() -> argparse.ArgumentParser:
     run = verbs.add_parser("run", help="run a scene and write DIR/results.h5")
     run.add_argument("scene", help="scene file (TOML)")
     run.add_argument("--out", help="output directory (default: the scene's [output] dir)")
+    run.add_argument("--quiet", action="store_true", help="no progress line (also off when not a terminal)")
     verbs.add_parser("keys", help="print the scene reference generated from the schema (Markdown)")
     return parser
 
@@ -50,7 +51,7 @@ def main(argv: list[str] | None = None) -> int:
         from petroll.simulation import run
 
         scene = load_scene(args.scene)
-        results = run(scene, comm, args.out)
+        results = run(scene, comm, args.out, progress=not args.quiet and sys.stderr.isatty())
         if comm.rank == 0:
             s = results.series
             print(f"petroll: {scene.source}: force {s['force'][-1]:.6g} N, penetration {s['delta'][-1]:.6g} m, "

@@ -24,8 +24,10 @@ from petroll import __version__
 FORMAT_VERSION = 1
 
 SERIES_UNITS = {
-    "step": "-", "delta": "m", "force": "N", "area": "m^2", "p_max": "Pa", "iterations": "-",
-    "applications": "-", "residual": "-", "solve_time": "s",
+    "step": "-", "t": "s", "sx": "m", "sy": "m", "delta": "m", "force": "N", "force_x": "N", "force_y": "N",
+    "mu_r": "-", "area": "m^2", "p_max": "Pa", "cop_x": "m", "cop_y": "m", "lead": "m", "trail": "m",
+    "dissipation": "W", "distance": "m", "iterations": "-", "applications": "-", "residual": "-",
+    "solve_time": "s",
 }
 """The series every run writes, with their units (attribute ``units`` of each dataset)."""
 

@@ -17,6 +17,8 @@ from typing import Any, Callable
 
 import numpy as np
 
+from petroll import material as materials
+from petroll import motion
 from petroll.bodies import BODY_KEYS, Body, make_body
 from petroll.contact import DEFAULT_TAO_TYPE, TAO_TYPES
 from petroll.errors import MISSING, SceneError
@@ -102,11 +104,82 @@ def _choice(*options: str) -> Callable[[Any], str]:
     return check
 
 
+def _count0(value: Any) -> int:
+    if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+        raise _Invalid("must be an integer >= 0")
+    return int(value)
+
+
+def _numbers(value: Any) -> tuple[float, ...]:
+    if not isinstance(value, list) or not value:
+        raise _Invalid("must be a non-empty list of finite numbers")
+    try:
+        return tuple(_number(v) for v in value)
+    except _Invalid:
+        raise _Invalid("must be a non-empty list of finite numbers") from None
+
+
+def _positives(value: Any) -> tuple[float, ...]:
+    numbers = _numbers(value)
+    if min(numbers) <= 0:
+        raise _Invalid("must be a non-empty list of numbers > 0")
+    return numbers
+
+
+def _program(vector: bool, positive: bool) -> Callable[[Any], Any]:
+    """A program in time (petroll.motion): a value, or {kind = "ramp" | "sinusoidal" | "tabulated", ...}."""
+    what = "[x, y]" if vector else "a number"
+    forms = (f"{what}, or an inline table {{kind = \"ramp\", start, end, duration}}, "
+             f"{{kind = \"sinusoidal\", mean, amplitude, period, phase = 0}} or "
+             f"{{kind = \"tabulated\", t = [...], value = [...]}}")
+
+    def value_of(v: Any) -> np.ndarray:
+        out = np.array(_point(v)) if vector else np.array(_number(v))
+        if positive and not vector and out <= 0:
+            raise _Invalid("must be > 0")
+        return out
+
+    def check(value: Any):
+        try:
+            if not isinstance(value, dict):
+                return motion.Constant(value_of(value))
+            kind, keys = value.get("kind"), set(value) - {"kind"}
+            if kind == "ramp" and keys == {"start", "end", "duration"}:
+                start = np.array(_point(value["start"])) if vector else np.array(_number(value["start"]))
+                return motion.Ramp(start, value_of(value["end"]), _positive(value["duration"]))
+            if kind == "sinusoidal" and {"mean", "amplitude", "period"} <= keys <= {"mean", "amplitude",
+                                                                                    "period", "phase"}:
+                amplitude = np.array(_point(value["amplitude"])) if vector else np.array(
+                    _number(value["amplitude"]))
+                return motion.Sinusoidal(value_of(value["mean"]), amplitude, _positive(value["period"]),
+                                         _number(value.get("phase", 0.0)))
+            if kind == "tabulated" and keys == {"t", "value"}:
+                times = np.array(_numbers(value["t"]))
+                rows = value["value"]
+                values = np.array([value_of(v) for v in rows]) if isinstance(rows, list) else None
+                if values is None or len(values) != len(times) or times[0] < 0 or np.any(np.diff(times) <= 0):
+                    raise _Invalid("")
+                return motion.Tabulated(times, values)
+        except _Invalid as exc:
+            raise _Invalid(f"{exc}; allowed: {forms}" if str(exc) else f"must be {forms}") from None
+        raise _Invalid(f"must be {forms}")
+
+    return check
+
+
 def _text(value: Any) -> str:
     if not isinstance(value, str) or not value:
         raise _Invalid("must be a non-empty string")
     return value
 
+
+MODEL_KEYS: dict[str, tuple[set[str], set[str]]] = {
+    "elastic": ({"E", "nu"}, set()),
+    "sls": ({"E0", "Einf", "nu"}, {"tau_creep", "tau_relax"}),
+    "prony": ({"series", "Einf", "nu", "times"}, {"compliances", "moduli"}),
+    "tabulated": ({"file", "quantity"}, {"nu"}),
+}
+"""Per model: the [material] keys it requires, and those it may take."""
 
 SCHEMA: dict[str, dict[str, Key]] = {
     "grid": {
@@ -116,9 +189,32 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "y": Key("[min, max]", "extent of the grid along Y in the material frame", _interval, unit="m"),
     },
     "material": {
-        "model": Key("string", 'constitutive model: "elastic"', _choice("elastic")),
-        "E": Key("number > 0", "Young's modulus (model elastic)", _positive, unit="Pa"),
-        "nu": Key("number", "Poisson's ratio, -1 < nu <= 0.5", _poisson),
+        "model": Key("string", 'constitutive model: "elastic", "sls", "prony" or "tabulated"',
+                     _choice(*MODEL_KEYS)),
+        "nu": Key("number", "Poisson's ratio, -1 < nu <= 0.5 (all models; with quantity = \"J\" unused)",
+                  _poisson, default=None),
+        "E": Key("number > 0", "Young's modulus (elastic)", _positive, default=None, unit="Pa"),
+        "E0": Key("number > 0", "instantaneous Young's modulus (sls), E0 >= Einf", _positive, default=None,
+                  unit="Pa"),
+        "Einf": Key("number > 0", "relaxed (long-time) Young's modulus (sls, prony)", _positive,
+                    default=None, unit="Pa"),
+        "tau_creep": Key("number > 0", "retardation time of the creep compliance (sls; or tau_relax)",
+                         _positive, default=None, unit="s"),
+        "tau_relax": Key("number > 0", "relaxation time of the modulus, = tau_creep Einf/E0 (sls; or "
+                         "tau_creep)", _positive, default=None, unit="s"),
+        "series": Key("string", 'prony: "kelvin" (creep: D(t) = 1/Einf - sum compliances_r exp(-t/times_r)) '
+                      'or "maxwell" (relaxation: E(t) = Einf + sum moduli_r exp(-t/times_r))',
+                      _choice("kelvin", "maxwell"), default=None),
+        "times": Key("list of numbers > 0", "retardation (kelvin) or relaxation (maxwell) times (prony)",
+                     _positives, default=None, unit="s"),
+        "compliances": Key("list of numbers > 0", "creep compliance of each Kelvin term (prony, kelvin)",
+                           _positives, default=None, unit="1/Pa"),
+        "moduli": Key("list of numbers > 0", "modulus of each Maxwell term (prony, maxwell)", _positives,
+                      default=None, unit="Pa"),
+        "file": Key("string", "CSV file of two columns t (s), value, t starting at 0, relative to the scene "
+                    "file (tabulated)", _text, default=None),
+        "quantity": Key("string", 'what the table holds (tabulated): "D" (creep compliance, 1/Pa; J = (1 - '
+                        'nu^2) D) or "J" (surface compliance, 1/Pa)', _choice("D", "J"), default=None),
     },
     "body": {
         "shape": Key("string", "body shape: " + ", ".join(BODY_KEYS) + " (its own keys: see below)",
@@ -127,21 +223,41 @@ SCHEMA: dict[str, dict[str, Key]] = {
                         default=(0.0, 0.0), unit="m"),
     },
     "motion": {
-        "penetration": Key("number > 0", "penetration delta of the body's lowest point below the "
+        "velocity": Key("[vx, vy] or program", "velocity of the body over the half-space (its path s(t) "
+                        "starts at [body] position)", _program(vector=True, positive=False),
+                        default=motion.Constant(np.zeros(2)), unit="m/s"),
+        "penetration": Key("number or program", "penetration delta of the body's lowest point below the "
                            "undeformed surface (displacement control; exactly one of penetration, load)",
-                           _positive, default=None, unit="m"),
-        "load": Key("number > 0", "total normal force F (load control; exactly one of penetration, load)",
-                    _positive, default=None, unit="N"),
+                           _program(vector=False, positive=False), default=None, unit="m"),
+        "load": Key("number > 0 or program", "total normal force F (load control; exactly one of "
+                    "penetration, load)", _program(vector=False, positive=True), default=None, unit="N"),
+    },
+    "time": {
+        "dt": Key("number > 0", "time step (or steps_per_cell); without [time]: one step at t = 0",
+                  _positive, default=None, unit="s"),
+        "steps_per_cell": Key("number > 0", "time step tied to the motion: dt = min(dx, dy) / (|V| "
+                              "steps_per_cell)", _positive, default=None),
+        "end": Key("number > 0", "end time (one of end, distance)", _positive, default=None, unit="s"),
+        "distance": Key("number > 0", "stop after the body has rolled this far along its path (one of end, "
+                        "distance)", _positive, default=None, unit="m"),
+        "steady": Key("number > 0", "stop early once force and mu_r change by less than this (relative) "
+                      "over one contact length of rolling", _positive, default=None),
+        "max_steps": Key("integer", "refuse scenes that would take more steps", _count, default=100000),
     },
     "solver": {
         "tao_type": Key("string", "TAO bound-constrained solver for each contact QP (command line: "
                         "-petroll_tao_type)", _choice(*TAO_TYPES), default=DEFAULT_TAO_TYPE),
+        "integrator": Key("string", 'time integrator: "exponential" (Prony/SLS, second order; the default) or '
+                          '"paper" (J frozen at J(0) over the newest step; the only one for tabulated)',
+                          _choice("exponential", "paper"), default=None),
         "tol": Key("number", "relative tolerance on the contact conditions: max |min(p, gap)| in units "
                    "of the largest interference (gap) and its pressure (p)", _tolerance, default=1e-8),
     },
     "output": {
         "dir": Key("string", "output directory, relative to the current directory (command line: --out); "
                    "default results/<scene file name without .toml>", _text, default=None),
+        "every": Key("integer", "save the pressure field every this many steps (0: first and last only)",
+                     _count0, default=0),
     },
 }
 """Every section and key of a version-1 scene. [body] also takes the keys of its shape (BODY_KEYS)."""
@@ -149,21 +265,22 @@ SCHEMA: dict[str, dict[str, Key]] = {
 
 # -- the validated scene ----------------------------------------------------------------------------------
 @dataclass(frozen=True)
-class Elastic:
-    """A linear elastic half-space; ``compliance`` is the surface compliance J = (1 - nu^2)/E in 1/Pa."""
-
-    E: float
-    nu: float
-
-    @property
-    def compliance(self) -> float:
-        return (1.0 - self.nu**2) / self.E
-
-
-@dataclass(frozen=True)
 class Solver:
     tao_type: str
     tol: float
+    integrator: str  # "exponential" or "paper"
+
+
+@dataclass(frozen=True)
+class Time:
+    """Time stepping; ``dt`` and ``steps_per_cell`` both None: a single step at t = 0."""
+
+    dt: float | None
+    steps_per_cell: float | None
+    end: float | None
+    distance: float | None
+    steady: float | None
+    max_steps: int
 
 
 @dataclass(frozen=True)
@@ -174,13 +291,16 @@ class Scene:
     text: str
     raw: dict = field(repr=False)
     grid: Grid
-    material: Elastic
+    material: materials.Prony | materials.Tabulated  # surface creep compliance J(t), 1/Pa
     body: Body
     position: tuple[float, float]
-    penetration: float | None
-    load: float | None
+    velocity: Any  # a vector program of petroll.motion, m/s
+    penetration: Any  # a scalar program (m), or None under load control
+    load: Any  # a scalar program (N), or None under displacement control
+    time: Time
     solver: Solver
     output_dir: pathlib.Path
+    every: int
     base_dir: pathlib.Path = field(repr=False)
 
     def replace(self, key: str, value: Any) -> "Scene":
@@ -233,20 +353,28 @@ def parse_scene(raw: dict, source: str = "<python>", base_dir: str | pathlib.Pat
 
     g = values["grid"]
     grid = Grid(g["nx"], g["ny"], *g["x"], *g["y"])
-    m = values["material"]
-    material = Elastic(m["E"], m["nu"])
+    material = _material(values["material"], raw.get("material", {}), base_dir, source)
     body = make_body(raw.get("body", {}), base_dir, source)
-    motion = values["motion"]
-    if (motion["penetration"] is None) == (motion["load"] is None):
+    m = values["motion"]
+    if (m["penetration"] is None) == (m["load"] is None):
         given = {k: v for k, v in raw.get("motion", {}).items() if k in ("penetration", "load")}
         raise SceneError(source, "[motion] penetration / load", given or MISSING,
                          "exactly one of penetration (m) or load (N) must be given")
+    time = Time(**values["time"])
+    _check_time(time, raw.get("time", {}), source)
+    integrator = values["solver"]["integrator"]
+    if integrator is None:
+        integrator = "exponential" if isinstance(material, materials.Prony) else "paper"
+    elif integrator == "exponential" and not isinstance(material, materials.Prony):
+        raise SceneError(source, "[solver] integrator", integrator,
+                         'a tabulated material takes only "paper" (the hereditary sum)')
     out = values["output"]["dir"]
     output_dir = pathlib.Path(out) if out else (default_output or pathlib.Path("results") / "scene")
     scene = Scene(source=source, text=text if text is not None else dumps(raw), raw=raw, grid=grid,
                   material=material, body=body, position=values["body"]["position"],
-                  penetration=motion["penetration"], load=motion["load"],
-                  solver=Solver(**values["solver"]), output_dir=output_dir, base_dir=base_dir)
+                  velocity=m["velocity"], penetration=m["penetration"], load=m["load"], time=time,
+                  solver=Solver(values["solver"]["tao_type"], values["solver"]["tol"], integrator),
+                  output_dir=output_dir, every=values["output"]["every"], base_dir=base_dir)
     _check_contact_inside(scene)
     return scene
 
@@ -274,14 +402,86 @@ def _read_section(raw: dict, name: str, source: str) -> dict:
     return values
 
 
+def _material(values: dict, table: dict, base_dir: pathlib.Path, source: str):
+    """J(t) of the [material] table (keys already type-checked) after the per-model key rules."""
+    model = values["model"]
+    required, optional = MODEL_KEYS[model]
+    for key in table:
+        if key != "model" and key not in required | optional:
+            allowed = ", ".join(sorted(required | optional))
+            raise SceneError(source, f"[material] {key}", table[key], f"not a key of model {model!r}; "
+                             f"allowed: {allowed}")
+    for key in sorted(required):
+        if key not in table:
+            raise SceneError(source, f"[material] {key}", MISSING, f"required for model {model!r}: "
+                             f"{SCHEMA['material'][key].doc} ({SCHEMA['material'][key].unit})")
+    v = values
+    if model == "elastic":
+        return materials.elastic(v["E"], v["nu"])
+    if model == "sls":
+        if (v["tau_creep"] is None) == (v["tau_relax"] is None):
+            raise SceneError(source, "[material] tau_creep / tau_relax", MISSING,
+                             "exactly one of tau_creep or tau_relax (s) must be given for model 'sls'")
+        if v["E0"] < v["Einf"]:
+            raise SceneError(source, "[material] E0", v["E0"], f"must be >= Einf = {v['Einf']:g} (Pa): "
+                             "the instantaneous modulus is the larger")
+        return materials.sls(v["E0"], v["Einf"], v["nu"], v["tau_creep"], v["tau_relax"])
+    if model == "prony":
+        terms = "compliances" if v["series"] == "kelvin" else "moduli"
+        other = "moduli" if terms == "compliances" else "compliances"
+        if v[other] is not None:
+            raise SceneError(source, f"[material] {other}", table[other],
+                             f"not a key of a {v['series']} series; give {terms}")
+        if v[terms] is None or len(v[terms]) != len(v["times"]):
+            raise SceneError(source, f"[material] {terms}", table.get(terms, MISSING),
+                             f"required: one value per entry of times ({len(v['times'])})")
+        build = materials.kelvin if terms == "compliances" else materials.maxwell
+        return build(v["Einf"], v["nu"], v[terms], v["times"])
+    return _tabulated_material(v, base_dir, source)
+
+
+def _tabulated_material(v: dict, base_dir: pathlib.Path, source: str) -> materials.Tabulated:
+    path = base_dir / v["file"]
+    try:
+        table = np.loadtxt(path, delimiter=",", ndmin=2, comments="#")
+    except (OSError, ValueError) as exc:
+        raise SceneError(source, "[material] file", v["file"], f"must be a readable CSV of numbers t, value "
+                         f"({exc})") from None
+    allowed = ("must hold two columns t (s), value (1/Pa) with t increasing from 0 and values > 0, "
+               "non-decreasing")
+    if table.shape[1] != 2 or table.shape[0] < 1:
+        raise SceneError(source, "[material] file", v["file"], allowed)
+    t, value = table[:, 0], table[:, 1]
+    if (not np.all(np.isfinite(table)) or t[0] != 0 or np.any(np.diff(t) <= 0) or np.any(value <= 0)
+            or np.any(np.diff(value) < 0)):
+        raise SceneError(source, "[material] file", v["file"], allowed)
+    if v["quantity"] == "D":
+        if v["nu"] is None:
+            raise SceneError(source, "[material] nu", MISSING, 'required with quantity = "D"')
+        value = value * (1 - v["nu"] ** 2)
+    return materials.Tabulated(tuple(t), tuple(value))
+
+
+def _check_time(time: Time, table: dict, source: str) -> None:
+    if not table:
+        return
+    if (time.dt is None) == (time.steps_per_cell is None):
+        raise SceneError(source, "[time] dt / steps_per_cell", MISSING, "exactly one of dt (s) or "
+                         "steps_per_cell must be given")
+    if (time.end is None) == (time.distance is None):
+        raise SceneError(source, "[time] end / distance", MISSING, "exactly one of end (s) or distance (m) "
+                         "must be given")
+
+
 def _check_contact_inside(scene: Scene) -> None:
-    """Refuse a penetration whose rigid interference region reaches the grid's edge cells."""
+    """Refuse a start whose rigid interference region reaches the grid's edge cells (displacement control)."""
     if scene.penetration is None:
         return  # load control: checked at each solve, once the penetration is known
     g, (sx, sy) = scene.grid, scene.position
+    delta = float(scene.penetration(0.0))
     edges = [(g.x[[0, -1]][:, None], g.y[None, :]), (g.x[:, None], g.y[[0, -1]][None, :])]
     for x, y in edges:
-        if np.any(scene.penetration - scene.body.height(x - sx, y - sy) > 0):
+        if np.any(delta - scene.body.height(x - sx, y - sy) > 0):
             raise SceneError(scene.source, "[grid] x / y", [[g.x0, g.x1], [g.y0, g.y1]],
                              "must contain the contact region: the body interferes with the surface up to "
                              "the grid's edge; enlarge the grid or reduce [motion] penetration")

@@ -1,61 +1,221 @@
-"""Running a scene: build the grid, body heights and contact solver, solve, write results.h5.
+"""The time loop: body path, preceding displacement from the history, one contact QP per step, outputs.
 
-All functions here are collective over ``comm``: every rank calls them with the same scene.
+Rolling is solved in the material frame (formulation §5): the cells never move; at step n the body sits
+at s(t_n) = position + integral of V, its profile is Z(X - sx, Y - sy), and the history fields stay on
+their cells. The first step (t = 0) is the sudden start: the instantaneous (J(0)) elastic problem. A
+scene without [time] is that single step.
+
+All functions are collective over ``comm``: every rank calls them with the same scene.
 """
 
 from __future__ import annotations
 
+import math
 import pathlib
-import time
+import sys
+import time as clock
+from dataclasses import dataclass
 
 import numpy as np
 from mpi4py import MPI
 
-from petroll.contact import ContactSolver, StepSolution
+from petroll.contact import ContactSolver
+from petroll.errors import SceneError
+from petroll.material import make_history
 from petroll.results import Results, write_results
 from petroll.scene import Scene
 
 
-def solve_static(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD) -> tuple[StepSolution, ContactSolver]:
-    """Solve the scene's single contact step on an elastic half-space; pressure on this rank's rows."""
-    solver = ContactSolver(scene.grid, comm, tao_type=scene.solver.tao_type, tol=scene.solver.tol)
-    height = body_height(scene, solver)
-    compliance = scene.material.compliance
-    if scene.penetration is not None:
-        return solver.solve_penetration(height, compliance, scene.penetration), solver
-    return solver.solve_load(height, compliance, scene.load, scene.body.radius_hint), solver
+@dataclass
+class StepRecord:
+    """What one step reports (global values; formulation §6). Lengths m, forces N, pressures Pa."""
+
+    step: int
+    t: float
+    sx: float
+    sy: float
+    delta: float
+    force: float
+    force_x: float  # rolling resistance along X: sum p dZ/dX dA, > 0 when it resists motion in +X
+    force_y: float
+    mu_r: float  # resisting force along the motion / normal force
+    area: float
+    p_max: float
+    cop_x: float  # centre of pressure relative to the body
+    cop_y: float
+    lead: float  # leading and trailing patch edges along the motion, relative to the body
+    trail: float
+    dissipation: float  # power of the resisting force, W
+    distance: float  # rolled path length so far
+    iterations: int
+    applications: int
+    residual: float
+    solve_time: float
 
 
-def body_height(scene: Scene, solver: ContactSolver, position: tuple[float, float] | None = None):
-    """Z(X - sx, Y - sy) on this rank's rows (m), the body at ``position`` (default: the scene's)."""
-    sx, sy = position if position is not None else scene.position
-    g = scene.grid
-    return scene.body.height(g.x[solver.r0 : solver.r1, None] - sx, g.y[None, :] - sy)
+class Simulation:
+    """A scene being run on ``comm``: owns the contact solver, the history and the step clock."""
+
+    def __init__(self, scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD):
+        self.scene, self.comm = scene, comm
+        self.solver = ContactSolver(scene.grid, comm, tao_type=scene.solver.tao_type, tol=scene.solver.tol)
+        self.history = make_history(scene.material, scene.solver.integrator, self.solver.local_shape)
+        g = scene.grid
+        self.x = g.x[self.solver.r0 : self.solver.r1, None]
+        self.y = g.y[None, :]
+        self.direction = np.array([1.0, 0.0])
+        self.records: list[StepRecord] = []
+        self.pressure = np.zeros(self.solver.local_shape)
+
+    # -- the clock --------------------------------------------------------------------------------------
+    def next_dt(self, t: float, distance: float) -> float | None:
+        """Length of the step after time t (None: the run is over)."""
+        tm = self.scene.time
+        if tm.dt is None and tm.steps_per_cell is None:
+            return None
+        if tm.end is not None and t >= tm.end * (1 - 1e-12):
+            return None
+        if tm.distance is not None and distance >= tm.distance * (1 - 1e-12):
+            return None
+        speed = float(np.hypot(*self.scene.velocity(t)))
+        if tm.dt is not None:
+            dt = tm.dt
+        else:
+            scale = self.scene.velocity.peak()
+            if scale == 0:
+                raise SceneError(self.scene.source, "[time] steps_per_cell", tm.steps_per_cell,
+                                 "needs a moving body: give [time] dt for a body at rest")
+            cell = min(self.scene.grid.dx, self.scene.grid.dy)
+            dt = cell / (tm.steps_per_cell * max(speed, 0.1 * scale))
+        if tm.end is not None:
+            dt = min(dt, tm.end - t)
+        elif speed > 0:
+            dt = min(dt, (tm.distance - distance) / speed * (1 + 1e-9))
+        return dt
+
+    # -- one step ---------------------------------------------------------------------------------------
+    def step(self, t: float, dt: float) -> StepRecord:
+        """Solve the step ending at time t (length dt; dt = 0 is the sudden start)."""
+        scene, solver = self.scene, self.solver
+        start = clock.perf_counter()
+        sx, sy = np.asarray(scene.position) + scene.velocity.integral(t)
+        height = scene.body.height(self.x - sx, self.y - sy)
+        v = self.history.preceding(dt)
+        if v is not None:
+            height = height + solver.influence.window(scene.grid.nx, scene.grid.ny)(v)
+        compliance = self.history.compliance(dt)
+        if scene.penetration is not None:
+            solution = solver.solve_penetration(height, compliance, float(scene.penetration(t)), self.pressure)
+        else:
+            previous = self.records[-1].delta if self.records else None
+            solution = solver.solve_load(height, compliance, float(scene.load(t)), scene.body.radius_hint,
+                                         delta_guess=previous, warm=self.pressure)
+        self.history.advance(solution.pressure, dt)
+        self.pressure = solution.pressure
+        elapsed = clock.perf_counter() - start
+        velocity = np.asarray(scene.velocity(t), dtype=float)
+        if np.hypot(*velocity) > 0:
+            self.direction = velocity / np.hypot(*velocity)
+        distance = self.records[-1].distance if self.records else 0.0
+        if self.records:
+            distance += float(np.hypot(sx - self.records[-1].sx, sy - self.records[-1].sy))
+        record = self._diagnose(len(self.records), t, sx, sy, solution, velocity, distance, elapsed)
+        self.records.append(record)
+        return record
+
+    def _diagnose(self, n, t, sx, sy, solution, velocity, distance, elapsed) -> StepRecord:
+        g, comm, p = self.scene.grid, self.comm, solution.pressure
+        x, y = self.x - sx, self.y - sy
+        slope_x, slope_y = self.scene.body.slope(x, y)
+        d = self.direction
+        along = x * d[0] + y * d[1]
+        contact = p > 0
+        sums = np.array([p.sum(), (p * slope_x).sum(), (p * slope_y).sum(), (p * x).sum(), (p * y).sum(),
+                         contact.sum()], dtype=float)
+        comm.Allreduce(MPI.IN_PLACE, sums, op=MPI.SUM)
+        extremes = np.array([p.max(initial=0.0), np.max(along, where=contact, initial=-np.inf),
+                             -np.min(along, where=contact, initial=np.inf)])
+        comm.Allreduce(MPI.IN_PLACE, extremes, op=MPI.MAX)
+        total, px, py, mx, my, cells = sums
+        area = g.cell_area
+        force, force_x, force_y = total * area, px * area, py * area
+        resisting = force_x * d[0] + force_y * d[1]
+        half = 0.5 * (abs(d[0]) * g.dx + abs(d[1]) * g.dy)
+        has = cells > 0
+        return StepRecord(
+            step=n, t=t, sx=float(sx), sy=float(sy), delta=solution.delta, force=force, force_x=force_x,
+            force_y=force_y, mu_r=resisting / force if has else 0.0, area=cells * area, p_max=extremes[0],
+            cop_x=mx / total if has else math.nan, cop_y=my / total if has else math.nan,
+            lead=extremes[1] + half if has else math.nan, trail=-extremes[2] - half if has else math.nan,
+            dissipation=force_x * velocity[0] + force_y * velocity[1], distance=distance,
+            iterations=solution.iterations, applications=solution.applications, residual=solution.residual,
+            solve_time=elapsed)
+
+    def steady(self) -> bool:
+        """Force and resisting force changed by less than [time] steady (x force) over one patch length."""
+        tol, records = self.scene.time.steady, self.records
+        if tol is None or len(records) < 3 or records[-1].force == 0:
+            return False
+        now = records[-1]
+        length = now.lead - now.trail
+        earlier = [r for r in records[1:-1] if r.distance <= now.distance - length]
+        if not earlier:
+            return False
+        then = earlier[-1]
+        scale = tol * now.force
+        return abs(now.force - then.force) <= scale and abs(now.mu_r * now.force - then.mu_r * then.force) <= scale
 
 
-def run(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, out: str | pathlib.Path | None = None) -> Results:
-    """Run a scene and write ``<out>/results.h5`` (default out: the scene's [output] dir).
+def solve_static(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD):
+    """The scene's first step only (t = 0, instantaneous response); returns (StepRecord, Simulation)."""
+    sim = Simulation(scene, comm)
+    return sim.step(0.0, 0.0), sim
 
-    Returns the results read back from the file, on every rank.
+
+def run(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, out: str | pathlib.Path | None = None,
+        progress: bool = False) -> Results:
+    """Run a scene to its end and write ``<out>/results.h5`` (default out: the scene's [output] dir).
+
+    Returns the results read back from the file, on every rank. ``progress`` prints a status line on
+    rank 0's stderr after every step.
     """
     out = pathlib.Path(out) if out is not None else scene.output_dir
-    start = time.perf_counter()
-    solution, solver = solve_static(scene, comm)
-    elapsed = time.perf_counter() - start
+    sim = Simulation(scene, comm)
     g = scene.grid
-    cells = comm.allreduce(int(np.count_nonzero(solution.pressure > 0)))
-    p_max = comm.allreduce(float(solution.pressure.max(initial=0.0)), op=MPI.MAX)
-    series = {
-        "step": [0], "delta": [solution.delta], "force": [solution.force], "area": [cells * g.cell_area],
-        "p_max": [p_max], "iterations": [solution.iterations], "applications": [solution.applications],
-        "residual": [solution.residual], "solve_time": [elapsed],
-    }
-    field = gather_field(solution.pressure, g.nx, comm)
+    fields, field_steps = [], []
+    t, dt, wall = 0.0, 0.0, clock.perf_counter()
+    while True:
+        record = sim.step(t, dt)
+        next_dt = sim.next_dt(t, record.distance)
+        stop = next_dt is None or sim.steady()
+        if record.step > scene.time.max_steps:
+            raise SceneError(scene.source, "[time] max_steps", scene.time.max_steps,
+                             "the run needs more steps: raise max_steps or the time step")
+        if stop or record.step == 0 or (scene.every and record.step % scene.every == 0):
+            fields.append(gather_field(sim.pressure, g.nx, comm))
+            field_steps.append(record.step)
+        if progress and comm.rank == 0:
+            _show_progress(scene, record, clock.perf_counter() - wall)
+        if stop:
+            break
+        dt = next_dt
+        t += dt
+    if progress and comm.rank == 0:
+        print(file=sys.stderr)
     path = out / "results.h5"
     if comm.rank == 0:
-        write_results(path, series, field[None], np.array([0]), g.x, g.y, scene.text)
+        series = {name: np.array([getattr(r, name) for r in sim.records]) for name in StepRecord.__annotations__}
+        write_results(path, series, np.array(fields), np.array(field_steps), g.x, g.y, scene.text)
     comm.Barrier()
     return Results.open(path)
+
+
+def _show_progress(scene: Scene, r: StepRecord, wall: float) -> None:
+    tm = scene.time
+    done = (r.t / tm.end if tm.end else r.distance / tm.distance if tm.distance else 1.0) or 1e-12
+    left = wall * (1 / done - 1) if done > 0 else math.nan
+    print(f"\rstep {r.step:6d}  t {r.t:.4g} s  distance {r.distance:.4g} m  force {r.force:.5g} N  "
+          f"mu_r {r.mu_r:+.4e}  left ~{left:.0f} s   ", end="", file=sys.stderr, flush=True)
 
 
 def gather_field(local: np.ndarray, nx: int, comm: MPI.Comm) -> np.ndarray | None:

@@ -1,0 +1,392 @@
+"""Scenes: the default scene, every kind of invalid scene (in memory, on disk and through the command line),
+the happy path through the command line and the Python API against Hertz, Scene.replace, and the
+generated scene reference.
+
+Unmarked tests run on every rank under mpirun: they either stay in memory or write only into a directory
+that rank 0 chose and broadcast. Tests that start processes are marked ``serial``.
+"""
+
+import copy
+import math
+import os
+import pathlib
+import subprocess
+import tomllib
+
+import h5py
+import numpy as np
+import pytest
+
+from petroll.bodies import Sphere
+from petroll.contact import DEFAULT_TAO_TYPE
+from petroll.errors import MISSING, PetrollError, SceneError
+from petroll.scene import SCHEMA, Scene, load_scene, parse_scene
+
+ROOT = pathlib.Path(__file__).resolve().parent.parent
+SPHERE = ROOT / "runs" / "sphere.toml"
+PETROLL = ROOT / ".venv" / "bin" / "petroll"
+
+
+def default_raw() -> dict:
+    """The default scene as a fresh dict (the parsed TOML of runs/sphere.toml)."""
+    with open(SPHERE, "rb") as fh:
+        return tomllib.load(fh)
+
+
+def hertz_force(raw: dict, delta: float) -> float:
+    """Hertz: F = 4 sqrt(R) delta^1.5 / (3 J), J = (1 - nu^2) / E, from the scene's own numbers."""
+    m = raw["material"]
+    J = (1.0 - m["nu"] ** 2) / m["E"]
+    return 4.0 * math.sqrt(raw["body"]["radius"]) * delta**1.5 / (3.0 * J)
+
+
+def assert_scene_error(exc: SceneError, source: str, key: str, value_repr: str, allowed) -> None:
+    """The error names the file, the key, the bad value (repr) and what is allowed (a text or several), in
+    the format "source: key = value: allowed"."""
+    message = str(exc)
+    assert isinstance(exc, PetrollError)
+    assert exc.source == source
+    assert exc.key == key, message
+    assert message.startswith(f"{source}: {key} = {value_repr}: "), message
+    for fragment in (allowed,) if isinstance(allowed, str) else allowed:
+        assert fragment in exc.allowed, message
+    assert "\n" not in message
+
+
+@pytest.fixture
+def shared_dir(tmp_path, comm):
+    """A directory that every rank agrees on (rank 0's tmp_path)."""
+    return pathlib.Path(comm.bcast(str(tmp_path) if comm.rank == 0 else None, root=0))
+
+
+def child_env() -> dict:
+    env = dict(os.environ)
+    env.update(OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1", PYTHONDONTWRITEBYTECODE="1")
+    return env
+
+
+def petroll(*args: str, cwd: pathlib.Path) -> subprocess.CompletedProcess:
+    return subprocess.run([str(PETROLL), *args], cwd=cwd, env=child_env(), capture_output=True, text=True,
+                          timeout=120)
+
+
+def write_toml(path: pathlib.Path, raw: dict) -> None:
+    """A scene dict as a TOML file, written with plain str/repr (no dependency on petroll's writer)."""
+
+    def value(v):
+        if isinstance(v, bool):
+            return "true" if v else "false"
+        if isinstance(v, str):
+            return '"' + v + '"'
+        if isinstance(v, list):
+            return "[" + ", ".join(value(item) for item in v) + "]"
+        return repr(v)
+
+    text = "".join(f"[{section}]\n" + "".join(f"{k} = {value(v)}\n" for k, v in table.items()) + "\n"
+                   for section, table in raw.items())
+    path.write_text(text, encoding="utf-8")
+
+
+# -- 1. the default scene ------------------------------------------------------------------------------------
+def test_default_scene_loads_with_the_files_values():
+    raw = default_raw()
+    scene = load_scene(SPHERE)
+    assert isinstance(scene, Scene)
+    assert scene.source == str(SPHERE)
+    assert scene.text == SPHERE.read_text(encoding="utf-8")
+    g = raw["grid"]
+    assert (scene.grid.nx, scene.grid.ny) == (g["nx"], g["ny"]) == (64, 64)
+    assert (scene.grid.x0, scene.grid.x1) == tuple(g["x"])
+    assert (scene.grid.y0, scene.grid.y1) == tuple(g["y"])
+    assert scene.material.E == raw["material"]["E"] == 10.0e6
+    assert scene.material.nu == raw["material"]["nu"] == 0.5
+    assert scene.material.compliance == pytest.approx(0.75 / 10.0e6, rel=1e-15)
+    assert isinstance(scene.body, Sphere)
+    assert scene.body.radius == raw["body"]["radius"] == 0.01
+    assert scene.position == tuple(raw["body"]["position"])
+    assert scene.penetration == raw["motion"]["penetration"] == 20.0e-6
+    assert scene.load is None
+    assert scene.solver.tao_type == DEFAULT_TAO_TYPE
+    assert scene.solver.tol == raw["solver"]["tol"]
+    assert scene.output_dir == pathlib.Path(raw["output"]["dir"])
+    assert scene.raw == raw
+    # the same dict through parse_scene is accepted too (the base of every invalid variant below)
+    assert parse_scene(raw, source="bad.toml").grid == scene.grid
+
+
+# -- 2. invalid scenes, in memory ----------------------------------------------------------------------------
+def _set(section, key, value):
+    def mutate(raw):
+        raw.setdefault(section, {})[key] = value
+
+    return mutate
+
+
+def _drop(section, key):
+    def mutate(raw):
+        del raw[section][key]
+
+    return mutate
+
+
+def _add_section(raw):
+    raw["extra"] = {"a": 1}
+
+
+_GRID_BOX = repr([[-0.8e-3, 0.8e-3], [-0.8e-3, 0.8e-3]])
+
+# (id, mutation of the default scene, key, repr of the value in the message, part of the allowed text)
+INVALID = [
+    ("unknown-section", _add_section, "[extra]", "{'a': 1}", "unknown section"),
+    ("unknown-grid-key", _set("grid", "nz", 3), "[grid] nz", "3", "unknown key"),
+    ("missing-nx", _drop("grid", "nx"), "[grid] nx", "(missing)", "required"),
+    ("missing-E", _drop("material", "E"), "[material] E", "(missing)", "required"),
+    ("nx-float", _set("grid", "nx", 1.5), "[grid] nx", "1.5", "must be an integer >= 1"),
+    ("nx-bool", _set("grid", "nx", True), "[grid] nx", "True", "must be an integer >= 1"),
+    ("nx-zero", _set("grid", "nx", 0), "[grid] nx", "0", "must be an integer >= 1"),
+    ("E-string", _set("material", "E", "soft"), "[material] E", "'soft'", "must be a finite number > 0"),
+    ("x-reversed", _set("grid", "x", [1, 0]), "[grid] x", "[1, 0]", "min < max"),
+    ("x-short", _set("grid", "x", [0]), "[grid] x", "[0]", "must be a pair [min, max]"),
+    ("radius-negative", _set("body", "radius", -1), "[body] radius", "-1", "> 0"),
+    ("nu-too-large", _set("material", "nu", 0.7), "[material] nu", "0.7", "-1 < nu <= 0.5"),
+    ("penetration-and-load", _set("motion", "load", 0.1), "[motion] penetration / load",
+     "{'penetration': 2e-05, 'load': 0.1}", "exactly one of penetration"),
+    ("neither-penetration-nor-load", _drop("motion", "penetration"), "[motion] penetration / load",
+     "(missing)", "exactly one of penetration"),
+    ("unknown-shape", _set("body", "shape", "cube"), "[body] shape", "'cube'",
+     ("must be one of", "sphere", "ellipsoid", "cylinder", "heightmap", "mesh")),
+    ("unknown-body-key", _set("body", "colour", "red"), "[body] colour", "'red'", "unknown key"),
+    ("tao-type", _set("solver", "tao_type", "newton"), "[solver] tao_type", "'newton'",
+     ("must be one of", "'tron'", "'gpcg'", "'blmvm'")),
+    ("tol-too-large", _set("solver", "tol", 0.5), "[solver] tol", "0.5", "between 1e-15 and 0.1"),
+    ("tol-zero", _set("solver", "tol", 0.0), "[solver] tol", "0.0", "> 0"),
+    # rigid interference radius sqrt(2 R delta) = 1.4 mm > the grid's half-width 0.8 mm
+    ("contact-reaches-edge", _set("motion", "penetration", 1e-4), "[grid] x / y", _GRID_BOX,
+     "must contain the contact region"),
+]
+
+
+@pytest.mark.parametrize("mutate, key, value_repr, allowed", [case[1:] for case in INVALID],
+                         ids=[case[0] for case in INVALID])
+def test_invalid_scene_is_refused_naming_file_key_value_and_allowed(mutate, key, value_repr, allowed):
+    raw = default_raw()
+    mutate(raw)
+    before = copy.deepcopy(raw)
+    with pytest.raises(SceneError) as info:
+        parse_scene(raw, source="bad.toml")
+    assert_scene_error(info.value, "bad.toml", key, value_repr, allowed)
+    assert raw == before  # the caller's dict is not modified
+
+
+def test_every_required_key_is_refused_when_missing():
+    """Each schema key without a default, removed alone, is named as the missing key (not some other)."""
+    required = [(section, name) for section, keys in SCHEMA.items() for name, spec in keys.items()
+                if spec.default is MISSING]
+    assert ("grid", "nx") in required and ("body", "shape") in required
+    for section, name in required:
+        raw = default_raw()
+        del raw[section][name]
+        with pytest.raises(SceneError) as info:
+            parse_scene(raw, source="bad.toml")
+        assert_scene_error(info.value, "bad.toml", f"[{section}] {name}", "(missing)", "required")
+
+
+# -- 2. invalid scene files ----------------------------------------------------------------------------------
+FILE_CASES = [
+    ("syntax", b"[grid\nnx = 64\n", "(syntax)", "must be valid TOML"),
+    ("not-utf8", b"[grid]\nnx = 64\n# \xff\xfe caf\xe9\n", "(file)", "must be a UTF-8 text file"),
+]
+
+
+@pytest.mark.parametrize("content, key, allowed", [c[1:] for c in FILE_CASES], ids=[c[0] for c in FILE_CASES])
+def test_invalid_scene_file_is_refused(shared_dir, comm, content, key, allowed):
+    path = shared_dir / "bad.toml"
+    if comm.rank == 0:
+        path.write_bytes(content)
+    comm.Barrier()
+    with pytest.raises(SceneError) as info:
+        load_scene(path)
+    exc = info.value
+    assert exc.source == str(path) and exc.key == key
+    assert str(exc).startswith(f"{path}: {key} = "), str(exc)
+    assert allowed in str(exc)
+    assert "\n" not in str(exc)
+    comm.Barrier()
+
+
+def test_missing_scene_file_is_refused(shared_dir):
+    path = shared_dir / "no-such-scene.toml"
+    with pytest.raises(SceneError) as info:
+        load_scene(path)
+    assert_scene_error(info.value, str(path), "(file)", repr(str(path)), "must be a readable scene file")
+
+
+def test_invalid_value_in_a_scene_file_names_the_file(shared_dir, comm):
+    raw = default_raw()
+    raw["body"]["radius"] = -1
+    path = shared_dir / "negative.toml"
+    if comm.rank == 0:
+        write_toml(path, raw)
+    comm.Barrier()
+    with pytest.raises(SceneError) as info:
+        load_scene(path)
+    assert_scene_error(info.value, str(path), "[body] radius", "-1", "> 0")
+    comm.Barrier()
+
+
+# -- 3. invalid scenes through the command line --------------------------------------------------------------
+CLI_CASES = [
+    ("nu", lambda raw: raw["material"].update(nu=0.7), "[material] nu"),
+    ("unknown-key", lambda raw: raw["grid"].update(nz=3), "[grid] nz"),
+    ("both-motions", lambda raw: raw["motion"].update(load=0.1), "[motion] penetration / load"),
+]
+
+
+@pytest.mark.serial
+@pytest.mark.parametrize("mutate, key", [c[1:] for c in CLI_CASES], ids=[c[0] for c in CLI_CASES])
+def test_cli_bad_scene_one_line_exit_2_output_untouched(tmp_path, mutate, key):
+    raw = default_raw()
+    mutate(raw)
+    scene = tmp_path / "BAD.toml"
+    write_toml(scene, raw)
+    out = tmp_path / "out"
+    out.mkdir()
+    keep = out / "results.h5"
+    keep.write_bytes(b"an earlier result")
+    stamp = keep.stat().st_mtime_ns
+    proc = petroll("run", str(scene), "--out", str(out), cwd=tmp_path)
+    assert proc.returncode == 2, proc.stderr
+    lines = [line for line in proc.stderr.splitlines() if line.strip()]
+    assert len(lines) == 1, proc.stderr
+    assert proc.stderr.strip() == lines[0]
+    assert lines[0].startswith("petroll: error: "), lines[0]
+    assert str(scene) in lines[0] and key in lines[0], lines[0]
+    assert "Traceback" not in proc.stderr and "Traceback" not in proc.stdout
+    assert sorted(p.name for p in out.iterdir()) == ["results.h5"]
+    assert keep.read_bytes() == b"an earlier result" and keep.stat().st_mtime_ns == stamp
+    assert not (tmp_path / "results").exists()  # nor any default output directory
+
+
+@pytest.mark.serial
+@pytest.mark.parametrize("name, content, key", [
+    ("missing.toml", None, "(file)"),
+    ("syntax.toml", b"[grid\n", "(syntax)"),
+    ("latin1.toml", b"# caf\xe9\n", "(file)"),
+])
+def test_cli_unreadable_scene_one_line_exit_2(tmp_path, name, content, key):
+    scene = tmp_path / name
+    if content is not None:
+        scene.write_bytes(content)
+    proc = petroll("run", str(scene), "--out", str(tmp_path / "out"), cwd=tmp_path)
+    assert proc.returncode == 2, proc.stderr
+    lines = [line for line in proc.stderr.splitlines() if line.strip()]
+    assert len(lines) == 1, proc.stderr
+    assert lines[0].startswith(f"petroll: error: {scene}: {key} = "), lines[0]
+    assert "Traceback" not in proc.stderr + proc.stdout
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.serial
+def test_cli_unknown_option_fails_without_traceback(tmp_path):
+    proc = petroll("run", str(SPHERE), "--out", str(tmp_path / "out"), "--bogus", cwd=tmp_path)
+    assert proc.returncode != 0
+    assert "--bogus" in proc.stderr
+    assert "Traceback" not in proc.stderr + proc.stdout
+    assert not (tmp_path / "out").exists()
+
+
+# -- 4. the happy path through the command line --------------------------------------------------------------
+@pytest.mark.serial
+def test_cli_run_default_scene_writes_results_matching_hertz(tmp_path):
+    out = tmp_path / "out"
+    proc = petroll("run", str(SPHERE), "--out", str(out), cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    assert "Traceback" not in proc.stderr + proc.stdout
+    raw = default_raw()
+    with h5py.File(out / "results.h5", "r") as f:
+        series = f["series"]
+        for name in ("force", "delta", "area", "p_max", "iterations"):
+            assert series[name].shape == (1,), name
+        assert f["fields/pressure"].shape == (1, 64, 64)
+        assert f["fields/x"].shape == (64,) and f["fields/y"].shape == (64,)
+        scene_text = f.attrs["scene"]
+        scene_text = scene_text.decode() if isinstance(scene_text, bytes) else str(scene_text)
+        assert scene_text == SPHERE.read_text(encoding="utf-8")
+        delta = float(series["delta"][0])
+        force = float(series["force"][0])
+        pressure = f["fields/pressure"][0]
+        x, y = f["fields/x"][()], f["fields/y"][()]
+        p_max = float(series["p_max"][0])
+    assert delta == raw["motion"]["penetration"]
+    assert force == pytest.approx(hertz_force(raw, delta), rel=5e-3)
+    assert np.all(pressure >= 0) and pressure.max() == pytest.approx(p_max)
+    # cell centres of the scene's grid
+    h = 1.6e-3 / 64
+    assert np.allclose(x, -0.8e-3 + (np.arange(64) + 0.5) * h, rtol=0, atol=1e-15)
+    assert np.allclose(y, x, rtol=0, atol=1e-15)
+    # the pressure integrates to the force
+    assert pressure.sum() * h * h == pytest.approx(force, rel=1e-6)
+    assert not (tmp_path / "results").exists()  # --out wins over the scene's [output] dir
+
+
+# -- 5. in process, on every rank ----------------------------------------------------------------------------
+def test_run_in_process_matches_hertz(comm, shared_dir):
+    from petroll.simulation import run
+
+    raw = default_raw()
+    scene = load_scene(SPHERE)
+    results = run(scene, comm, shared_dir / "disp")
+    delta = float(results.series["delta"][0])
+    assert delta == scene.penetration
+    assert float(results.series["force"][0]) == pytest.approx(hertz_force(raw, delta), rel=5e-3)
+    assert results.pressure.shape == (1, 64, 64)
+    assert results.scene_text == scene.text
+    comm.Barrier()
+
+
+def test_load_control_gives_the_displacement_controlled_penetration(comm, shared_dir):
+    from petroll.simulation import run
+
+    raw = default_raw()
+    scene = load_scene(SPHERE)
+    displaced = run(scene, comm, shared_dir / "disp")
+    force = float(displaced.series["force"][0])
+    loaded_scene = scene.replace("motion.penetration", None).replace("motion.load", force)
+    assert loaded_scene.penetration is None and loaded_scene.load == force
+    loaded = run(loaded_scene, comm, shared_dir / "load")
+    assert float(loaded.series["delta"][0]) == pytest.approx(scene.penetration, rel=5e-3)
+    assert float(loaded.series["force"][0]) == pytest.approx(force, rel=5e-3)
+    assert float(loaded.series["force"][0]) == pytest.approx(hertz_force(raw, scene.penetration), rel=5e-3)
+    comm.Barrier()
+
+
+# -- 6. the generated scene reference ----------------------------------------------------------------------
+def test_docs_scene_md_is_the_generated_reference():
+    from petroll.docs import scene_reference
+
+    assert (ROOT / "docs" / "scene.md").read_text(encoding="utf-8") == scene_reference()
+
+
+# -- 7. Scene.replace ----------------------------------------------------------------------------------------
+@pytest.mark.parametrize("key, value, named, value_repr, allowed", [
+    ("material.nu", 0.7, "[material] nu", "0.7", "-1 < nu <= 0.5"),
+    ("grid.nx", 0, "[grid] nx", "0", "must be an integer >= 1"),
+    ("body.radius", "big", "[body] radius", "'big'", "> 0"),
+    ("solver.tao_type", "newton", "[solver] tao_type", "'newton'", "must be one of"),
+    ("grid.nz", 3, "[grid] nz", "3", "unknown key"),
+    ("nosection", 1, "nosection", "1", "must be written section.key"),
+])
+def test_replace_with_a_bad_value_names_the_key(key, value, named, value_repr, allowed):
+    scene = load_scene(SPHERE)
+    with pytest.raises(SceneError) as info:
+        scene.replace(key, value)
+    assert_scene_error(info.value, scene.source, named, value_repr, allowed)
+    assert scene.material.nu == 0.5 and scene.grid.nx == 64 and "nz" not in scene.raw["grid"]
+
+
+def test_replace_with_a_good_value_returns_a_new_validated_scene():
+    scene = load_scene(SPHERE)
+    smaller = scene.replace("body.radius", 0.005)
+    assert smaller.body.radius == 0.005 and scene.body.radius == 0.01
+    assert smaller.raw["body"]["radius"] == 0.005 and scene.raw["body"]["radius"] == 0.01
+    assert smaller.source == scene.source and smaller.grid == scene.grid
