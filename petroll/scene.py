@@ -303,20 +303,23 @@ class Scene:
     every: int
     base_dir: pathlib.Path = field(repr=False)
 
-    def replace(self, key: str, value: Any) -> "Scene":
-        """A copy with one key changed, e.g. ``scene.replace("motion.load", 2.0)``; validated again.
-
-        A value of None removes the key.
+    def replace(self, changes: str | dict[str, Any], value: Any = None) -> "Scene":
+        """A copy with keys changed, validated again: ``scene.replace("motion.penetration", 3e-5)`` or,
+        for changes that are only valid together, ``scene.replace({"motion.penetration": None,
+        "motion.load": 0.2})``. A value of None removes the key.
         """
+        if isinstance(changes, str):
+            changes = {changes: value}
         raw = copy.deepcopy(self.raw)
-        section, _, name = key.partition(".")
-        if not name:
-            raise SceneError(self.source, key, value, "must be written section.key, e.g. motion.load")
-        table = raw.setdefault(section, {})
-        if value is None:
-            table.pop(name, None)
-        else:
-            table[name] = value
+        for key, new in changes.items():
+            section, _, name = key.partition(".")
+            if not name:
+                raise SceneError(self.source, key, new, "must be written section.key, e.g. motion.load")
+            table = raw.setdefault(section, {})
+            if new is None:
+                table.pop(name, None)
+            else:
+                table[name] = new
         return parse_scene(raw, source=self.source, base_dir=self.base_dir, text=None)
 
 

@@ -13,8 +13,8 @@ serial=$?
 
 echo "== parallel: mpirun -n 2 pytest =="
 log=$(mktemp)
-timeout 1800 mpirun -n 1 "$py" -m pytest -q -p no:cacheprovider "$@" tests \
-  : -n 1 sh -c "\"$py\" -m pytest -q -p no:cacheprovider $* tests > \"$log\" 2>&1"
+timeout 1800 mpirun -n 1 "$py" -m pytest -q --color=no -p no:cacheprovider "$@" tests \
+  : -n 1 sh -c "\"$py\" -m pytest -q --color=no -p no:cacheprovider $* tests > \"$log\" 2>&1"
 parallel=$?
 if [ $parallel -ne 0 ]; then echo "== rank 1 report =="; cat "$log"; fi
 rm -f "$log"
