@@ -117,7 +117,7 @@ def _pressure_figure(results: Results, picks: list[int], label: str):
     vmax = max(float(results.pressure[picks].max(initial=0.0)) / scale, 1e-300)
     cols = min(len(picks), MAX_PANELS)
     rows = -(-len(picks) // cols)
-    figure = _figure(4.2 * cols, 3.9 * rows)
+    figure = _figure(max(4.2 * cols, 6.0), 3.9 * rows)
     axes = np.atleast_1d(figure.subplots(rows, cols, squeeze=False).ravel())
     image = None
     for ax, k in zip(axes, picks):
@@ -211,13 +211,17 @@ def _series_figure(results: Results, label: str):
     force_ax.set_ylabel("normal force (N)", color="tab:blue")
     force_ax.tick_params(axis="y", labelcolor="tab:blue")
     delta_ax = force_ax.twinx()
-    delta_ax.plot(abscissa, s["delta"] * 1e6, color="tab:orange", linestyle="--", **style)
+    delta_ax.plot(abscissa, s["delta"] * 1e6, color="tab:orange", linestyle="--",
+                  **({**style, "marker": "s", "fillstyle": "none"} if style else {}))
+    _widen_flat(force_ax, s["force"], 0.0)
+    _widen_flat(delta_ax, s["delta"] * 1e6, 0.0)
     delta_ax.set_ylabel("penetration (µm)", color="tab:orange")
     delta_ax.tick_params(axis="y", labelcolor="tab:orange")
     force_ax.set_title(f"{label}: normal force and penetration", fontsize=10)
 
     mu_ax.plot(abscissa, s["mu_r"], color="tab:green", **style)
     mu_ax.axhline(0.0, color="grey", linewidth=0.6)
+    _widen_flat(mu_ax, s["mu_r"], 1e-4)
     mu_ax.set_ylabel(r"rolling resistance $\mu_r$ (-)")
     mu_ax.set_title(r"rolling-resistance coefficient $\mu_r$ = resisting force / normal force", fontsize=10)
 
@@ -250,3 +254,16 @@ def _motion_direction(s: dict[str, np.ndarray]) -> np.ndarray | None:
     d = np.array([s["sx"][-1] - s["sx"][0], s["sy"][-1] - s["sy"][0]], dtype=float)
     length = float(np.hypot(*d))
     return d / length if length > 0 else None
+
+
+def _widen_flat(ax, values: np.ndarray, floor: float) -> None:
+    """Plain tick labels, and y-limits spanning at least 10 % of the level (or +-``floor``) for a flat curve."""
+    ax.ticklabel_format(axis="y", useOffset=False)
+    finite = np.asarray(values, dtype=float)[np.isfinite(values)]
+    if finite.size == 0:
+        return
+    lo, hi = float(finite.min()), float(finite.max())
+    half = max(0.05 * max(abs(lo), abs(hi)), floor)
+    if hi - lo < half:
+        mid = 0.5 * (lo + hi)
+        ax.set_ylim(mid - half, mid + half)

@@ -23,12 +23,12 @@ from petroll.errors import MISSING, PetrollError, SceneError
 from petroll.scene import SCHEMA, Scene, load_scene, parse_scene
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
-SPHERE = ROOT / "runs" / "sphere.toml"
+SPHERE = ROOT / "runs" / "hertz.toml"
 PETROLL = ROOT / ".venv" / "bin" / "petroll"
 
 
 def default_raw() -> dict:
-    """The default scene as a fresh dict (the parsed TOML of runs/sphere.toml)."""
+    """The default scene as a fresh dict (the parsed TOML of runs/hertz.toml)."""
     with open(SPHERE, "rb") as fh:
         return tomllib.load(fh)
 
@@ -389,3 +389,9 @@ def test_replace_with_a_good_value_returns_a_new_validated_scene():
     assert smaller.body.radius == 0.005 and scene.body.radius == 0.01
     assert smaller.raw["body"]["radius"] == 0.005 and scene.raw["body"]["radius"] == 0.01
     assert smaller.source == scene.source and smaller.grid == scene.grid
+
+
+@pytest.mark.parametrize("path", sorted((ROOT / "runs").glob("*.toml")), ids=lambda p: p.name)
+def test_every_shipped_scene_is_valid(path):
+    scene = load_scene(path)
+    assert scene.output_dir == pathlib.Path("results") / path.stem

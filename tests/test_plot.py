@@ -1,0 +1,71 @@
+"""``petroll plot``: PNG figures of a small viscoelastic rolling run, and the missing-results error.
+
+The run is collective (every rank), the plotting happens on rank 0 only."""
+
+import pathlib
+
+import pytest
+
+from petroll.cli import main
+from petroll.scene import parse_scene
+from petroll.simulation import run
+
+pytest.importorskip("matplotlib")
+
+from petroll.plot import plot_results, select_fields  # noqa: E402
+
+PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+
+
+def shared_dir(comm, tmp_path) -> pathlib.Path:
+    """Rank 0's tmp_path on every rank (the ranks share a file system)."""
+    return pathlib.Path(comm.bcast(str(tmp_path) if comm.rank == 0 else None, root=0))
+
+
+def rolling_scene():
+    """A sphere (R = 10 mm) rolling 1.2 mm at 0.05 m/s on an SLS half-space: 16 steps, fields every 5."""
+    return parse_scene({
+        "grid": {"nx": 40, "ny": 20, "x": [-0.8e-3, 2.4e-3], "y": [-0.8e-3, 0.8e-3]},
+        "material": {"model": "sls", "E0": 10e6, "Einf": 2e6, "nu": 0.5, "tau_relax": 0.01},
+        "body": {"shape": "sphere", "radius": 0.01},
+        "motion": {"velocity": [0.05, 0.0], "penetration": 2e-5},
+        "time": {"steps_per_cell": 1, "distance": 1.2e-3},
+        "output": {"every": 5},
+    }, source="test_plot")
+
+
+def png_width(path: pathlib.Path) -> int:
+    return int.from_bytes(path.read_bytes()[16:20], "big")  # IHDR width
+
+
+def test_plot_writes_pressure_patches_and_series_pngs(comm, tmp_path):
+    base = shared_dir(comm, tmp_path)
+    results = run(rolling_scene(), comm, base / "run")
+    assert list(results.field_steps) == [0, 5, 10, 15]
+    assert select_fields(results) == [0, 1, 2, 3]
+    assert select_fields(results, [0.0, 0.0075, 1.0]) == [0, 1, 3]  # nearest saved fields (t = 0.008, 0.024 s)
+    if comm.rank != 0:
+        return
+    paths = plot_results(base / "run")
+    assert [p.name for p in paths] == ["pressure.png", "patches.png", "series.png"]
+    for path in paths:
+        assert path.parent == base / "run" / "plots"
+        data = path.read_bytes()
+        assert data[:8] == PNG_MAGIC, path
+        assert len(data) > 10_000, (path, len(data))
+    # Four pressure panels side by side by default; two for two requested times: half the width.
+    two = plot_results(base / "run", base / "two", times=[0.0, 0.016])
+    assert two[0] == base / "two" / "pressure.png"
+    assert png_width(paths[0]) == 2 * png_width(two[0])
+
+
+def test_cli_plot_without_results_exits_2_naming_the_file(comm, tmp_path, capsys):
+    missing = shared_dir(comm, tmp_path) / "not-a-run"
+    code = main(["plot", str(missing)])
+    assert code == 2  # on every rank: rank 0's status is broadcast
+    if comm.rank == 0:
+        err = capsys.readouterr().err
+        lines = [line for line in err.splitlines() if line.strip()]
+        assert len(lines) == 1 and lines[0].startswith("petroll: error: "), err
+        assert str(missing / "results.h5") in lines[0]
+        assert not missing.exists()  # no plots directory created
