@@ -10,9 +10,8 @@ from petroll.cli import main
 from petroll.scene import parse_scene
 from petroll.simulation import run
 
-pytest.importorskip("matplotlib")
 
-from petroll.plot import plot_results, select_fields  # noqa: E402
+from petroll.plot import plot_results, select_fields
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 
