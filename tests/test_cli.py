@@ -1,0 +1,40 @@
+"""PETSc options on the command line reach petroll's own TAO (prefix petroll_) and nothing else."""
+
+import os
+import pathlib
+import subprocess
+import sys
+
+import pytest
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+PETROLL = [sys.executable, "-m", "petroll.cli"]
+
+
+def petroll(*args, cwd):
+    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
+    return subprocess.run([*PETROLL, *args], cwd=cwd, env=env, capture_output=True, text=True, timeout=300)
+
+
+@pytest.mark.serial
+def test_prefixed_tao_options_override_the_scene_and_failures_are_one_clear_line(tmp_path):
+    scene = str(ROOT / "runs" / "hertz.toml")
+    done = petroll("run", scene, "--out", "ok", "-petroll_tao_type", "blmvm", "-petroll_tao_view", cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
+    assert "type: blmvm" in done.stdout  # the scene says tron: the command line won
+    failed = petroll("run", scene, "--out", "bad", "-petroll_tao_type", "blmvm", "-petroll_tao_max_it", "2",
+                     cwd=tmp_path)
+    assert failed.returncode == 2
+    lines = failed.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("petroll: error: TAO (blmvm) did not converge")
+    assert "Traceback" not in failed.stderr
+    assert not (tmp_path / "bad" / "results.h5").exists()
+
+
+@pytest.mark.serial
+def test_unprefixed_tao_options_do_not_leak_into_petroll(tmp_path):
+    scene = str(ROOT / "runs" / "hertz.toml")
+    done = petroll("run", scene, "--out", "ok", "-tao_type", "blmvm", "-tao_max_it", "2", "-petroll_tao_view",
+                   cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
+    assert "type: tron" in done.stdout
