@@ -27,12 +27,14 @@ from mpi4py import MPI
 from petroll.errors import SolverError
 from petroll.grid import Grid, RowPartition, move_rows
 from petroll.influence import InfluenceOperator, shell_matrix
+from petroll.pk import PolonskyKeer
 
-TAO_TYPES = ("tron", "gpcg", "bntr", "bncg", "blmvm", "bqnls", "bnls", "bntl")
-"""TAO's bound-constrained solvers that handle this QP (bqpip is left out: it needs finite upper bounds)."""
+TAO_TYPES = ("tron", "pk", "gpcg", "bntr", "bncg", "blmvm", "bqnls", "bnls", "bntl")
+"""TAO's bound-constrained solvers that handle this QP (bqpip is left out: it needs finite upper bounds),
+and ``pk``, petroll's Polonsky-Keer conjugate gradient as a TAO Python type (petroll/pk.py)."""
 
-DEFAULT_TAO_TYPE = "tron"
-"""Chosen by measurement: see docs/solvers.md."""
+DEFAULT_TAO_TYPE = "pk"
+"""Chosen by measurement: see docs/benchmarks.md."""
 
 
 @dataclass
@@ -58,10 +60,27 @@ class ContactSolver:
     def __init__(self, grid: Grid, comm: MPI.Comm, tao_type: str = DEFAULT_TAO_TYPE, tol: float = 1e-8,
                  prefix: str = "petroll_", max_iterations: int = 10000):
         self.grid, self.comm, self.tol, self.prefix = grid, comm, tol, prefix
-        self.tao_type, self.max_iterations = tao_type, max_iterations
+        self.tao_type, self.max_iterations = self._resolve_type(tao_type, prefix), max_iterations
         self.influence = InfluenceOperator(grid.dx, grid.dy, comm)
         self.rows = RowPartition(grid.nx, comm.size)
         self.r0, self.r1 = self.rows.range(comm.rank)
+
+    @staticmethod
+    def _resolve_type(tao_type: str, prefix: str) -> str:
+        """The scene's type unless -<prefix>tao_type overrides it. ``pk`` on the command line is spelt for
+        TAO as its Python type: -<prefix>tao_type python -<prefix>tao_python_type petroll.pk.PolonskyKeer."""
+        from petsc4py import PETSc
+
+        options = PETSc.Options(prefix)
+        chosen = options.getString("tao_type", tao_type)
+        if chosen == "python" and options.getString("tao_python_type", "") == "petroll.pk.PolonskyKeer":
+            chosen = "pk"
+        if chosen not in TAO_TYPES:
+            raise SolverError(f"-{prefix}tao_type {chosen}: unknown; allowed: {', '.join(TAO_TYPES)}")
+        if chosen == "pk" and options.hasName("tao_type"):
+            options.setValue("tao_type", "python")
+            options.setValue("tao_python_type", "petroll.pk.PolonskyKeer")
+        return chosen
 
     @property
     def local_shape(self) -> tuple[int, int]:
@@ -178,7 +197,11 @@ class ContactSolver:
         lower, upper, grad = x.duplicate(), x.duplicate(), x.duplicate()
         try:
             tao.setOptionsPrefix(self.prefix)
-            tao.setType(self.tao_type)
+            if self.tao_type == "pk":
+                tao.setType("python")
+                tao.setPythonContext(PolonskyKeer())
+            else:
+                tao.setType(self.tao_type)
             tao.setObjectiveGradient(objective_gradient, grad)
             tao.setHessian(lambda tao, p, H, P: None, hessian, hessian)
             lower.set(0.0)

@@ -5,14 +5,14 @@ Love's (1929) rectangle formula A_ij (formulation §2); A has units of length, s
 p in Pa gives w in m, positive into the half-space. A is block-Toeplitz, so A p is a linear (not periodic)
 convolution, applied with zero-padded FFTs (DC-FFT) on a grid whose rows are split over MPI ranks:
 
-    rows:    real FFT along Y (zero-padded to 2 ny) on the local rows
+    rows:    real FFT along Y (zero-padded to ly >= 2 ny - 1) on the local rows
     -> all-to-all transpose: every rank gets all rows of a slab of Y-frequencies
-    -> FFT along X (zero-padded to 2 nx), multiply by the kernel spectrum, inverse FFT along X
+    -> FFT along X (zero-padded to lx >= 2 nx - 1), multiply by the kernel spectrum, inverse FFT along X
     -> transpose back, inverse real FFT along Y, keep the first nx x ny values.
 
-Only the nx x (ny + 1) non-zero half travels in each transpose (the X padding is added after it), so the
-communication is half that of a distributed FFT of the padded 2 nx x 2 ny array (e.g. mpi4py-fft), and no
-rank ever holds the whole field.
+The padded lengths are products of 2, 3 and 5 (fast FFT sizes). Only the nx x (ly/2 + 1) non-zero part
+travels in each transpose (the X padding is added after it), so the communication is half that of a
+distributed FFT of the padded array (e.g. mpi4py-fft), and no rank ever holds the whole field.
 """
 
 from __future__ import annotations
@@ -61,20 +61,22 @@ class Convolution:
 
     def __init__(self, coefficients: np.ndarray, nx: int, ny: int, comm: MPI.Comm = MPI.COMM_SELF):
         self.nx, self.ny, self.comm = nx, ny, comm
+        # padded lengths: >= 2n - 1 (no wrap-around), rounded up to a product of 2, 3 and 5 (fast FFTs)
+        self.lx, self.ly = fft_length(2 * nx - 1), fft_length(2 * ny - 1)
         self.rows = RowPartition(nx, comm.size)
-        self.freqs = RowPartition(ny + 1, comm.size)  # Y-frequencies of the real FFT, split after transposing
+        self.freqs = RowPartition(self.ly // 2 + 1, comm.size)  # Y-frequencies, split after transposing
         self.r0, self.r1 = self.rows.range(comm.rank)
         self.diagonal = float(coefficients[0, 0])
         self.spectrum = self._kernel_spectrum(np.asarray(coefficients)[:nx, :ny])
 
     def _kernel_spectrum(self, table: np.ndarray) -> np.ndarray:
-        """The kernel's 2 nx x 2 ny DFT (real: the kernel is even), for this rank's Y-frequencies."""
+        """The kernel's lx x ly DFT (real: the kernel is even), for this rank's Y-frequencies."""
         nx, ny = self.nx, self.ny
-        padded_rows = RowPartition(2 * nx, self.comm.size)
+        padded_rows = RowPartition(self.lx, self.comm.size)
         k0, k1 = padded_rows.range(self.comm.rank)
-        offsets_x = _wrapped_offsets(2 * nx)[k0:k1]
-        offsets_y = _wrapped_offsets(2 * ny)
-        kernel = np.zeros((k1 - k0, 2 * ny))
+        offsets_x = _wrapped_offsets(self.lx)[k0:k1]
+        offsets_y = _wrapped_offsets(self.ly)
+        kernel = np.zeros((k1 - k0, self.ly))
         valid = (np.abs(offsets_x) < nx)[:, None] & (np.abs(offsets_y) < ny)[None, :]
         ax, ay = np.broadcast_arrays(np.abs(offsets_x)[:, None], np.abs(offsets_y)[None, :])
         kernel[valid] = table[np.minimum(ax, nx - 1), np.minimum(ay, ny - 1)][valid]
@@ -83,20 +85,35 @@ class Convolution:
         return np.ascontiguousarray(np.fft.fft(columns, axis=0).real)
 
     def __call__(self, x: np.ndarray) -> np.ndarray:
-        nx, ny = self.nx, self.ny
-        half = np.fft.rfft(x, n=2 * ny, axis=1)
+        half = np.fft.rfft(x, n=self.ly, axis=1)
         columns = _rows_to_columns(half, self.rows, self.freqs, self.comm)
-        spectrum = np.fft.fft(columns, n=2 * nx, axis=0)
+        spectrum = np.fft.fft(columns, n=self.lx, axis=0)
         spectrum *= self.spectrum
-        columns = np.fft.ifft(spectrum, axis=0)[:nx]
+        columns = np.fft.ifft(spectrum, axis=0)[: self.nx]
         half = _columns_to_rows(columns, self.rows, self.freqs, self.comm)
-        return np.fft.irfft(half, n=2 * ny, axis=1)[:, :ny]
+        return np.fft.irfft(half, n=self.ly, axis=1)[:, : self.ny]
+
+
+def fft_length(n: int) -> int:
+    """The smallest 2^a 3^b 5^c >= n: an FFT length numpy transforms fast."""
+    best = 1 << max(n - 1, 0).bit_length()
+    p5 = 1
+    while p5 < best:
+        p35 = p5
+        while p35 < best:
+            p235 = p35
+            while p235 < n:
+                p235 *= 2
+            best = min(best, p235)
+            p35 *= 3
+        p5 *= 5
+    return best
 
 
 def _wrapped_offsets(n: int) -> np.ndarray:
-    """Offsets 0, 1, ..., n/2 - 1, n/2 (unused: marks the padding), -(n/2 - 1), ..., -1 of an n-point DFT."""
+    """Cell offsets in wrap-around order of an n-point DFT: 0, 1, ..., then negative ones up to -1."""
     k = np.arange(n)
-    return np.where(k < n // 2, k, k - n)
+    return np.where(k <= (n - 1) // 2, k, k - n)
 
 
 def _rows_to_columns(a: np.ndarray, rows: RowPartition, cols: RowPartition, comm: MPI.Comm) -> np.ndarray:

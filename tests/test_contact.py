@@ -77,9 +77,10 @@ def test_wide_cylinder_mid_section_is_plane_strain_hertz(comm):
         assert abs(np.ptp(grid.x[mid > 0]) / 2 + grid.dx / 2 - a) <= grid.dx
 
 
-def test_two_tao_types_agree(comm):
+@pytest.mark.parametrize("other_type", ["blmvm", "pk"])
+def test_two_tao_types_agree(comm, other_type):
     grid, solver, height = sphere_setup(comm, 8, tao_type="tron")
-    other = ContactSolver(grid, comm, tao_type="blmvm", tol=1e-8)
+    other = ContactSolver(grid, comm, tao_type=other_type, tol=1e-8)
     p1 = solver.solve_penetration(height, J, 1e-5).pressure
     p2 = other.solve_penetration(height, J, 1e-5).pressure
     scale = comm.allreduce(p1.max(initial=0), op=MPI.MAX)
