@@ -21,7 +21,7 @@ def test_prefixed_tao_options_override_the_scene_and_failures_are_one_clear_line
     scene = str(ROOT / "runs" / "hertz.toml")
     done = petroll("run", scene, "--out", "ok", "-petroll_tao_type", "blmvm", "-petroll_tao_view", cwd=tmp_path)
     assert done.returncode == 0, done.stderr
-    assert "type: blmvm" in done.stdout  # the scene says tron: the command line won
+    assert "type: blmvm" in done.stdout  # the scene leaves the default (pk): the command line won
     failed = petroll("run", scene, "--out", "bad", "-petroll_tao_type", "blmvm", "-petroll_tao_max_it", "2",
                      cwd=tmp_path)
     assert failed.returncode == 2
@@ -37,4 +37,4 @@ def test_unprefixed_tao_options_do_not_leak_into_petroll(tmp_path):
     done = petroll("run", scene, "--out", "ok", "-tao_type", "blmvm", "-tao_max_it", "2", "-petroll_tao_view",
                    cwd=tmp_path)
     assert done.returncode == 0, done.stderr
-    assert "type: tron" in done.stdout
+    assert "Python: petroll.pk.PolonskyKeer" in done.stdout  # the default, untouched by -tao_type

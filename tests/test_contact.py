@@ -115,10 +115,11 @@ def test_window_qp_equals_the_whole_grid_dense_solution(comm):
 
 
 def test_rank_count_does_not_change_the_answer(comm):
-    """The same load-controlled step on all ranks and on one rank (COMM_SELF) agrees to 1e-10."""
+    """The same load-controlled step on all ranks and on one rank (COMM_SELF) agrees to 1e-10 (solved to
+    1e-13: iterates differ by round-off between rank counts, so only converged answers can agree)."""
     results = []
     for c in (comm, MPI.COMM_SELF):
-        grid, solver, height = sphere_setup(c, 8)
+        grid, solver, height = sphere_setup(c, 8, tol=1e-13)
         step = solver.solve_load(height, J, 0.5 * hertz(1e-5)[1], radius_hint=R)
         field = gather_field(step.pressure, grid.nx, c) if c is comm else step.pressure
         results.append((step.force, step.delta, field))
