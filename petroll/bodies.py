@@ -95,18 +95,22 @@ def _point_pair(source: str, key: str, value: object) -> tuple[float, float]:
 
 
 def _arc(s: np.ndarray, radius: float) -> np.ndarray:
-    """Circular arc R - sqrt(R^2 - s^2) for |s| < R, continued as R + (|s| - R) beyond."""
+    """Circular arc R - sqrt(R^2 - s^2) for |s| < R, continued as R + (|s| - R) beyond.
+
+    Evaluated as s^2 / (R + sqrt((R - s)(R + s))): no cancellation when s << R (R - sqrt(R^2 - s^2) loses
+    all digits once s/R < 1e-8, e.g. a 3 um contact under a 10 m radius) and no overflow of R^2."""
     a = np.abs(s)
     inside = a < radius
-    root = np.sqrt(np.where(inside, radius * radius - a * a, 0.0))
-    return np.where(inside, radius - root, a)
+    root = np.sqrt(np.where(inside, radius - a, 0.0)) * np.sqrt(np.where(inside, radius + a, 0.0))
+    with np.errstate(over="ignore"):  # heights beyond 1e308 m are +inf
+        return np.where(inside, a * (a / (radius + root)), a)
 
 
 def _arc_slope(s: np.ndarray, radius: float) -> np.ndarray:
     """d/ds of :func:`_arc`: s / sqrt(R^2 - s^2) inside, sign(s) (unit slope) for |s| >= R."""
     a = np.abs(s)
     inside = a < radius
-    root = np.sqrt(np.where(inside, radius * radius - a * a, 1.0))
+    root = np.sqrt(np.where(inside, radius - a, 1.0)) * np.sqrt(np.where(inside, radius + a, 1.0))
     return np.where(inside, s / root, np.sign(s))
 
 
@@ -155,7 +159,8 @@ class Sphere(Body):
         r = np.hypot(x, y)
         inside = r < self.radius
         # (dZ/dr) / r: 1/sqrt(R^2 - r^2) inside, 1/r on the unit-slope continuation (where r >= R > 0)
-        denom = np.where(inside, np.sqrt(np.where(inside, self.radius**2 - r * r, 1.0)), r)
+        denom = np.where(inside, np.sqrt(np.where(inside, self.radius - r, 1.0))
+                         * np.sqrt(np.where(inside, self.radius + r, 1.0)), r)
         return x / denom, y / denom
 
     @property
@@ -260,8 +265,8 @@ class Cylinder(Body):
         if e > 0.0:
             u = np.maximum(a - (half - e), 0.0)  # distance into the rounded edge
             rim = u >= e
-            root = np.sqrt(np.where(rim, 1.0, e * e - u * u))
-            z = np.where(rim, e, e - np.where(rim, 0.0, root))
+            root = np.sqrt(np.where(rim, 1.0, (e - u) * (e + u)))
+            z = np.where(rim, e, u * (u / (e + np.where(rim, 0.0, root))))  # e - root, without cancellation
             dz = np.sign(t) * np.where(rim, 1.0, u / root)
         else:
             z = np.zeros_like(a)

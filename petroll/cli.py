@@ -1,29 +1,59 @@
 """The ``petroll`` command: a thin layer over the Python API.
 
     petroll run SCENE.toml [--out DIR] [PETSc options, e.g. -petroll_tao_type gpcg -petroll_tao_monitor]
+    petroll restart CHECKPOINT.h5|DIR [--out DIR] [--scene NEW.toml] [PETSc options]   continue a run
     petroll keys            print the scene reference (docs/scene.md) generated from the schema
+    petroll stability [--fast] [--out DIR]   the stability map (docs/stability.md): CSV and Markdown in DIR
     petroll plot DIR [--out PLOTS] [--times T1,T2,...]   PNG figures of DIR/results.h5 (needs matplotlib)
 
 Options that argparse does not know are handed to PETSc's options database. A user mistake (bad scene,
-unreachable load, solver failure) prints one line ``petroll: error: ...`` and exits with status 2.
+unreachable load, solver failure) prints one line ``petroll: error: ...`` and exits with status 2 (a bad
+command line too); a scene that runs where the formulation loses accuracy prints ``petroll: warning: ...``.
+Under MPI an error raised on every rank is printed once; one raised on some ranks only (the others wait in
+a collective) is printed by the failing rank, which then aborts the whole job (MPI Abort) instead of
+hanging. A run stopped by SIGTERM or SIGINT finishes its step, writes a checkpoint, prints how to continue
+and exits with 128 + the signal number (143, 130); docs/checkpoints.md.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
+import warnings
+
+
+class _Parser(argparse.ArgumentParser):
+    """Command-line mistakes as one line ``petroll: error: ...`` (exit status 2), without the usage text."""
+
+    def error(self, message: str):
+        verb = self.prog.partition(" ")[2]
+        self.exit(2, f"petroll: error: {' '.join(message.split())} (petroll {verb + ' ' if verb else ''}"
+                     "--help lists what is allowed)\n")
 
 
 def _parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="petroll", description=__doc__.split("\n\n")[0],
-                                     epilog="PETSc options (-petroll_tao_type, -log_view, ...) may follow.")
+    parser = _Parser(prog="petroll", description=__doc__.split("\n\n")[0],
+                     epilog="PETSc options (-petroll_tao_type, -log_view, ...) may follow.")
     verbs = parser.add_subparsers(dest="verb", required=True)
     run = verbs.add_parser("run", help="run a scene and write DIR/results.h5")
     run.add_argument("scene", help="scene file (TOML)")
     run.add_argument("--out", help="output directory (default: the scene's [output] dir)")
     run.add_argument("--quiet", action="store_true", help="no progress line (also off when not a terminal)")
+    restart = verbs.add_parser("restart", help="continue a run from a checkpoint to its end "
+                               "(docs/checkpoints.md)")
+    restart.add_argument("checkpoint", help="a checkpoint file, or a run directory (its newest checkpoint)")
+    restart.add_argument("--out", help="output directory (default: the run directory of the checkpoint)")
+    restart.add_argument("--scene", help="scene file replacing the checkpoint's own; it may change only "
+                         "[time] end, distance, steady, max_steps and [output] keys")
+    restart.add_argument("--quiet", action="store_true", help="no progress line (also off when not a "
+                         "terminal)")
     verbs.add_parser("keys", help="print the scene reference generated from the schema (Markdown)")
+    stability = verbs.add_parser("stability", help="sweep the stability map, write CSV and Markdown "
+                                 "(docs/stability.md); exit status 1 if a run fails its checks")
+    stability.add_argument("--fast", action="store_true", help="only the subset that the test suite runs")
+    stability.add_argument("--out", default="results/stability", help="directory for stability.csv and .md")
     bench = verbs.add_parser("bench", help="run a benchmark, print its table and write CSV (docs/benchmarks.md)")
     bench.add_argument("which", choices=["tao"], help="tao: every TAO type on the Hertz step")
     bench.add_argument("--out", default="results/bench", help="directory for the CSV files")
@@ -78,37 +108,141 @@ def main(argv: list[str] | None = None) -> int:
     from mpi4py import MPI
 
     from petroll.errors import PetrollError
+    from petroll.limits import PetrollWarning
 
     comm = MPI.COMM_WORLD
     if args.verb == "plot":
         return _plot(args, comm)
+    errors = comm.Dup() if comm.size > 1 else None  # only for agreeing on an error (see _failed)
     try:
-        if args.verb == "keys":
-            from petroll.docs import scene_reference
-
-            if comm.rank == 0:
-                print(scene_reference(), end="")
-            return 0
-        if args.verb == "bench":
-            import pathlib
-
-            from petroll.bench import tao_types
-
-            tao_types(pathlib.Path(args.out), comm)
-            return 0
-        from petroll.scene import load_scene
-        from petroll.simulation import run
-
-        start = time.perf_counter()
-        scene = load_scene(args.scene)
-        results = run(scene, comm, args.out, progress=not args.quiet and sys.stderr.isatty())
-        if comm.rank == 0:
-            print(summary(scene, results, wall=time.perf_counter() - start))
-        return 0
+        with warnings.catch_warnings():
+            warnings.simplefilter("always", PetrollWarning)
+            warnings.showwarning = _warning_line(comm)
+            return _main(args, comm)
     except PetrollError as exc:
+        return _failed(comm, errors, "petroll: error: " + " ".join(str(exc).splitlines()), 2)
+    except MemoryError:
+        return _failed(comm, errors, "petroll: error: out of memory: the scene needs more memory than this "
+                       "machine has; use fewer cells ([grid] nx, ny) or more ranks (mpirun -n)", 2)
+    except Exception:
+        if errors is None:
+            raise  # a bug: its traceback, as always
+        import traceback
+
+        return _failed(comm, errors, traceback.format_exc().rstrip(), 1)
+    finally:
+        if errors is not None:
+            errors.Free()
+
+
+ERROR_AGREEMENT_S = 3.0
+"""How long a rank that failed waits for the others to fail too before it aborts the job (s)."""
+
+
+def _failed(comm, errors, message: str, code: int) -> int:
+    """This rank raised: print the message once and return ``code`` if every rank raised (a collective
+    error, e.g. a bad scene: they all reach the barrier of ``errors``, a communicator used for nothing else);
+    otherwise the others wait in some collective: print it, then abort all ranks (MPI Abort)."""
+    if errors is None:  # one rank
+        print(message, file=sys.stderr, flush=True)
+        return code
+    request = errors.Ibarrier()
+    deadline = time.monotonic() + ERROR_AGREEMENT_S
+    while not request.Test():
+        if time.monotonic() > deadline:
+            lines = message.splitlines()
+            lines[-1] += f" (on rank {comm.rank} of {comm.size} only; ending all ranks)"
+            print("\n".join(lines), file=sys.stderr, flush=True)
+            comm.Abort(code)
+        time.sleep(0.005)
+    if comm.rank == 0:
+        print(message, file=sys.stderr, flush=True)
+    return code
+
+
+def _test_failure(comm) -> None:
+    """Test hook: PETROLL_TEST_FAIL_RANK=R makes rank R alone raise a SolverError here (=R:crash, a
+    RuntimeError), as a rank-local failure would; tests/test_bad_input.py checks that all ranks end."""
+    hook = os.environ.get("PETROLL_TEST_FAIL_RANK")
+    if not hook:
+        return
+    rank, _, kind = hook.partition(":")
+    if rank.strip() == str(comm.rank):
+        if kind == "crash":
+            raise RuntimeError(f"test failure on rank {comm.rank} (PETROLL_TEST_FAIL_RANK)")
+        from petroll.errors import SolverError
+
+        raise SolverError(f"test failure on rank {comm.rank} (PETROLL_TEST_FAIL_RANK)")
+
+
+def _warning_line(comm):
+    """warnings.showwarning for the command line: PetrollWarnings as one line, on rank 0."""
+    from petroll.limits import PetrollWarning
+
+    original = warnings.showwarning
+
+    def show(message, category, filename, lineno, file=None, line=None):
+        if issubclass(category, PetrollWarning):
+            if comm.rank == 0:
+                print(f"petroll: warning: {message}", file=sys.stderr, flush=True)
+        else:
+            original(message, category, filename, lineno, file, line)
+
+    return show
+
+
+def _main(args: argparse.Namespace, comm) -> int:
+    """The verbs other than plot (every rank)."""
+    if args.verb == "keys":
+        from petroll.docs import scene_reference
+
         if comm.rank == 0:
-            print(f"petroll: error: {exc}", file=sys.stderr)
-        return 2
+            print(scene_reference(), end="")
+        return 0
+    if args.verb == "bench":
+        import pathlib
+
+        from petroll.bench import tao_types
+
+        tao_types(pathlib.Path(args.out), comm)
+        return 0
+    if args.verb == "stability":
+        from petroll.stability import command
+
+        return command(args.out, args.fast, comm)
+    from petroll.checkpoint import RunInterrupted, StopRequest
+    from petroll.scene import load_scene
+    from petroll.simulation import run
+
+    start = time.perf_counter()
+    if args.verb == "restart":
+        scene, checkpoint, out = _restart_inputs(args, comm)
+    else:
+        scene, checkpoint, out = load_scene(args.scene), None, args.out
+    _test_failure(comm)
+    stop = StopRequest()
+    try:
+        with stop.handling():
+            results = run(scene, comm, out, progress=not args.quiet and sys.stderr.isatty(),
+                          restart=checkpoint, stop=stop)
+    except RunInterrupted as exc:
+        if comm.rank == 0:
+            print(f"petroll: {scene.source}: {exc}; continue with: petroll restart {exc.checkpoint}",
+                  file=sys.stderr)
+        return exc.exit_code
+    if comm.rank == 0:
+        print(summary(scene, results, wall=time.perf_counter() - start))
+    return 0
+
+
+def _restart_inputs(args: argparse.Namespace, comm):
+    """``petroll restart``: (scene, checkpoint, output directory), all checked before anything is written."""
+    from petroll.checkpoint import latest_checkpoint, read_checkpoint, restart_scene, run_directory
+
+    path = latest_checkpoint(args.checkpoint)
+    checkpoint = read_checkpoint(path, comm)
+    scene = restart_scene(checkpoint, args.scene)
+    return scene, checkpoint, args.out if args.out is not None else run_directory(path)
 
 
 def summary(scene, results, wall: float) -> str:

@@ -103,6 +103,11 @@ class ContactSolver:
         ``radius_hint`` above the lowest height.
         """
         base = self.comm.allreduce(float(np.min(height, initial=np.inf)), op=MPI.MIN)
+        if not load > 0:  # no load: no contact, the body just touches (a pulling load needs adhesion)
+            if not load == 0:
+                raise SolverError(f"[motion] load: {load:g} N; must be >= 0 (a pulling load needs adhesion, "
+                                  "which petroll does not model)")
+            return StepSolution(np.zeros(self.local_shape), base, 0.0, 0, 0, 0.0, (0, 0, 0, 0))
         if delta_guess is None or delta_guess <= base:
             delta_guess = base + (3 * compliance * load / (4 * math.sqrt(radius_hint))) ** (2 / 3)
         rtol = 10 * self.tol

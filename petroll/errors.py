@@ -23,7 +23,8 @@ class SceneError(PetrollError):
 
     def __init__(self, source: str, key: str, value: object, allowed: str):
         self.source, self.key, self.value, self.allowed = source, key, value, allowed
-        super().__init__(f"{source}: {key} = {value!r}: {allowed}")
+        shown = source if str(source).isprintable() else repr(str(source))  # a file name with a newline...
+        super().__init__(f"{shown}: {key} = {value!r}: {allowed}")
 
 
 class SolverError(PetrollError):

@@ -7,13 +7,25 @@ length): one convolution per step, whatever the number of Prony terms.
 
 Integrators (``[solver] integrator``):
 
-- ``exponential`` (Prony materials, the default): exact for a displacement linear in time within a step,
-  second order, unconditionally stable; state p^n and one field q_r per term.
+- ``relaxation`` (Prony materials, the default): the relaxation form p = G * dW (G the convolution inverse
+  of J, a Maxwell series) integrated exactly for a displacement W linear in time within a step; second
+  order, and monotone: a held displacement relaxes exactly (no overshoot below the relaxed modulus, no
+  ringing), whatever the step (docs/stability.md). State p^n and one field s_k per relaxation term.
+- ``exponential`` (Prony materials): the creep form, exact for a *pressure* linear in time within a step;
+  second order and stable, but after a sudden change of displacement with a step longer than about the
+  relaxation time the pressure undershoots the relaxed value and rings (with E0/Einf = 1e4 the contact is
+  lost at a fixed penetration); petroll refuses such steps (``guard``). State p^n and one field q_r per
+  term.
 - ``paper`` (Yin et al. 2015): J frozen at J(0) over the newest step, exact J for older increments;
   first order. For a Prony series the hereditary sum collapses to the same recursion as ``exponential``
   with beta_r = 1; for a tabulated J it is the full hereditary sum over all past increments.
 
 A sudden start (the first step, t = 0) is the instantaneous response: J_eff = J(0).
+
+Histories made by :func:`make_history` are *guarded*: at every new step length they run the integrator on
+one cell held at a fixed displacement after a sudden start (:func:`holding_violation`) and refuse, with a
+SolverError naming the largest safe step, a step at which the pressure leaves the bounds set by the
+relaxed and instantaneous moduli by more than 1 % of their difference (unstable or ringing).
 """
 
 from __future__ import annotations
@@ -22,6 +34,12 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+
+from petroll.errors import SolverError
+
+GUARD_VIOLATION = 0.01
+"""The largest excursion of a held cell's pressure outside [1/Jinf, 1/J0], as a fraction of that range,
+that a guarded history accepts (:func:`holding_violation`)."""
 
 
 @dataclass(frozen=True)
@@ -93,18 +111,56 @@ def maxwell(Einf: float, nu: float, moduli, times) -> Prony:
     for k in range(len(rates)):
         lo = -rates[k]
         hi = -rates[k - 1] if k > 0 else 0.0
-        a, b = lo + 1e-15 * abs(lo), hi - 1e-15 * abs(hi) if hi else 0.0
-        for _ in range(200):
-            mid = 0.5 * (a + b)
-            if g(mid) > 0:
-                b = mid
-            else:
-                a = mid
-            if b - a <= 4e-16 * abs(mid):
-                break
-        zeros.append(0.5 * (a + b))
+        zeros.append(_bisect(g, lo + 1e-15 * abs(lo), hi - 1e-15 * abs(hi) if hi else 0.0, rising=True))
     dD = [-1.0 / (z * dg(z)) for z in zeros]
     return kelvin(Einf, nu, dD, [-1.0 / z for z in zeros])
+
+
+def _bisect(f, a: float, b: float, rising: bool) -> float:
+    """The zero of a monotone f in (a, b) (rising: f < 0 near a and > 0 near b), by bisection to round-off."""
+    for _ in range(400):
+        mid = 0.5 * (a + b)
+        if (f(mid) > 0) == rising:
+            b = mid
+        else:
+            a = mid
+        if abs(b - a) <= 4e-16 * abs(mid):
+            break
+    return 0.5 * (a + b)
+
+
+def relaxation_series(material: Prony) -> tuple[float, tuple[float, ...], tuple[float, ...]]:
+    """The surface relaxation modulus G(t) = Ginf + sum_k dG[k] exp(-t / theta[k]) (Pa, s) of a Prony
+    creep compliance J: the convolution inverse, int_0^t G(t - s) dJ(s) = 1.
+
+    With h(s) = s J~(s) = J0 + sum_r dJ_r a_r / (s + a_r) (a_r = 1 / tau_r), s G~(s) = 1 / h(s): G has the
+    poles 0 (residue 1 / Jinf) and the zeros z_k of h, one in each gap between consecutive -a_r and one
+    below the fastest, -a_max - sum_r dJ_r a_r / J0 < z < -a_max (found by bisection to round-off);
+    dG_k = 1 / (z_k h'(z_k)) > 0, theta_k = -1 / z_k.
+    """
+    if not material.dJ:
+        return 1.0 / material.Jinf, (), ()
+    dJ = np.asarray(material.dJ, dtype=float)
+    rates = 1.0 / np.asarray(material.tau, dtype=float)
+    order = np.argsort(rates)
+    dJ, rates = dJ[order], rates[order]
+    J0 = material.J0
+
+    def h(s):
+        return J0 + np.sum(dJ * rates / (s + rates))
+
+    def dh(s):
+        return -np.sum(dJ * rates / (s + rates) ** 2)
+
+    # h decreases on each bracket from > 0 at its left end (+inf just right of a pole) to -inf (left of -a)
+    brackets = [(-rates[k + 1] * (1 - 1e-15), -rates[k] * (1 + 1e-15)) for k in range(len(rates) - 1)]
+    brackets.append((-rates[-1] - float(np.sum(dJ * rates)) / J0, -rates[-1] * (1 + 1e-15)))
+    zeros = []
+    for a, b in brackets:
+        zeros.append(_bisect(h, a, b, rising=False))
+    dG = tuple(float(1.0 / (z * dh(z))) for z in zeros)
+    theta = tuple(float(-1.0 / z) for z in zeros)
+    return 1.0 / material.Jinf, dG, theta
 
 
 @dataclass(frozen=True)
@@ -138,10 +194,21 @@ class PronyHistory:
     exponential integrator. ``dt = 0`` is a jump (the sudden first step).
     """
 
+    guard = False  # True (make_history): refuse step lengths at which the scheme cannot hold a penetration
+    _safe: set | None = None
+
     def __init__(self, material: Prony, local_shape: tuple[int, int], beta_one: bool = False):
         self.material, self.beta_one = material, beta_one
         self.pressure = np.zeros(local_shape)
         self.q = [np.zeros(local_shape) for _ in material.dJ]
+
+    @property
+    def name(self) -> str:
+        return "paper" if self.beta_one else "exponential"
+
+    def guard_step(self, dt: float) -> None:
+        """Raise SolverError if this integrator cannot hold a penetration at steps of dt (guarded only)."""
+        _guard(self, dt)
 
     def _coefficients(self, dt: float):
         for d, tau in zip(self.material.dJ, self.material.tau):
@@ -151,6 +218,7 @@ class PronyHistory:
 
     def compliance(self, dt: float) -> float:
         """J_eff of the next step, of length dt (s)."""
+        self.guard_step(dt)
         return self.material.Jinf - sum(d * beta for d, _, beta in self._coefficients(dt))
 
     def preceding(self, dt: float) -> np.ndarray | None:
@@ -170,11 +238,94 @@ class PronyHistory:
         self.pressure = pressure.copy()
 
 
+class RelaxationHistory(PronyHistory):
+    """The relaxation form for a Prony material: p = G * dW with G(t) = Ginf + sum_k dG_k exp(-t/theta_k)
+    (:func:`relaxation_series`) and W the displacement in pressure space (w = A W), W linear in time within
+    a step (exact exponential integration: second order, and exact for a held displacement).
+
+    With e_k = exp(-dt/theta_k), gamma_k = theta_k (1 - e_k)/dt (1 at dt = 0) and s_k the Maxwell
+    internal fields (s_k' = W' - s_k/theta_k):
+
+        p^{n+1} = G_eff W^{n+1} + sum_k dG_k (e_k s_k^n - gamma_k W^n),   G_eff = Ginf + sum_k dG_k gamma_k
+
+    so W^{n+1} = J_eff p^{n+1} + v with J_eff = 1/G_eff and v = -sum_k dG_k (e_k s_k^n - gamma_k W^n)/G_eff:
+    the same step problem as the creep form. ``pressure`` is p^n; ``q`` holds the fields s_k (what a
+    checkpoint stores); W^n is kept and rebuilt from them (W = (p - sum dG_k s_k)/Ginf) when they are set.
+    """
+
+    def __init__(self, material: Prony, local_shape: tuple[int, int]):
+        self.material, self.beta_one = material, False
+        self.Ginf, self.dG, self.theta = relaxation_series(material)
+        self._pressure = np.zeros(local_shape)
+        self._q = [np.zeros(local_shape) for _ in self.dG]
+        self._W = np.zeros(local_shape)
+
+    @property
+    def name(self) -> str:
+        return "relaxation"
+
+    # setting the state from outside (a restart) rebuilds W from it
+    @property
+    def pressure(self) -> np.ndarray:
+        return self._pressure
+
+    @pressure.setter
+    def pressure(self, value: np.ndarray) -> None:
+        self._pressure, self._W = value, None
+
+    @property
+    def q(self) -> list[np.ndarray]:
+        return self._q
+
+    @q.setter
+    def q(self, value: list[np.ndarray]) -> None:
+        self._q, self._W = value, None
+
+    @property
+    def displacement(self) -> np.ndarray:
+        """W^n, the displacement in pressure space (w = A W, dimensionless)."""
+        if self._W is None:
+            self._W = (self._pressure - sum((d * s for d, s in zip(self.dG, self._q)), 0.0)) / self.Ginf
+        return self._W
+
+    def _coefficients(self, dt: float):
+        for d, theta in zip(self.dG, self.theta):
+            decay = math.exp(-dt / theta)
+            gamma = 1.0 if dt == 0 else -math.expm1(-dt / theta) * theta / dt
+            yield d, decay, gamma
+
+    def compliance(self, dt: float) -> float:
+        self.guard_step(dt)
+        return 1.0 / (self.Ginf + sum(d * gamma for d, _, gamma in self._coefficients(dt)))
+
+    def preceding(self, dt: float) -> np.ndarray | None:
+        if not self._q:
+            return None
+        W = self.displacement
+        c = np.zeros_like(self._pressure)
+        for (d, decay, gamma), s in zip(self._coefficients(dt), self._q):
+            c += d * (decay * s - gamma * W)
+        return -c * self.compliance(dt)
+
+    def advance(self, pressure: np.ndarray, dt: float) -> None:
+        v = self.preceding(dt)
+        W0 = self.displacement
+        W1 = self.compliance(dt) * pressure + (v if v is not None else 0.0)
+        for (_, decay, gamma), s in zip(self._coefficients(dt), self._q):
+            s *= decay
+            s += gamma * (W1 - W0)
+        self._pressure, self._W = pressure.copy(), W1
+
+
 class HereditaryHistory:
     """The paper's scheme for any J(t): the full hereditary sum over all past pressure increments.
 
     w_n = sum_m J(t_n - t_m) A (p_m - p_{m-1}); cost and memory grow with the step count.
     """
+
+    guard = False
+    _safe: set | None = None
+    name = "paper"
 
     def __init__(self, material, local_shape: tuple[int, int]):
         self.material = material
@@ -182,7 +333,11 @@ class HereditaryHistory:
         self.times: list[float] = []
         self.increments: list[np.ndarray] = []
 
+    def guard_step(self, dt: float) -> None:
+        _guard(self, dt)
+
     def compliance(self, dt: float) -> float:
+        self.guard_step(dt)
         return float(self.material(0.0))
 
     def preceding(self, dt: float) -> np.ndarray | None:
@@ -200,8 +355,81 @@ class HereditaryHistory:
         self.pressure = pressure.copy()
 
 
-def make_history(material, integrator: str, local_shape: tuple[int, int]):
-    """The integrator ``integrator`` ("exponential" or "paper") for ``material`` on this rank's rows."""
+def make_history(material, integrator: str, local_shape: tuple[int, int], guard: bool = True):
+    """The integrator ``integrator`` ("relaxation", "exponential" or "paper") for ``material`` on this
+    rank's rows; ``guard``: refuse step lengths at which it cannot hold a penetration (:func:`_guard`)."""
+    if isinstance(material, Prony) and integrator == "relaxation":
+        history = RelaxationHistory(material, local_shape)
+    elif isinstance(material, Prony):
+        history = PronyHistory(material, local_shape, beta_one=integrator == "paper")
+    else:
+        history = HereditaryHistory(material, local_shape)
+    history.guard = guard
+    return history
+
+
+# -- the holding test ---------------------------------------------------------------------------------------
+def holding_response(material, integrator: str, dt: float, steps: int = 40) -> np.ndarray:
+    """Pressures (Pa) of one cell (unit influence) held at a unit displacement in pressure space from a
+    sudden start at t = 0, with steps of dt, as the integrator computes them: the exact answer is the
+    relaxation modulus G(t), between 1/Jinf and 1/J0 and non-increasing."""
+    history = make_history(material, integrator, (1, 1), guard=False)
+    pressures = []
+    for n in range(steps):
+        step = 0.0 if n == 0 else dt
+        v = history.preceding(step)
+        p = (1.0 - (0.0 if v is None else v)) / history.compliance(step)
+        history.advance(np.asarray(p, dtype=float).reshape(1, 1), step)
+        pressures.append(float(np.asarray(p).ravel()[0]))
+    return np.array(pressures)
+
+
+def holding_violation(material, integrator: str, dt: float) -> float:
+    """How far the held cell's pressure (:func:`holding_response`) leaves [1/Jinf, 1/J0], as a fraction of
+    that range (0: it stays inside)."""
+    lo, hi = 1.0 / material.Jinf, 1.0 / material.J0
+    if not hi > lo * (1 + 1e-12):
+        return 0.0
+    p = holding_response(material, integrator, dt)
+    if not np.all(np.isfinite(p)):
+        return math.inf
+    return max(lo - p.min(), p.max() - hi, 0.0) / (hi - lo)
+
+
+def largest_safe_step(material, integrator: str, dt: float) -> float:
+    """The largest step below dt (to 1 %) at which the holding violation stays within GUARD_VIOLATION."""
+    lo, hi = math.log(dt) - math.log(1e9), math.log(dt)  # lo: a step far below every material time
+    if holding_violation(material, integrator, math.exp(lo)) > GUARD_VIOLATION:
+        return 0.0
+    while hi - lo > 0.01:
+        mid = 0.5 * (lo + hi)
+        if holding_violation(material, integrator, math.exp(mid)) > GUARD_VIOLATION:
+            hi = mid
+        else:
+            lo = mid
+    return math.exp(lo)
+
+
+def _guard(history, dt: float) -> None:
+    if not history.guard or dt <= 0:
+        return
+    if history._safe is None:
+        history._safe = set()
+    if dt in history._safe:
+        return
+    material, name = history.material, history.name
+    violation = holding_violation(material, name, dt)
+    if violation <= GUARD_VIOLATION:
+        history._safe.add(dt)
+        return
+    safe = largest_safe_step(material, name, dt)
+    p = holding_response(material, name, dt)
+    what = "oscillates outside" if np.any(np.diff(p[1:]) * np.diff(p[:-1]) < 0) else "leaves"
+    remedy = f"a time step <= {safe:.3g} s (fixed [time] dt, or more steps_per_cell)"
     if isinstance(material, Prony):
-        return PronyHistory(material, local_shape, beta_one=integrator == "paper")
-    return HereditaryHistory(material, local_shape)
+        remedy += ' or integrator = "relaxation" (the default for Prony materials)'
+    raise SolverError(
+        f"[solver] integrator = {name!r} cannot hold a penetration with this material at a time step of "
+        f"{dt:.3g} s: on a cell held at a fixed displacement after a sudden start, the pressure it computes "
+        f"{what} the bounds set by the relaxed and instantaneous moduli by {violation:.3g} of their "
+        f"difference (E0/Einf = {material.Jinf / material.J0:.3g}); use {remedy}")

@@ -4,10 +4,13 @@
     /fields/pressure      (n_saved, nx, ny) pressure in Pa, axis 1 along X
     /fields/step          (n_saved,) step number of each saved field
     /fields/x, /fields/y  cell-centre coordinates in m (material frame)
-    attributes            scene (the scene's TOML text), petroll_version, format_version
+    /mesh/xy              ((nx + 1) (ny + 1), 2) cell-corner coordinates in m, for the XDMF file
+    attributes            scene (the scene's TOML text), petroll_version, format_version, complete
+                          (False while the run goes on: written at a checkpoint), last_step
 
 The file is written by rank 0 to a temporary name and renamed into place, so a reader never sees a
-half-written file.
+half-written file, and a run killed at any moment leaves the previous complete file. Next to it,
+``results.xdmf`` describes the saved pressure fields as a time series for ParaView (docs/checkpoints.md).
 """
 
 from __future__ import annotations
@@ -20,8 +23,13 @@ import h5py
 import numpy as np
 
 from petroll import __version__
+from petroll.errors import PetrollError
 
 FORMAT_VERSION = 1
+
+
+class OutputError(PetrollError):
+    """An output file or directory that cannot be written (the message names it and the reason)."""
 
 SERIES_UNITS = {
     "step": "-", "t": "s", "sx": "m", "sy": "m", "delta": "m", "force": "N", "force_x": "N", "force_y": "N",
@@ -43,6 +51,7 @@ class Results:
     x: np.ndarray  # (nx,) cell centres, m
     y: np.ndarray  # (ny,) cell centres, m
     scene_text: str
+    complete: bool = True  # False: written at a checkpoint of a run that goes on (or was interrupted)
 
     @classmethod
     def open(cls, path: str | pathlib.Path) -> "Results":
@@ -52,31 +61,128 @@ class Results:
             series = {name: f["series"][name][()] for name in f["series"]}
             fields = f["fields"]
             return cls(path, series, fields["pressure"][()], fields["step"][()], fields["x"][()],
-                       fields["y"][()], str(f.attrs["scene"]))
+                       fields["y"][()], str(f.attrs["scene"]), bool(f.attrs.get("complete", True)))
 
 
 def write_results(path: pathlib.Path, series: dict[str, np.ndarray], pressure: np.ndarray,
-                  field_steps: np.ndarray, x: np.ndarray, y: np.ndarray, scene_text: str) -> None:
-    """Write a complete results file atomically (temporary file, fsync, rename). Call on one rank."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+                  field_steps: np.ndarray, x: np.ndarray, y: np.ndarray, scene_text: str,
+                  complete: bool = True) -> None:
+    """Write a complete results file and its ``.xdmf`` companion atomically (temporary file, fsync,
+    rename). Call on one rank. Raises :class:`OutputError` (the previous files are left as they were)."""
+    path = pathlib.Path(path)
+    nx, ny = len(x), len(y)
     try:
-        with h5py.File(tmp, "w") as f:
+        path.parent.mkdir(parents=True, exist_ok=True)
+
+        def fill(f):
             f.attrs["scene"] = scene_text
             f.attrs["petroll_version"] = __version__
             f.attrs["format_version"] = FORMAT_VERSION
+            f.attrs["complete"] = bool(complete)
+            steps = np.asarray(series.get("step", []))
+            f.attrs["last_step"] = int(steps[-1]) if steps.size else -1
             group = f.create_group("series")
             for name, values in series.items():
-                group.create_dataset(name, data=np.asarray(values)).attrs["units"] = SERIES_UNITS.get(name, "-")
+                dataset = group.create_dataset(name, data=np.asarray(values))
+                dataset.attrs["units"] = SERIES_UNITS.get(name, "-")
             fields = f.create_group("fields")
-            fields.create_dataset("pressure", data=pressure, compression="gzip", compression_opts=1,
-                                  shuffle=True).attrs["units"] = "Pa"
-            fields.create_dataset("step", data=field_steps)
+            data = np.asarray(pressure, dtype=float).reshape(-1, nx, ny)
+            packed = {}
+            if len(data):
+                packed = dict(compression="gzip", compression_opts=1, shuffle=True, chunks=(1, nx, ny))
+            fields.create_dataset("pressure", data=data, **packed).attrs["units"] = "Pa"
+            fields.create_dataset("step", data=np.asarray(field_steps, dtype=np.int64))
             fields.create_dataset("x", data=x).attrs["units"] = "m"
             fields.create_dataset("y", data=y).attrs["units"] = "m"
+            f.create_group("mesh").create_dataset("xy", data=cell_corners(x, y), compression="gzip",
+                                                  compression_opts=1).attrs["units"] = "m"
+
+        atomic_write(path, lambda tmp: _write_hdf5(tmp, fill))
+        times = np.asarray(series["t"])[np.asarray(field_steps, dtype=int)] if len(field_steps) else []
+        text = xdmf_text(path.name, nx, ny, list(np.asarray(field_steps, dtype=int)), list(times))
+        atomic_write(path.with_suffix(".xdmf"), lambda tmp: tmp.write_text(text, encoding="utf-8"))
+    except OSError as exc:
+        raise OutputError(f"{path}: cannot write the results ({_reason(exc)}); the previous results file, if "
+                          "any, is unchanged") from None
+
+
+def _write_hdf5(tmp: pathlib.Path, fill) -> None:
+    with h5py.File(tmp, "w") as f:
+        fill(f)
+
+
+def atomic_write(path: pathlib.Path, write) -> None:
+    """Write ``path`` as a whole or not at all: ``write(tmp)`` fills a temporary file in the same directory,
+    which is fsynced and renamed over ``path`` (the directory is fsynced too). On any failure the temporary
+    file is removed and ``path`` keeps its previous contents."""
+    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
+    try:
+        write(tmp)
         with open(tmp, "rb") as fh:
             os.fsync(fh.fileno())
         os.replace(tmp, path)
+        sync_directory(path.parent)
     finally:
         if tmp.exists():
             tmp.unlink()
+
+
+def sync_directory(directory: pathlib.Path) -> None:
+    """fsync a directory, so that a rename in it survives a crash of the machine (where the OS allows it)."""
+    try:
+        fd = os.open(directory, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
+
+
+def _reason(exc: BaseException) -> str:
+    """An exception's message on one line."""
+    text = exc.strerror if isinstance(exc, OSError) and exc.strerror and not exc.filename else str(exc)
+    return " ".join(str(text or type(exc).__name__).split())
+
+
+def cell_corners(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """((nx + 1) (ny + 1), 2) corner coordinates of the cells centred at x, y (uniform), the last axis
+    (Y) varying fastest: the geometry of a 2DSMesh whose cell (i, j) is pressure[i, j]."""
+    dx = (x[-1] - x[0]) / (len(x) - 1) if len(x) > 1 else 1.0
+    dy = (y[-1] - y[0]) / (len(y) - 1) if len(y) > 1 else 1.0
+    xe = np.concatenate([x - dx / 2, [x[-1] + dx / 2]])
+    ye = np.concatenate([y - dy / 2, [y[-1] + dy / 2]])
+    X, Y = np.meshgrid(xe, ye, indexing="ij")
+    return np.stack([X.ravel(), Y.ravel()], axis=1)
+
+
+def xdmf_text(h5_name: str, nx: int, ny: int, field_steps: list[int], times: list[float]) -> str:
+    """XDMF 2 describing the saved pressure fields of ``h5_name`` (same directory) as a temporal collection
+    of structured grids over the HDF5 datasets: no data is copied. ParaView: File > Open results.xdmf."""
+    n = len(field_steps)
+    corners = f"{(nx + 1) * (ny + 1)} 2"
+    lines = ['<?xml version="1.0" ?>', '<!DOCTYPE Xdmf SYSTEM "Xdmf.dtd" []>',
+             '<Xdmf Version="2.0">', "  <Domain>",
+             '    <Grid Name="pressure" GridType="Collection" CollectionType="Temporal">']
+    for k, (step, t) in enumerate(zip(field_steps, times)):
+        lines += [
+            f'      <Grid Name="step {int(step)}" GridType="Uniform">',
+            f'        <Time Value="{float(t)!r}"/>',
+            f'        <Topology TopologyType="2DSMesh" Dimensions="{nx + 1} {ny + 1}"/>',
+            '        <Geometry GeometryType="XY">',
+            f'          <DataItem Dimensions="{corners}" NumberType="Float" Precision="8" Format="HDF">'
+            f"{h5_name}:/mesh/xy</DataItem>",
+            "        </Geometry>",
+            '        <Attribute Name="pressure" AttributeType="Scalar" Center="Cell">',
+            f'          <DataItem ItemType="HyperSlab" Dimensions="1 {nx} {ny}" Type="HyperSlab">',
+            f'            <DataItem Dimensions="3 3" Format="XML">{k} 0 0 1 1 1 1 {nx} {ny}</DataItem>',
+            f'            <DataItem Dimensions="{n} {nx} {ny}" NumberType="Float" Precision="8" Format="HDF">'
+            f"{h5_name}:/fields/pressure</DataItem>",
+            "          </DataItem>",
+            "        </Attribute>",
+            "      </Grid>",
+        ]
+    lines += ["    </Grid>", "  </Domain>", "</Xdmf>", ""]
+    return "\n".join(lines)

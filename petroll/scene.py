@@ -59,6 +59,17 @@ def _count(value: Any) -> int:
     return int(value)
 
 
+MAX_CELLS_AXIS, MAX_CELLS = 2**24, 2**31 - 1
+"""Grid size limits: PETSc's 32-bit indices number at most 2^31 - 1 cells; 2^24 per axis keeps the
+coordinate arrays small (a grid that long is never needed)."""
+
+
+def _cells(value: Any) -> int:
+    if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= MAX_CELLS_AXIS:
+        raise _Invalid(f"must be an integer >= 1, at most {MAX_CELLS_AXIS} (2^24)")
+    return int(value)
+
+
 def _interval(value: Any) -> tuple[float, float]:
     allowed = "must be a pair [min, max] of finite numbers with min < max"
     if not isinstance(value, list) or len(value) != 2:
@@ -146,12 +157,19 @@ def _program(vector: bool, positive: bool) -> Callable[[Any], Any]:
             kind, keys = value.get("kind"), set(value) - {"kind"}
             if kind == "ramp" and keys == {"start", "end", "duration"}:
                 start = np.array(_point(value["start"])) if vector else np.array(_number(value["start"]))
+                if positive and not vector and start < 0:  # a load ramp may start from 0, never below
+                    raise _Invalid(f"start = {float(start):g} must be >= 0 (a pulling load needs adhesion, "
+                                   "which petroll does not model)")
                 return motion.Ramp(start, value_of(value["end"]), _positive(value["duration"]))
             if kind == "sinusoidal" and {"mean", "amplitude", "period"} <= keys <= {"mean", "amplitude",
                                                                                     "period", "phase"}:
                 amplitude = np.array(_point(value["amplitude"])) if vector else np.array(
                     _number(value["amplitude"]))
-                return motion.Sinusoidal(value_of(value["mean"]), amplitude, _positive(value["period"]),
+                mean = value_of(value["mean"])
+                if positive and not vector and mean - abs(amplitude) < 0:
+                    raise _Invalid(f"mean - |amplitude| = {float(mean - abs(amplitude)):g} must be >= 0 (a "
+                                   "pulling load needs adhesion, which petroll does not model)")
+                return motion.Sinusoidal(mean, amplitude, _positive(value["period"]),
                                          _number(value.get("phase", 0.0)))
             if kind == "tabulated" and keys == {"t", "value"}:
                 times = np.array(_numbers(value["t"]))
@@ -183,8 +201,8 @@ MODEL_KEYS: dict[str, tuple[set[str], set[str]]] = {
 
 SCHEMA: dict[str, dict[str, Key]] = {
     "grid": {
-        "nx": Key("integer", "number of cells along X", _count),
-        "ny": Key("integer", "number of cells along Y", _count),
+        "nx": Key("integer", "number of cells along X, 1 ... 2^24 (nx ny at most 2^31 - 1)", _cells),
+        "ny": Key("integer", "number of cells along Y, 1 ... 2^24 (nx ny at most 2^31 - 1)", _cells),
         "x": Key("[min, max]", "extent of the grid along X in the material frame", _interval, unit="m"),
         "y": Key("[min, max]", "extent of the grid along Y in the material frame", _interval, unit="m"),
     },
@@ -247,9 +265,12 @@ SCHEMA: dict[str, dict[str, Key]] = {
     "solver": {
         "tao_type": Key("string", "TAO bound-constrained solver for each contact QP (command line: "
                         "-petroll_tao_type)", _choice(*TAO_TYPES), default=DEFAULT_TAO_TYPE),
-        "integrator": Key("string", 'time integrator: "exponential" (Prony/SLS, second order; the default) or '
-                          '"paper" (J frozen at J(0) over the newest step; the only one for tabulated)',
-                          _choice("exponential", "paper"), default=None),
+        "integrator": Key("string", 'time integrator: "relaxation" (Prony/SLS, the default: second order, '
+                          'exact for a held penetration), "exponential" (Prony/SLS, creep form, second '
+                          'order) or "paper" (J frozen at J(0) over the newest step; the only one for '
+                          'tabulated); steps at which one cannot hold a penetration are refused '
+                          '(docs/stability.md)',
+                          _choice("relaxation", "exponential", "paper"), default=None),
         "tol": Key("number", "relative tolerance on the contact conditions: max |min(p, gap)| in units "
                    "of the largest interference (gap) and its pressure (p)", _tolerance, default=1e-8),
     },
@@ -258,6 +279,10 @@ SCHEMA: dict[str, dict[str, Key]] = {
                    "default results/<scene file name without .toml>", _text, default=None),
         "every": Key("integer", "save the pressure field every this many steps (0: first and last only)",
                      _count0, default=0),
+        "checkpoint_every": Key("integer", "write a restart checkpoint to DIR/checkpoints every this many "
+                                "steps and at the end (0: none; SIGTERM/SIGINT always write one; "
+                                "docs/checkpoints.md)", _count0, default=0),
+        "keep": Key("integer", "number of newest checkpoints kept in DIR/checkpoints", _count, default=2),
     },
 }
 """Every section and key of a version-1 scene. [body] also takes the keys of its shape (BODY_KEYS)."""
@@ -268,7 +293,7 @@ SCHEMA: dict[str, dict[str, Key]] = {
 class Solver:
     tao_type: str
     tol: float
-    integrator: str  # "exponential" or "paper"
+    integrator: str  # "relaxation", "exponential" or "paper"
 
 
 @dataclass(frozen=True)
@@ -302,6 +327,8 @@ class Scene:
     output_dir: pathlib.Path
     every: int
     base_dir: pathlib.Path = field(repr=False)
+    checkpoint_every: int = 0  # steps between checkpoints (0: none)
+    keep: int = 2  # checkpoints kept
 
     def replace(self, changes: str | dict[str, Any], value: Any = None) -> "Scene":
         """A copy with keys changed, validated again: ``scene.replace("motion.penetration", 3e-5)`` or,
@@ -355,6 +382,9 @@ def parse_scene(raw: dict, source: str = "<python>", base_dir: str | pathlib.Pat
     values = {name: _read_section(raw, name, source) for name in SCHEMA}
 
     g = values["grid"]
+    if g["nx"] * g["ny"] > MAX_CELLS:
+        raise SceneError(source, "[grid] nx / ny", [g["nx"], g["ny"]], f"at most {MAX_CELLS} cells in all "
+                         "(nx ny; PETSc's 32-bit indices)")
     grid = Grid(g["nx"], g["ny"], *g["x"], *g["y"])
     material = _material(values["material"], raw.get("material", {}), base_dir, source)
     body = make_body(raw.get("body", {}), base_dir, source)
@@ -367,8 +397,8 @@ def parse_scene(raw: dict, source: str = "<python>", base_dir: str | pathlib.Pat
     _check_time(time, raw.get("time", {}), source)
     integrator = values["solver"]["integrator"]
     if integrator is None:
-        integrator = "exponential" if isinstance(material, materials.Prony) else "paper"
-    elif integrator == "exponential" and not isinstance(material, materials.Prony):
+        integrator = "relaxation" if isinstance(material, materials.Prony) else "paper"
+    elif integrator in ("relaxation", "exponential") and not isinstance(material, materials.Prony):
         raise SceneError(source, "[solver] integrator", integrator,
                          'a tabulated material takes only "paper" (the hereditary sum)')
     out = values["output"]["dir"]
@@ -377,8 +407,12 @@ def parse_scene(raw: dict, source: str = "<python>", base_dir: str | pathlib.Pat
                   material=material, body=body, position=values["body"]["position"],
                   velocity=m["velocity"], penetration=m["penetration"], load=m["load"], time=time,
                   solver=Solver(values["solver"]["tao_type"], values["solver"]["tol"], integrator),
-                  output_dir=output_dir, every=values["output"]["every"], base_dir=base_dir)
+                  output_dir=output_dir, every=values["output"]["every"], base_dir=base_dir,
+                  checkpoint_every=values["output"]["checkpoint_every"], keep=values["output"]["keep"])
     _check_contact_inside(scene)
+    from petroll.limits import check_scene  # slopes beyond the linear theory: refused or warned
+
+    check_scene(scene)
     return scene
 
 
@@ -474,6 +508,10 @@ def _check_time(time: Time, table: dict, source: str) -> None:
     if (time.end is None) == (time.distance is None):
         raise SceneError(source, "[time] end / distance", MISSING, "exactly one of end (s) or distance (m) "
                          "must be given")
+    if time.dt is not None and time.end is not None and time.end / time.dt > time.max_steps + 1:
+        raise SceneError(source, "[time] dt", time.dt, f"too small: end / dt = {time.end / time.dt:.3g} "
+                         f"steps, more than [time] max_steps = {time.max_steps}; raise max_steps or the "
+                         "time step")
 
 
 def _check_contact_inside(scene: Scene) -> None:

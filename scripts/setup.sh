@@ -64,8 +64,18 @@ if ! has_petsc "$venv/bin/python"; then
   say "building PETSc and petsc4py from PyPI: this takes about 20 minutes"
   "$venv/bin/python" -m pip install -q "petsc" "petsc4py" "mpi4py" "h5py"
 fi
-"$venv/bin/python" -m pip install -q --no-build-isolation -e ".[test]" 2>/dev/null \
-  || "$venv/bin/python" -m pip install -q -e ".[test]"
+# petroll itself without dependency resolution, then only the modules that do not import: pip must not
+# shadow the system's builds (Debian's MPI h5py, numpy 1.x that petsc4py was compiled against).
+"$venv/bin/python" -m pip install -q --no-deps --no-build-isolation -e . 2>/dev/null \
+  || "$venv/bin/python" -m pip install -q --no-deps -e .
+missing=()
+for module in numpy h5py meshio pytest hypothesis scipy matplotlib; do
+  "$venv/bin/python" -c "import $module" 2>/dev/null || missing+=("$module")
+done
+if [ ${#missing[@]} -gt 0 ]; then
+  say "installing from PyPI: ${missing[*]}"
+  "$venv/bin/python" -m pip install -q "${missing[@]}"
+fi
 "$venv/bin/python" -c "import petsc4py, mpi4py, h5py, meshio, petroll"
 echo "$want" > "$stamp"
 say "ready: $venv"

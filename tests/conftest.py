@@ -15,16 +15,18 @@ def comm():
 
 
 def pytest_collection_modifyitems(config, items):
-    """Under MPI, run the tests marked ``serial`` only once (rank 0 would deadlock nobody: they use no MPI)."""
-    if MPI.COMM_WORLD.size > 1:
-        skip = [item for item in items if item.get_closest_marker("serial")]
-        for item in skip:
-            items.remove(item)
-        config.hook.pytest_deselected(items=skip)
+    """Tests marked ``serial`` (they start their own processes) run in the serial pass only, tests marked
+    ``parallel`` (they compare rank counts) in the ``mpirun -n 2`` pass only."""
+    other = "serial" if MPI.COMM_WORLD.size > 1 else "parallel"
+    chosen = [item for item in items if item.get_closest_marker(other)]
+    for item in chosen:
+        items.remove(item)
+    config.hook.pytest_deselected(items=chosen)
 
 
 def pytest_configure(config):
     config.addinivalue_line("markers", "serial: a test that starts its own processes; run in the serial pass")
+    config.addinivalue_line("markers", "parallel: a test that needs 2 ranks; run in the mpirun -n 2 pass")
 
 
 @pytest.hookimpl(hookwrapper=True)

@@ -1,0 +1,617 @@
+"""Restart checkpoints: the complete state of a run in one HDF5 file, written atomically.
+
+See docs/checkpoints.md.
+
+A checkpoint ``DIR/checkpoints/step-NNNNNNNN.h5`` holds everything the time loop needs to continue after
+step N exactly as if it had never stopped (format version 1, readable with plain h5py):
+
+    attributes   format = "petroll-checkpoint", format_version, petroll_version, ranks (the rank count
+                 that wrote it), step, t (s), next_dt (s; NaN: the run was over), nx, ny, history
+                 ("prony" or "hereditary"), integrator (as resolved), scene (the TOML text),
+                 scene_source, base_dir (for the
+                 scene's relative files), fingerprint (of the material and body as used), created, sha256
+    /state/pressure      (nx, ny)      pressure of step N, Pa (axis 0 along X)
+    /state/q             (R, nx, ny)   the Prony state fields (history "prony", R terms): q_r of the creep
+                                       form (integrators exponential, paper) or the Maxwell fields s_k of
+                                       the relaxation form
+    /state/displacement  (nx, ny)      W, the relaxation form's displacement in pressure space (integrator
+                                       relaxation): kept as computed, so that the restart is bitwise
+    /state/times         (n,)          times of all past steps, s        (history "hereditary")
+    /state/increments    (n, nx, ny)   all past pressure increments, Pa  (history "hereditary")
+    /state/direction     (2,)          the last direction of motion (for the diagnostics)
+    /series/<name>       (N + 1,)      the per-step series so far (as in results.h5)
+    /fields/pressure     (n_saved, nx, ny), /fields/step (n_saved,): the pressure fields saved so far
+
+Each dataset carries the SHA-256 of its contents (attribute ``sha256``); the file's ``sha256`` attribute
+covers its other attributes and the datasets' digests, so any change of the content is found on reading.
+
+Writing is collective: every rank's rows are gathered to rank 0 one field at a time and rank 0 writes
+(h5py without MPI: the virtual environment's h5py is serial). The file is written under a temporary
+name in the same directory, fsynced and renamed, then the directory is fsynced: a run killed at any
+moment leaves every earlier checkpoint intact. Only the newest ``[output] keep`` are kept.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import datetime
+import hashlib
+import math
+import os
+import pathlib
+import re
+import signal
+import threading
+import tomllib
+from dataclasses import dataclass
+
+import h5py
+import numpy as np
+from mpi4py import MPI
+
+from petroll import __version__
+from petroll.errors import MISSING, PetrollError, SceneError
+from petroll.grid import RowPartition
+from petroll.material import PronyHistory
+from petroll.results import _reason, sync_directory
+
+FORMAT = "petroll-checkpoint"
+FORMAT_VERSION = 1
+"""The checkpoint layout written here; files of a larger version are refused."""
+
+SAFE_KEYS = {"time": {"end", "distance", "steady", "max_steps"},
+             "output": {"dir", "every", "checkpoint_every", "keep"}}
+"""Scene keys that a restart may change (everything else must equal the checkpoint's scene)."""
+
+PACKED = dict(compression="gzip", compression_opts=1, shuffle=True)
+"""How fields are stored: gzip (in every HDF5 build) after byte shuffling, fast level."""
+
+_NAME = re.compile(r"^step-(\d+)\.h5$")
+_ATTRS = ("format", "format_version", "petroll_version", "ranks", "step", "t", "next_dt", "nx", "ny",
+          "history", "integrator", "scene", "scene_source", "base_dir", "fingerprint", "created", "sha256")
+
+
+class CheckpointError(PetrollError):
+    """A checkpoint that cannot be written or used; the message names the file and what is wrong."""
+
+
+class RunInterrupted(Exception):
+    """The run stopped early on a signal after writing ``checkpoint`` (step ``step``, time ``t``)."""
+
+    def __init__(self, signum: int, step: int, t: float, checkpoint: pathlib.Path):
+        self.signum, self.step, self.t, self.checkpoint = int(signum), step, t, checkpoint
+        super().__init__(f"interrupted by {self.signal_name} after step {step} (t = {t:.6g} s); checkpoint "
+                         f"{checkpoint}")
+
+    @property
+    def signal_name(self) -> str:
+        try:
+            return signal.Signals(self.signum).name
+        except ValueError:
+            return f"signal {self.signum}"
+
+    @property
+    def exit_code(self) -> int:
+        """128 + the signal number, as a shell reports a process ended by that signal (143, 130)."""
+        return 128 + self.signum
+
+
+class StopRequest:
+    """A request to stop after the current step, set by SIGTERM/SIGINT (``handling()``) or by ``request``.
+
+    The ranks agree on it once per step (``agreed``: a max-reduction), so all stop after the same step
+    even when the signal reached only some of them.
+    """
+
+    def __init__(self) -> None:
+        self.signum = 0
+
+    def request(self, signum: int = signal.SIGTERM) -> None:
+        if not self.signum:
+            self.signum = int(signum)
+
+    def agreed(self, comm: MPI.Comm) -> int:
+        """The signal number some rank received (0: none). Collective."""
+        return int(comm.allreduce(self.signum, op=MPI.MAX))
+
+    @contextlib.contextmanager
+    def handling(self, signals=(signal.SIGTERM, signal.SIGINT)):
+        """Within the block, the first SIGTERM or SIGINT sets the request; a second one acts as it did
+        before (SIGTERM kills, SIGINT raises KeyboardInterrupt). Outside the main thread: nothing."""
+        if threading.current_thread() is not threading.main_thread():
+            yield self
+            return
+        previous = {s: signal.getsignal(s) for s in signals}
+
+        def handler(signum, frame):
+            self.request(signum)
+            signal.signal(signum, previous[signum])
+
+        for s in signals:
+            signal.signal(s, handler)
+        try:
+            yield self
+        finally:
+            for s, h in previous.items():
+                signal.signal(s, h)
+
+
+# -- where checkpoints live -------------------------------------------------------------------------------
+def checkpoint_dir(out: str | pathlib.Path) -> pathlib.Path:
+    """The checkpoints of a run writing to ``out``."""
+    return pathlib.Path(out) / "checkpoints"
+
+
+def checkpoint_path(directory: pathlib.Path, step: int) -> pathlib.Path:
+    return pathlib.Path(directory) / f"step-{step:08d}.h5"
+
+
+def list_checkpoints(directory: str | pathlib.Path) -> list[pathlib.Path]:
+    """The checkpoint files of ``directory``, oldest step first (temporary files of a killed writer are
+    not checkpoints and are left out)."""
+    directory = pathlib.Path(directory)
+    if not directory.is_dir():
+        return []
+    found = [(int(m.group(1)), p) for p in directory.iterdir() if (m := _NAME.match(p.name)) and p.is_file()]
+    return [p for _, p in sorted(found)]
+
+
+def latest_checkpoint(path: str | pathlib.Path) -> pathlib.Path:
+    """``path`` itself if it is a file, else the newest checkpoint of a run directory (or of its
+    checkpoints directory); CheckpointError if there is none."""
+    path = pathlib.Path(path)
+    if not path.is_dir():
+        return path
+    for directory in (checkpoint_dir(path), path):
+        found = list_checkpoints(directory)
+        if found:
+            return found[-1]
+    raise CheckpointError(f"{path}: no checkpoint (step-NNNNNNNN.h5) in this directory or in its "
+                          "checkpoints/")
+
+
+def run_directory(checkpoint: str | pathlib.Path) -> pathlib.Path:
+    """The output directory of the run that wrote ``checkpoint`` (the parent of its checkpoints/)."""
+    parent = pathlib.Path(checkpoint).resolve().parent
+    return parent.parent if parent.name == "checkpoints" else parent
+
+
+# -- writing ----------------------------------------------------------------------------------------------
+def write_checkpoint(directory: str | pathlib.Path, sim, t: float, next_dt: float | None, fields: list,
+                     field_steps: list[int], keep: int = 2) -> pathlib.Path:
+    """Write the state of ``sim`` after its last step (time ``t``; ``next_dt`` the step that follows, None
+    if none) with the fields saved so far (``fields``: rank 0's list, same length elsewhere), then remove
+    all but the newest ``keep`` checkpoints of earlier steps. Collective over ``sim.comm``; returns the
+    path. CheckpointError if the file cannot be written (every earlier checkpoint stays as it was).
+    """
+    from petroll.simulation import StepRecord, gather_field
+
+    comm, scene = sim.comm, sim.scene
+    g, history = scene.grid, sim.history
+    step = len(sim.records) - 1
+    path = checkpoint_path(pathlib.Path(directory), step)
+    sink = _Sink(path, comm)
+    prony = isinstance(history, PronyHistory)
+    sink.array("state/pressure", lambda: gather_field(history.pressure, g.nx, comm))
+    sink.array("state/direction", lambda: np.asarray(sim.direction, dtype=float))
+    if prony:
+        sink.stack("state/q", (len(history.q), g.nx, g.ny), lambda r: gather_field(history.q[r], g.nx, comm))
+        if _has_displacement(history):
+            sink.array("state/displacement", lambda: gather_field(history.displacement, g.nx, comm))
+    else:
+        sink.array("state/times", lambda: np.asarray(history.times, dtype=float))
+        sink.stack("state/increments", (len(history.increments), g.nx, g.ny),
+                   lambda m: gather_field(history.increments[m], g.nx, comm))
+    for name in StepRecord.__annotations__:
+        sink.array(f"series/{name}", lambda name=name: np.array([getattr(r, name) for r in sim.records]))
+    sink.array("fields/step", lambda: np.asarray(field_steps, dtype=np.int64))
+    sink.stack("fields/pressure", (len(field_steps), g.nx, g.ny), lambda k: fields[k])
+    attrs = {
+        "format": FORMAT, "format_version": FORMAT_VERSION, "petroll_version": __version__,
+        "ranks": comm.size, "step": step, "t": float(t),
+        "next_dt": math.nan if next_dt is None else float(next_dt),
+        "nx": g.nx, "ny": g.ny, "history": "prony" if prony else "hereditary",
+        "integrator": scene.solver.integrator, "scene": scene.text,
+        "scene_source": scene.source, "base_dir": str(pathlib.Path(scene.base_dir).resolve()),
+        "fingerprint": fingerprint(scene) if comm.rank == 0 else "",
+        "created": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+    }
+    sink.finish(attrs, keep)
+    return path
+
+
+def _has_displacement(history) -> bool:
+    """Whether the history keeps W, the displacement in pressure space, besides p and its fields (the
+    relaxation form: W is rebuilt from p and s_k when they are set, equal only to round-off)."""
+    return isinstance(getattr(type(history), "displacement", None), property)
+
+
+def _write_dataset(f: h5py.File, name: str, data: np.ndarray) -> str:
+    """One whole dataset (gzip-compressed when 2-D or more); returns its digest."""
+    data = np.ascontiguousarray(data)
+    packed = PACKED if data.ndim >= 2 and data.size else {}
+    f.create_dataset(name, data=data, **packed)
+    return _digest_of(name, data)
+
+
+def _digest_of(name: str, data: np.ndarray) -> str:
+    h = _hasher(name, data.dtype, data.shape)
+    h.update(np.ascontiguousarray(data).tobytes())
+    return h.hexdigest()
+
+
+def _hasher(name: str, dtype, shape):
+    return hashlib.sha256(f"{name}|{np.dtype(dtype).str}|{tuple(int(n) for n in shape)}|".encode())
+
+
+class _Sink:
+    """The file a checkpoint is written to on rank 0 (its temporary name), and the first error met there.
+
+    Every rank calls every method in the same order (the producers gather collectively); rank 0 writes.
+    After an error rank 0 keeps producing (so no rank waits forever) but writes no more.
+    """
+
+    def __init__(self, path: pathlib.Path, comm: MPI.Comm):
+        self.path, self.comm = path, comm
+        self.tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
+        self.file, self.error, self.digests = None, None, {}
+        self._guard(self._open)
+
+    def _guard(self, action, *args) -> None:
+        if self.comm.rank != 0 or self.error is not None:
+            return
+        try:
+            action(*args)
+        except Exception as exc:  # noqa: BLE001 - reported on every rank by finish()
+            self.error = exc
+
+    def _open(self) -> None:
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self.file = h5py.File(self.tmp, "w")
+
+    def array(self, name: str, produce) -> None:
+        """A dataset whose data ``produce()`` returns on rank 0 (it is called on every rank)."""
+        data = produce()
+        self._guard(self._array, name, data)
+
+    def _array(self, name: str, data) -> None:
+        self.digests[name] = _write_dataset(self.file, name, np.asarray(data))
+
+    def stack(self, name: str, shape: tuple[int, int, int], produce) -> None:
+        """A (count, nx, ny) dataset filled one slice at a time: ``produce(i)`` (called on every rank)."""
+        self._guard(self._create, name, shape)
+        hasher = _hasher(name, np.float64, shape)
+        for i in range(shape[0]):
+            part = produce(i)
+            self._guard(self._fill, name, i, part, hasher)
+        self._guard(lambda: self.digests.__setitem__(name, hasher.hexdigest()))
+
+    def _create(self, name: str, shape) -> None:
+        packed = dict(PACKED, chunks=(1, *shape[1:])) if shape[0] else {}
+        self.file.create_dataset(name, shape=shape, dtype=np.float64, **packed)
+
+    def _fill(self, name: str, i: int, part: np.ndarray, hasher) -> None:
+        part = np.ascontiguousarray(part, dtype=np.float64)
+        self.file[name][i] = part
+        hasher.update(part.tobytes())
+
+    def finish(self, attrs: dict, keep: int) -> None:
+        self._guard(self._close, attrs)
+        self._guard(_prune, self.path, keep)
+        if self.comm.rank == 0 and self.error is not None:
+            self._discard()
+        message = None
+        if self.comm.rank == 0 and self.error is not None:
+            message = (f"{self.path}: cannot write the checkpoint ({_reason(self.error)}); the earlier "
+                       f"checkpoints in {self.path.parent} are unchanged")
+        message = self.comm.bcast(message, root=0)
+        if message is not None:
+            if self.comm.rank == 0 and not isinstance(self.error, OSError):
+                raise CheckpointError(message) from self.error
+            raise CheckpointError(message)
+
+    def _close(self, attrs: dict) -> None:
+        f = self.file
+        for name, digest in self.digests.items():
+            f[name].attrs["sha256"] = digest
+        for key, value in attrs.items():
+            f.attrs[key] = value
+        f.attrs["sha256"] = _root_digest(attrs, self.digests)
+        f.flush()
+        f.close()
+        self.file = None
+        with open(self.tmp, "rb") as fh:
+            os.fsync(fh.fileno())
+        os.replace(self.tmp, self.path)
+        sync_directory(self.path.parent)
+
+    def _discard(self) -> None:
+        if self.file is not None:
+            with contextlib.suppress(Exception):
+                self.file.close()
+        with contextlib.suppress(OSError):
+            self.tmp.unlink()
+
+
+def _root_digest(attrs: dict, digests: dict[str, str]) -> str:
+    plain = sorted((k, _plain(v)) for k, v in attrs.items() if k != "sha256")
+    return hashlib.sha256(repr((plain, sorted(digests.items()))).encode()).hexdigest()
+
+
+def _plain(value):
+    """An attribute as a plain Python value (str, int, float, bool), however h5py returned it."""
+    if isinstance(value, bytes):
+        return value.decode("utf-8", "replace")
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
+
+
+def _prune(path: pathlib.Path, keep: int) -> None:
+    """Remove the checkpoints of steps before ``path``'s beyond the newest ``keep`` (``path`` included);
+    those of later steps (left by an earlier run of the same directory) are not touched."""
+    step = int(_NAME.match(path.name).group(1))
+    older = [p for p in list_checkpoints(path.parent) if int(_NAME.match(p.name).group(1)) < step]
+    for old in older[: max(len(older) - (keep - 1), 0)]:
+        with contextlib.suppress(OSError):  # best effort: the new checkpoint is in place already
+            old.unlink()
+
+
+def fingerprint(scene) -> str:
+    """A digest of the material and of the body's heights on the grid: what a restart must find unchanged
+    even when it comes from files ([material] file, [body] file) that the scene text only names."""
+    g = scene.grid
+    h = hashlib.sha256(repr(scene.material).encode())
+    heights = scene.body.height(g.x[:, None] - scene.position[0], g.y[None, :] - scene.position[1])
+    h.update(np.ascontiguousarray(np.broadcast_to(heights, (g.nx, g.ny)), dtype=float).tobytes())
+    return h.hexdigest()
+
+
+# -- reading ----------------------------------------------------------------------------------------------
+@dataclass
+class Checkpoint:
+    """A checkpoint read and verified (collectively). ``state`` and ``fields`` are on rank 0 only."""
+
+    path: pathlib.Path
+    attrs: dict
+    series: dict[str, np.ndarray]
+    field_steps: np.ndarray
+    direction: np.ndarray
+    times: np.ndarray | None
+    fields: np.ndarray | None  # (n_saved, nx, ny), rank 0
+    state: dict[str, np.ndarray] | None  # pressure (nx, ny), q or increments (k, nx, ny); rank 0
+
+    @property
+    def step(self) -> int:
+        return int(self.attrs["step"])
+
+    @property
+    def t(self) -> float:
+        return float(self.attrs["t"])
+
+    @property
+    def ranks(self) -> int:
+        return int(self.attrs["ranks"])
+
+    @property
+    def scene_text(self) -> str:
+        return str(self.attrs["scene"])
+
+    # -- the state back into a simulation ---------------------------------------------------------------
+    def restore(self, sim) -> tuple[float, list, list[int]]:
+        """Put the state into ``sim`` (a fresh Simulation of a compatible scene, any rank count) and return
+        (t, fields, field_steps) for the time loop. Collective."""
+        from petroll.simulation import StepRecord
+
+        comm, g, history = sim.comm, sim.scene.grid, sim.history
+        nx, ny = int(self.attrs["nx"]), int(self.attrs["ny"])
+        kind = "prony" if isinstance(history, PronyHistory) else "hereditary"
+        if (nx, ny) != (g.nx, g.ny) or kind != self.attrs["history"]:
+            raise CheckpointError(f"{self.path}: holds a {nx} x {ny} grid with a {self.attrs['history']} "
+                                  f"history, the scene a {g.nx} x {g.ny} grid with a {kind} history")
+        root = comm.rank == 0
+        pressure = scatter_rows(self.state["pressure"] if root else None, nx, ny, comm)
+        history.pressure = pressure
+        sim.pressure = pressure.copy()
+        if kind == "prony":
+            count = comm.bcast(len(self.state["q"]) if root else None, root=0)
+            if count != len(history.q):
+                raise CheckpointError(f"{self.path}: holds {count} Prony state fields, the scene's material "
+                                      f"has {len(history.q)} terms")
+            history.q = [scatter_rows(self.state["q"][r] if root else None, nx, ny, comm)
+                         for r in range(count)]
+            stored = comm.bcast("displacement" in self.state if root else None, root=0)
+            if stored != _has_displacement(history):
+                raise CheckpointError(f"{self.path}: written for another integrator than the scene's "
+                                      f"({sim.scene.solver.integrator})")
+            if stored:  # as computed, not rebuilt from p and s_k (which differs in the last bits)
+                history._W = scatter_rows(self.state["displacement"] if root else None, nx, ny, comm)
+        else:
+            history.times = [float(v) for v in self.times]
+            history.increments = [scatter_rows(self.state["increments"][m] if root else None, nx, ny, comm)
+                                  for m in range(len(self.times))]
+        sim.direction = np.array(self.direction, dtype=float)
+        names = list(StepRecord.__annotations__)
+        types = {name: int if name in ("step", "iterations", "applications") else float for name in names}
+        n = len(self.series["step"])
+        sim.records = [StepRecord(**{name: types[name](self.series[name][i]) for name in names})
+                       for i in range(n)]
+        saved = len(self.field_steps)
+        fields = [self.fields[k] for k in range(saved)] if root else [None] * saved
+        return self.t, fields, [int(s) for s in self.field_steps]
+
+
+def scatter_rows(whole: np.ndarray | None, nx: int, ny: int, comm: MPI.Comm) -> np.ndarray:
+    """This rank's rows (RowPartition of nx over comm) of the (nx, ny) field ``whole`` given on rank 0."""
+    rows = RowPartition(nx, comm.size)
+    counts = [int(c) * ny for c in rows.counts]
+    displs = [int(s) * ny for s in rows.starts[:-1]]
+    local = np.empty((int(rows.counts[comm.rank]), ny))
+    send = None
+    if comm.rank == 0:
+        send = [np.ascontiguousarray(whole, dtype=float).ravel(), counts, displs, MPI.DOUBLE]
+    comm.Scatterv(send, local, root=0)
+    return local
+
+
+def read_checkpoint(path: str | pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD) -> Checkpoint:
+    """Read and verify a checkpoint (collective; rank 0 reads). CheckpointError with one line naming the
+    file and what is wrong if it is missing, not HDF5, not a checkpoint, of a newer format, truncated or
+    corrupted. Nothing is written."""
+    path = pathlib.Path(path)
+    loaded, message = None, None
+    if comm.rank == 0:
+        try:
+            loaded = _load(path)
+        except CheckpointError as exc:
+            message = str(exc)
+    message = comm.bcast(message, root=0)
+    if message is not None:
+        raise CheckpointError(message)
+    shared = comm.bcast({k: v for k, v in loaded.items() if k not in ("fields", "state")} if loaded else None,
+                        root=0)
+    return Checkpoint(path=path, attrs=shared["attrs"], series=shared["series"],
+                      field_steps=shared["field_steps"], direction=shared["direction"], times=shared["times"],
+                      fields=loaded["fields"] if loaded else None, state=loaded["state"] if loaded else None)
+
+
+def _load(path: pathlib.Path) -> dict:
+    from petroll.simulation import StepRecord
+
+    if not path.exists():
+        raise CheckpointError(f"{path}: no such checkpoint file")
+    if not path.is_file():
+        raise CheckpointError(f"{path}: not a file (give a checkpoint step-NNNNNNNN.h5)")
+    try:
+        is_hdf5 = h5py.is_hdf5(str(path))
+    except Exception as exc:  # noqa: BLE001 - any failure to read is the file's problem
+        raise CheckpointError(f"{path}: cannot be read ({_reason(exc)})") from None
+    if not is_hdf5:
+        what = ("empty" if path.stat().st_size == 0
+                else "not an HDF5 file (corrupted, or another kind of file)")
+        raise CheckpointError(f"{path}: {what}; not a petroll checkpoint")
+    try:
+        with h5py.File(path, "r") as f:
+            attrs = {k: _plain(v) for k, v in f.attrs.items()}
+            if attrs.get("format") != FORMAT:
+                what = ("a petroll results file" if "series" in f and "fields" in f and "state" not in f
+                        else "an HDF5 file")
+                raise CheckpointError(f"{path}: not a petroll checkpoint ({what} without the attribute "
+                                      f"format = {FORMAT!r})")
+            version = attrs.get("format_version")
+            if isinstance(version, int) and not isinstance(version, bool) and version > FORMAT_VERSION:
+                raise CheckpointError(f"{path}: written in checkpoint format {version} (petroll "
+                                      f"{attrs.get('petroll_version', '?')}); this petroll {__version__} "
+                                      f"reads format {FORMAT_VERSION} and older: use a newer petroll")
+            if version != FORMAT_VERSION:
+                raise CheckpointError(f"{path}: corrupted (format_version {version!r} is not a known "
+                                      "version)")
+            missing = [k for k in _ATTRS if k not in attrs]
+            if missing:
+                raise CheckpointError(f"{path}: corrupted (attribute {missing[0]!r} is missing)")
+            data, digests = {}, {}
+
+            def visit(name, obj):
+                if isinstance(obj, h5py.Dataset):
+                    data[name] = obj[()]
+                    digests[name] = _plain(obj.attrs.get("sha256", ""))
+
+            f.visititems(visit)
+    except CheckpointError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - h5py reports damage as OSError, KeyError, RuntimeError, ...
+        reason = _reason(exc)
+        what = "truncated" if "truncated" in reason.lower() else "corrupted"
+        raise CheckpointError(f"{path}: {what}, cannot be read as a checkpoint ({reason})") from None
+    for name, value in sorted(data.items()):
+        if _digest_of(name, np.asarray(value)) != digests[name]:
+            raise CheckpointError(f"{path}: corrupted (the data of {name} do not match their checksum)")
+    if _root_digest(attrs, digests) != attrs["sha256"]:
+        raise CheckpointError(f"{path}: corrupted (its attributes or list of datasets do not match the "
+                              f"checksum)")
+    prony = attrs["history"] == "prony"
+    needed = ["state/pressure", "state/direction", "fields/step", "fields/pressure",
+              *(f"series/{n}" for n in StepRecord.__annotations__),
+              *(["state/q"] if prony else ["state/times", "state/increments"])]
+    absent = [n for n in needed if n not in data]
+    if absent:
+        raise CheckpointError(f"{path}: incomplete (dataset {absent[0]} is missing)")
+    state = {"pressure": data["state/pressure"]}
+    if prony:
+        state["q"] = data["state/q"]
+        if "state/displacement" in data:
+            state["displacement"] = data["state/displacement"]
+    else:
+        state["increments"] = data["state/increments"]
+    return {"attrs": attrs, "series": {n: data[f"series/{n}"] for n in StepRecord.__annotations__},
+            "field_steps": data["fields/step"], "direction": data["state/direction"],
+            "times": None if prony else data["state/times"], "fields": data["fields/pressure"],
+            "state": state}
+
+
+# -- the scene of a restart -------------------------------------------------------------------------------
+def restart_scene(checkpoint: Checkpoint, new_scene: str | pathlib.Path | None = None):
+    """The scene to continue ``checkpoint`` with: its own, or ``new_scene`` (a TOML file) if that differs
+    only in SAFE_KEYS. SceneError naming the first other key that differs; CheckpointError if the
+    material's or body's files changed since the checkpoint was written."""
+    from petroll.scene import load_scene, parse_scene
+
+    stored = checkpoint.scene_text
+    try:
+        raw = tomllib.loads(stored)
+    except tomllib.TOMLDecodeError as exc:
+        raise CheckpointError(f"{checkpoint.path}: corrupted (its scene text is not TOML: {exc})") from None
+    if new_scene is None:
+        try:
+            scene = parse_scene(raw, source=str(checkpoint.attrs["scene_source"]),
+                                base_dir=str(checkpoint.attrs["base_dir"]), text=stored)
+        except SceneError as exc:
+            raise CheckpointError(f"{checkpoint.path}: its scene no longer loads ({exc})") from None
+    else:
+        scene = load_scene(new_scene)
+        if scene.solver.integrator != checkpoint.attrs["integrator"]:
+            raise SceneError(scene.source, "[solver] integrator", scene.solver.integrator,
+                             f"differs from the integrator of checkpoint {checkpoint.path} "
+                             f"({checkpoint.attrs['integrator']!r}); a restart may change only [time] end, "
+                             f"distance, steady, max_steps and [output] keys")
+        for key, old, new in _changes(raw, scene.raw):
+            raise SceneError(scene.source, key, new, f"differs from the scene of checkpoint "
+                             f"{checkpoint.path} ({old!r}); a restart may change only [time] end, distance, "
+                             f"steady, max_steps and [output] keys")
+    if fingerprint(scene) != checkpoint.attrs["fingerprint"]:
+        raise CheckpointError(f"{checkpoint.path}: the material or body of the scene ({scene.source}) "
+                              f"differs from the one the checkpoint was computed with: a file named by "
+                              f"[material] file or [body] file changed")
+    return scene
+
+
+def _changes(old: dict, new: dict):
+    """(key, old value, new value) of every scene key outside SAFE_KEYS whose value differs (a key left
+    out counts as its schema default)."""
+    from petroll.scene import SCHEMA
+
+    for section in sorted(set(old) | set(new) | set(SCHEMA)):
+        a, b = old.get(section, {}), new.get(section, {})
+        for key in sorted(set(a) | set(b)):
+            if key in SAFE_KEYS.get(section, ()) or (section, key) == ("solver", "integrator"):
+                continue  # the integrator is compared as resolved (its default depends on the material)
+            default = SCHEMA.get(section, {}).get(key)
+            fallback = default.default if default is not None and _simple(default.default) else MISSING
+            va, vb = a.get(key, fallback), b.get(key, fallback)
+            if _normal(va) != _normal(vb):
+                yield f"[{section}] {key}", va, vb
+
+
+def _simple(value) -> bool:
+    return value is None or isinstance(value, (bool, int, float, str)) or (
+        isinstance(value, tuple) and all(isinstance(v, (int, float)) for v in value))
+
+
+def _normal(value):
+    if isinstance(value, tuple):
+        return [_normal(v) for v in value]
+    if isinstance(value, list):
+        return [_normal(v) for v in value]
+    if isinstance(value, dict):
+        return {k: _normal(v) for k, v in value.items()}
+    return value

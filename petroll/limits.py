@@ -1,0 +1,86 @@
+"""Physical limits of the formulation that no numerical fix removes: petroll refuses or warns, with why.
+
+The half-space theory (Love's influence coefficients, Boussinesq) is linear and assumes small surface
+slopes in the contact: its error grows like (a/R)^2 for a sphere. :func:`check_scene` estimates the
+largest slope of the body's profile inside the contact (where Z <= delta / 2: the Hertz contact edge) at
+the largest penetration the scene can reach, and
+
+- warns (:class:`PetrollWarning`, shown by the command line as one ``petroll: warning:`` line) above
+  ``SLOPE_WARN`` (a/R ~ 0.3 for a sphere: a few per cent from the finite-slope effects);
+- refuses displacement control above ``SLOPE_MAX`` (45 degrees: a sphere's contact would reach its
+  equator, where its profile Z stops being a graph); under load control the penetration is only
+  estimated (relaxed Hertz for the body's equivalent radius), so it warns.
+
+The stability suite (docs/stability.md) exercises both limits.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+
+import numpy as np
+
+from petroll.errors import SceneError
+
+SLOPE_WARN = 0.3
+SLOPE_MAX = 1.0
+
+
+class PetrollWarning(UserWarning):
+    """A scene that runs but lies where the formulation loses accuracy (the message says why)."""
+
+
+def contact_slope(scene, delta: float, points: int = 401) -> float:
+    """The largest |grad Z| where the body, at its start position, lies within delta / 2 of its lowest
+    point (the Hertz contact edge for a penetration delta).
+
+    The profile is sampled on a ``points`` x ``points`` lattice (not the grid's cells, which may be coarser
+    than the contact) over the part of the grid within 4 equivalent contact radii sqrt(2 R delta) of the
+    body (R: its radius hint): the cost is bounded whatever the grid."""
+    g, (sx, sy) = scene.grid, scene.position
+    reach = 4 * math.sqrt(2 * max(float(scene.body.radius_hint), 0.0) * delta)
+    if not math.isfinite(reach) or reach <= 0:
+        reach = max(g.x1 - g.x0, g.y1 - g.y0)
+    x = np.linspace(max(g.x0, sx - reach), min(g.x1, sx + reach), points)[:, None] - sx
+    y = np.linspace(max(g.y0, sy - reach), min(g.y1, sy + reach), points)[None, :] - sy
+    with np.errstate(all="ignore"):
+        z = scene.body.height(x, y)
+        inside = z <= 0.5 * delta
+        if not np.any(inside):
+            return 0.0
+        gx, gy = scene.body.slope(x, y)
+        return float(np.max(np.hypot(gx, gy)[inside]))
+
+
+def largest_penetration(scene) -> tuple[float, bool]:
+    """(delta, exact): the largest penetration the scene prescribes, or under load control an estimate
+    (relaxed Hertz for the peak load and the body's equivalent radius)."""
+    if scene.penetration is not None:
+        return float(scene.penetration.peak()), True
+    load = float(scene.load.peak())
+    radius = float(scene.body.radius_hint)
+    if not (load > 0 and radius > 0 and math.isfinite(radius)):
+        return 0.0, False
+    return (3 * float(scene.material.Jinf) * load / (4 * math.sqrt(radius))) ** (2 / 3), False
+
+
+def check_scene(scene) -> None:
+    """Refuse (SceneError) or warn (PetrollWarning) for contact slopes beyond the linear theory."""
+    delta, exact = largest_penetration(scene)
+    if not delta > 0:
+        return
+    slope = contact_slope(scene, delta)
+    key = "[motion] penetration" if exact else "[motion] load"
+    value = scene.raw.get("motion", {}).get("penetration" if exact else "load")
+    degrees = math.degrees(math.atan(slope))
+    which = "the" if exact else "an estimated"
+    reason = (f"the body's surface in the contact would slope up to {slope:.2g} ({degrees:.0f} degrees) at "
+              f"{which} largest penetration {delta:.3g} m; the half-space theory assumes small slopes (its "
+              "error grows like slope^2)")
+    if slope > SLOPE_MAX and exact:
+        raise SceneError(scene.source, key, value, f"too large: {reason}; allowed: slopes up to "
+                         f"{SLOPE_MAX:g} (45 degrees): reduce the penetration")
+    if slope > SLOPE_WARN:
+        warnings.warn(PetrollWarning(f"{scene.source}: {key}: {reason}; results lose accuracy above "
+                                     f"{SLOPE_WARN:g}"), stacklevel=2)

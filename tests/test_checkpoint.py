@@ -1,0 +1,611 @@
+"""Checkpoints and restart (docs/checkpoints.md): interrupted-and-restarted runs equal uninterrupted ones
+(bitwise on the same ranks, 1e-10 across 1 <-> 2 ranks), SIGTERM and SIGKILL of real processes, every
+kind of bad checkpoint refused with one line, write failures, the results file and its XDMF companion.
+
+Unmarked tests are collective (every rank under mpirun) and write only into rank 0's tmp_path; tests that
+start processes are marked ``serial``.
+"""
+
+import errno
+import hashlib
+import os
+import pathlib
+import shutil
+import signal
+import subprocess
+import sys
+import time
+import xml.etree.ElementTree as ET
+
+import h5py
+import numpy as np
+import pytest
+from mpi4py import MPI
+
+from petroll import checkpoint as ckpt
+from petroll.checkpoint import (CheckpointError, RunInterrupted, StopRequest, latest_checkpoint,
+                                list_checkpoints, read_checkpoint, restart_scene)
+from petroll.cli import main
+from petroll.contact import DEFAULT_TAO_TYPE
+from petroll.errors import SceneError
+from petroll.results import OutputError, Results
+from petroll.scene import parse_scene
+from petroll.simulation import run
+
+ROOT = pathlib.Path(__file__).resolve().parent.parent
+PETROLL = ROOT / ".venv" / "bin" / "petroll"
+HALF, LENGTH = 0.8e-3, 0.4e-3
+SLS = {"model": "sls", "E0": 10e6, "Einf": 2e6, "nu": 0.5, "tau_relax": 0.01}
+PRONY = {"model": "prony", "series": "maxwell", "Einf": 2e6, "nu": 0.5, "moduli": [5e6, 3e6],
+         "times": [0.003, 0.03]}
+CONSTANT = [0.05, 0.0]
+SINUSOIDAL = {"kind": "sinusoidal", "mean": [0.05, 0.0], "amplitude": [0.03, 0.0], "period": 0.006}
+PHYSICAL = ("t", "sx", "sy", "delta", "force", "force_x", "force_y", "mu_r", "area", "p_max", "cop_x",
+            "cop_y", "lead", "trail", "dissipation", "distance")
+"""Series compared across rank counts (iteration counts and residuals may differ in the last digits)."""
+
+
+def raw_scene(material=None, velocity=CONSTANT, control=("penetration", 2e-5), n=20, distance=LENGTH,
+              output=None) -> dict:
+    """A sphere rolling ``distance`` (2 steps per cell: ~11 steps for LENGTH) on an n-cell-wide grid."""
+    nx = int(round(n * (2 * HALF + distance) / (2 * HALF)))
+    return {
+        "grid": {"nx": nx, "ny": n, "x": [-HALF, distance + HALF], "y": [-HALF, HALF]},
+        "material": dict(material or SLS),
+        "body": {"shape": "sphere", "radius": 0.01},
+        "motion": {"velocity": velocity, control[0]: control[1]},
+        "time": {"steps_per_cell": 2, "distance": distance},
+        "solver": {"tol": 1e-9},
+        "output": {"every": 3, "checkpoint_every": 4, "keep": 10, **(output or {})},
+    }
+
+
+def make_scene(raw, base_dir="."):
+    return parse_scene(raw, source="test_checkpoint", base_dir=base_dir)
+
+
+def write_toml(path: pathlib.Path, raw: dict) -> None:
+    def value(v):
+        if isinstance(v, str):
+            return '"' + v + '"'
+        if isinstance(v, (list, tuple)):
+            return "[" + ", ".join(value(x) for x in v) + "]"
+        if isinstance(v, dict):
+            return "{" + ", ".join(f"{k} = {value(x)}" for k, x in v.items()) + "}"
+        return repr(v)
+
+    path.write_text("".join(f"[{s}]\n" + "".join(f"{k} = {value(v)}\n" for k, v in t.items()) + "\n"
+                            for s, t in raw.items()))
+
+
+@pytest.fixture
+def shared(tmp_path, comm):
+    """Rank 0's tmp_path on every rank."""
+    return pathlib.Path(comm.bcast(str(tmp_path) if comm.rank == 0 else None, root=0))
+
+
+def on_root(comm, work):
+    """Run ``work()`` on rank 0 only (the others wait); its result, or its failure, on every rank."""
+    result, failure = None, None
+    if comm.rank == 0:
+        try:
+            result = work()
+        except Exception as exc:  # noqa: BLE001 - re-raised on every rank below
+            failure = f"{type(exc).__name__}: {exc}"
+    result, failure = comm.bcast((result, failure), root=0)
+    if failure:
+        raise AssertionError(f"on rank 0: {failure}")
+    return result
+
+
+def assert_identical(a: Results, b: Results) -> None:
+    """Same series (all but the wall time), same saved fields and steps: bit for bit."""
+    assert set(a.series) == set(b.series)
+    for name in a.series:
+        if name != "solve_time":
+            assert np.array_equal(a.series[name], b.series[name], equal_nan=True), name
+    assert np.array_equal(a.field_steps, b.field_steps)
+    assert np.array_equal(a.pressure, b.pressure)
+    assert a.pressure.dtype == b.pressure.dtype == np.float64
+
+
+def assert_close(a: Results, b: Results, rtol=1e-10) -> None:
+    """Same run to rtol relative to each quantity's scale (1 <-> 2 ranks): its largest value, or for what
+    vanishes by symmetry (force_y, cop_y, sy) the normal force or the grid's extent."""
+    assert len(a.series["t"]) == len(b.series["t"])
+    worst = 0.0
+    for name in PHYSICAL:
+        x, y = a.series[name], b.series[name]
+        scale = np.nanmax(np.abs(x))  # a force by the normal force, a position by the grid's extent
+        if name in ("force_x", "force_y"):
+            scale = max(scale, np.abs(a.series["force"]).max())
+        if name in ("sx", "sy", "cop_x", "cop_y", "lead", "trail"):
+            scale = max(scale, np.abs(a.x).max(), np.abs(a.y).max())
+        assert np.array_equal(np.isnan(x), np.isnan(y)), name
+        assert np.nanmax(np.abs(x - y)) <= rtol * scale, (name, np.nanmax(np.abs(x - y)), scale)
+        worst = max(worst, np.nanmax(np.abs(x - y)) / scale)
+    assert np.array_equal(a.field_steps, b.field_steps)
+    assert np.abs(a.pressure - b.pressure).max() <= rtol * np.abs(a.pressure).max()
+    print(f"largest relative difference: series {worst:.2e}, fields "
+          f"{np.abs(a.pressure - b.pressure).max() / np.abs(a.pressure).max():.2e}")
+
+
+def interrupter(step: int, comm):
+    """A StopRequest set, on the last rank only, after ``step`` (as a signal reaching one rank)."""
+    stop = StopRequest()
+
+    def on_step(record):
+        if record.step == step and comm.rank == comm.size - 1:
+            stop.request(signal.SIGTERM)
+
+    return stop, on_step
+
+
+CASES = {
+    "sls-constant-penetration": (SLS, CONSTANT, ("penetration", 2e-5)),
+    "sls-sinusoidal-load": (SLS, SINUSOIDAL, ("load", 0.1)),
+    "prony-constant-load": (PRONY, CONSTANT, ("load", 0.1)),
+    "prony-sinusoidal-penetration": (PRONY, SINUSOIDAL, ("penetration", 2e-5)),
+}
+
+
+@pytest.mark.parametrize("case", list(CASES))
+def test_interrupted_and_restarted_run_is_bitwise_the_uninterrupted_run(case, comm, shared):
+    material, velocity, control = CASES[case]
+    scene = make_scene(raw_scene(material, velocity, control))
+    reference = run(scene, comm, shared / "reference")
+    n = len(reference.series["t"])
+    assert n >= 10 and list(reference.field_steps) == [0, 3, 6, 9, *([n - 1] if (n - 1) % 3 else [])]
+    if velocity is SINUSOIDAL:
+        assert np.ptp(np.diff(reference.series["t"])) > 0  # the time step follows the speed
+
+    # A stop request after step 5 on one rank: every rank stops there, with a checkpoint and the results so
+    # far.
+    stop, on_step = interrupter(5, comm)
+    with pytest.raises(RunInterrupted) as info:
+        run(scene, comm, shared / "stopped", stop=stop, on_step=on_step)
+    assert info.value.step == 5 and info.value.exit_code == 143
+    assert info.value.checkpoint == shared / "stopped" / "checkpoints" / "step-00000005.h5"
+    partial = Results.open(shared / "stopped" / "results.h5")
+    assert not partial.complete and reference.complete
+    for name in PHYSICAL:
+        assert np.array_equal(partial.series[name], reference.series[name][:6], equal_nan=True)
+    assert list(partial.field_steps) == [0, 3]
+
+    restarted = run(scene, comm, shared / "stopped", restart=read_checkpoint(info.value.checkpoint, comm))
+    assert_identical(restarted, reference)
+
+    # Any periodic checkpoint of the uninterrupted run (steps 4, 8, and the last) continues identically.
+    found = list_checkpoints(shared / "reference" / "checkpoints")
+    assert [int(p.stem[5:]) for p in found] == [4, 8, *([n - 1] if (n - 1) % 4 else [])]
+    for path in found[:2]:
+        check = read_checkpoint(path, comm)
+        assert check.ranks == comm.size and check.step == int(path.stem[5:])
+        again = run(restart_scene(check), comm, shared / f"from-{path.stem}", restart=check)
+        assert_identical(again, reference)
+
+
+@pytest.mark.parallel
+@pytest.mark.parametrize("material", ["sls", "prony"])
+def test_restart_on_another_rank_count_agrees_to_1e_10(material, comm, shared):
+    """Written on 2 ranks, continued on 1 (rank 0, COMM_SELF); written on 1, continued on 2. The contact
+    conditions are solved to 1e-12 so that the solver's own rank-count dependence (~ its tolerance) stays
+    well below the 1e-10 checked."""
+    raw = raw_scene(SLS if material == "sls" else PRONY, SINUSOIDAL, ("load", 0.1))
+    raw["solver"]["tol"] = 1e-12
+    scene = make_scene(raw)
+    two = run(scene, comm, shared / "two")
+    middle = shared / "two" / "checkpoints" / "step-00000004.h5"
+
+    def continue_on_one():
+        check = read_checkpoint(middle, MPI.COMM_SELF)
+        assert check.ranks == comm.size
+        assert_close(run(scene, MPI.COMM_SELF, shared / "two-to-one", restart=check), two)
+        return True
+
+    assert on_root(comm, continue_on_one)
+
+    one = on_root(comm, lambda: run(scene, MPI.COMM_SELF, shared / "one").path)
+    one = Results.open(one)
+    check = read_checkpoint(shared / "one" / "checkpoints" / "step-00000008.h5", comm)
+    assert check.ranks == 1
+    assert_close(run(scene, comm, shared / "one-to-two", restart=check), one)
+    assert_close(one, two)
+
+
+def test_tabulated_material_restarts_bitwise_and_a_changed_table_is_refused(comm, shared):
+    """The hereditary history (all increments and times) is in the checkpoint; its J table must not change."""
+    if comm.rank == 0:
+        t = np.array([0.0, 0.002, 0.005, 0.01, 0.02, 0.05, 1.0])
+        J = 0.75 / (2e6 + 1e6 * np.exp(-t / 0.01))  # E0/Einf = 1.5: the paper scheme holds at these steps
+        (shared / "J.csv").write_text("".join(f"{a!r},{b!r}\n" for a, b in zip(t, J)))
+    comm.Barrier()
+    raw = raw_scene({"model": "tabulated", "file": "J.csv", "quantity": "J"}, CONSTANT, ("penetration", 2e-5))
+    scene = make_scene(raw, base_dir=shared)
+    reference = run(scene, comm, shared / "reference")
+    check = read_checkpoint(shared / "reference" / "checkpoints" / "step-00000004.h5", comm)
+    assert check.attrs["history"] == "hereditary" and len(check.times) == 5
+    assert_identical(run(restart_scene(check), comm, shared / "again", restart=check), reference)
+    if comm.rank == 0:
+        (shared / "J.csv").write_text("0.0,1e-7\n1.0,2e-7\n")
+    comm.Barrier()
+    with pytest.raises(CheckpointError, match="file named by \\[material\\] file or \\[body\\] file changed"):
+        restart_scene(check)
+
+
+def test_checkpoint_layout_and_sizes_do_not_grow_with_the_steps_for_prony(comm, shared):
+    """Prony: the state is p, W and one field per term whatever the step; only the series and the saved fields
+    grow. Every dataset is readable with plain h5py."""
+    raw = raw_scene(PRONY, CONSTANT, ("penetration", 2e-5),
+                    output={"every": 0, "checkpoint_every": 2, "keep": 2})
+    results = run(make_scene(raw), comm, shared)
+    nx, ny = results.pressure.shape[1:]
+    found = list_checkpoints(shared / "checkpoints")
+    assert [p.name for p in found] == ["step-00000008.h5", "step-00000010.h5"]  # 2, 4, 6 removed
+    if comm.rank == 0:
+        sizes = []
+        for path in found:
+            with h5py.File(path, "r") as f:
+                step = int(f.attrs["step"])
+                assert f["state/q"].shape == (2, nx, ny) and f["state/pressure"].shape == (nx, ny)
+                assert f["series/force"].shape == (step + 1,)
+                assert f["fields/pressure"].shape == (1 if step < 10 else 2, nx, ny)
+                assert f.attrs["format"] == "petroll-checkpoint" and f.attrs["format_version"] == 1
+                assert "[material]" in f.attrs["scene"] and f.attrs["ranks"] == comm.size
+            sizes.append(path.stat().st_size)
+        print("checkpoint sizes (bytes):", dict(zip([p.name for p in found], sizes)),
+              "results.h5:", (shared / "results.h5").stat().st_size, "grid", nx, ny)
+        # At most the raw bytes of p, W, the 2 s fields, the saved fields and the series, plus the fixed
+        # cost of about 30 HDF5 objects (~1 kB each).
+        for path, size in zip(found, sizes):
+            with h5py.File(path, "r") as f:
+                assert set(f["state"]) == {"pressure", "q", "displacement", "direction"}  # relaxation form
+                raw_bytes = 8 * ((4 + len(f["fields/pressure"])) * nx * ny + 21 * len(f["series/t"]))
+            assert size < raw_bytes + 40_000, (path.name, size, raw_bytes)
+
+
+def test_keep_removes_older_checkpoints_only(comm, shared):
+    raw = raw_scene(SLS, CONSTANT, ("penetration", 2e-5), output={"checkpoint_every": 2, "keep": 2})
+    if comm.rank == 0:
+        (shared / "checkpoints").mkdir(parents=True)
+        (shared / "checkpoints" / "step-00000099.h5").write_bytes(b"left by another run")
+        (shared / "checkpoints" / "notes.txt").write_text("mine")
+    comm.Barrier()
+    results = run(make_scene(raw), comm, shared)
+    last = len(results.series["t"]) - 1
+    names = sorted(p.name for p in (shared / "checkpoints").iterdir())
+    assert names == sorted([f"step-{last - last % 2 - (2 if last % 2 == 0 else 0):08d}.h5",
+                            f"step-{last:08d}.h5", "step-00000099.h5", "notes.txt"])
+
+
+def test_results_xdmf_describes_the_saved_fields_over_the_hdf5_data(comm, shared):
+    results = run(make_scene(raw_scene()), comm, shared)
+    if comm.rank != 0:
+        return
+    nx, ny = results.pressure.shape[1:]
+    root = ET.parse(shared / "results.xdmf").getroot()
+    grids = root.findall("./Domain/Grid/Grid")
+    assert root.find("./Domain/Grid").get("CollectionType") == "Temporal"
+    assert len(grids) == len(results.field_steps)
+    with h5py.File(shared / "results.h5", "r") as f:
+        for k, (grid, step) in enumerate(zip(grids, results.field_steps)):
+            assert float(grid.find("Time").get("Value")) == results.series["t"][step]
+            topology = grid.find("Topology")
+            assert topology.get("TopologyType") == "2DSMesh"
+            assert topology.get("Dimensions") == f"{nx + 1} {ny + 1}"
+            item = grid.find("Geometry/DataItem")
+            h5name, dataset = item.text.split(":")
+            assert h5name == "results.h5"
+            xy = f[dataset][()].reshape(nx + 1, ny + 1, 2)
+            assert tuple(int(d) for d in item.get("Dimensions").split()) == f[dataset].shape
+            centres = 0.25 * (xy[:-1, :-1] + xy[1:, :-1] + xy[:-1, 1:] + xy[1:, 1:])
+            assert np.allclose(centres[..., 0], results.x[:, None], rtol=0, atol=1e-15)
+            assert np.allclose(centres[..., 1], results.y[None, :], rtol=0, atol=1e-15)
+            slab = grid.find("Attribute/DataItem")
+            assert slab.get("ItemType") == "HyperSlab" and grid.find("Attribute").get("Center") == "Cell"
+            select, source = slab.findall("DataItem")
+            start, stride, count = np.array(select.text.split(), dtype=int).reshape(3, 3)
+            h5name, dataset = source.text.split(":")
+            assert tuple(int(d) for d in source.get("Dimensions").split()) == f[dataset].shape
+            picked = f[dataset][start[0] : start[0] + count[0] * stride[0] : stride[0]]
+            assert list(start[1:]) == [0, 0] and list(stride) == [1, 1, 1] and list(count) == [1, nx, ny]
+            assert np.array_equal(picked[0], results.pressure[k])
+
+
+# -- bad checkpoints --------------------------------------------------------------------------------------
+def flip_byte_inside(path: pathlib.Path, dataset: str) -> None:
+    """Overwrite bytes in the middle of the stored (compressed) data of ``dataset``."""
+    with h5py.File(path, "r") as f:
+        info = f[dataset].id.get_chunk_info(0)
+        offset = info.byte_offset + info.size // 2
+    with open(path, "r+b") as fh:
+        fh.seek(offset)
+        byte = fh.read(1)
+        fh.seek(offset)
+        fh.write(bytes([byte[0] ^ 0xFF]))
+
+
+def other_hdf5(path: pathlib.Path) -> None:
+    with h5py.File(path, "w") as f:
+        f.create_dataset("x", data=[1.0])
+
+
+def set_attribute(path: pathlib.Path, name: str, value) -> None:
+    with h5py.File(path, "r+") as f:
+        f.attrs[name] = value
+
+
+BAD = {
+    "missing": (lambda good, p: None, "no such checkpoint file"),
+    "empty": (lambda good, p: p.write_bytes(b""), "empty; not a petroll checkpoint"),
+    "text": (lambda good, p: p.write_text("[grid]\nnx = 3\n"), "not an HDF5 file"),
+    "truncated": (lambda good, p: p.write_bytes(good.read_bytes()[: good.stat().st_size // 2]), "truncated"),
+    "results file": (lambda good, p: shutil.copy(good.parent.parent / "results.h5", p),
+                     "not a petroll checkpoint (a petroll results file"),
+    "other hdf5": (lambda good, p: other_hdf5(p), "not a petroll checkpoint (an HDF5 file"),
+    "corrupted data": (lambda good, p: (shutil.copy(good, p), flip_byte_inside(p, "state/q")), "corrupted"),
+    "edited scene": (lambda good, p: (shutil.copy(good, p), set_attribute(p, "scene", "[grid]\nnx = 1\n")),
+                     "corrupted (its attributes or list of datasets do not match the checksum)"),
+    "newer format": (lambda good, p: (shutil.copy(good, p), set_attribute(p, "format_version", 2)),
+                     "written in checkpoint format 2"),
+}
+
+
+def snapshot(directory: pathlib.Path) -> dict:
+    return {str(p.relative_to(directory)): hashlib.sha256(p.read_bytes()).hexdigest()
+            for p in sorted(directory.rglob("*")) if p.is_file()}
+
+
+def test_every_kind_of_bad_checkpoint_is_refused_with_one_line_and_nothing_written(comm, shared, capsys):
+    run(make_scene(raw_scene(PRONY)), comm, shared / "run")
+    good = shared / "run" / "checkpoints" / "step-00000008.h5"
+    if comm.rank == 0:
+        (shared / "bad").mkdir()
+        for kind, (make, _) in BAD.items():
+            make(good, shared / "bad" / f"{kind.replace(' ', '-')}.h5")
+    comm.Barrier()
+    before = snapshot(shared)
+    for kind, (_, expected) in BAD.items():
+        path = shared / "bad" / f"{kind.replace(' ', '-')}.h5"
+        with pytest.raises(CheckpointError) as info:
+            read_checkpoint(path, comm)
+        message = str(info.value)
+        assert message.startswith(f"{path}: ") and expected in message, (kind, message)
+        assert "\n" not in message
+        # The command line: one line, exit status 2, on every rank; nothing created or changed.
+        capsys.readouterr()
+        assert main(["restart", str(path), "--out", str(shared / "run"), "--quiet"]) == 2
+        if comm.rank == 0:
+            lines = [line for line in capsys.readouterr().err.splitlines() if line.strip()]
+            assert lines == [f"petroll: error: {message}"], (kind, lines)
+    assert snapshot(shared) == before
+    assert read_checkpoint(good, comm).step == 8  # the good one is still good
+
+
+@pytest.mark.parametrize("change, key", [
+    ({"grid": {"nx": 26}}, "[grid] nx"),
+    ({"material": {"Einf": 3e6}}, "[material] Einf"),
+    ({"body": {"radius": 0.011}}, "[body] radius"),
+    ({"motion": {"load": 0.1}}, "[motion] load"),
+    ({"solver": {"tol": 1e-8}}, "[solver] tol"),
+    ({"time": {"steps_per_cell": 3}}, "[time] steps_per_cell"),
+    ({"solver": {"integrator": "paper"}}, "[solver] integrator"),
+])
+def test_restart_with_an_unsafe_scene_change_names_the_key(change, key, comm, shared, capsys):
+    raw = raw_scene()
+    run(make_scene(raw), comm, shared / "run")
+    new = {s: dict(t) for s, t in raw.items()}
+    for section, values in change.items():
+        new[section].update(values)
+        if "load" in values:
+            new[section].pop("penetration")
+    if comm.rank == 0:
+        write_toml(shared / "new.toml", new)
+    comm.Barrier()
+    check = read_checkpoint(shared / "run" / "checkpoints" / "step-00000004.h5", comm)
+    with pytest.raises(SceneError) as info:
+        restart_scene(check, shared / "new.toml")
+    assert info.value.key == key
+    message = str(info.value)
+    assert message.startswith(f"{shared / 'new.toml'}: {key} = ") and str(check.path) in message
+    assert "a restart may change only [time] end, distance" in message and "\n" not in message
+    before = snapshot(shared)
+    capsys.readouterr()
+    assert main(["restart", str(check.path), "--scene", str(shared / "new.toml"), "--quiet"]) == 2
+    if comm.rank == 0:
+        assert capsys.readouterr().err.strip() == f"petroll: error: {message}"
+    assert snapshot(shared) == before
+
+
+def test_restart_may_extend_the_run_and_change_outputs(comm, shared, capsys):
+    raw = raw_scene(distance=2 * LENGTH)
+    raw["time"]["distance"] = LENGTH
+    short = run(make_scene(raw), comm, shared / "run")
+    longer = {s: dict(t) for s, t in raw.items()}
+    longer["time"]["distance"] = 2 * LENGTH
+    longer["output"] = {"every": 5, "checkpoint_every": 0}
+    longer["solver"]["tao_type"] = DEFAULT_TAO_TYPE  # the defaults, written out: no change
+    longer["solver"]["integrator"] = make_scene(raw).solver.integrator
+    if comm.rank == 0:
+        write_toml(shared / "longer.toml", longer)
+    comm.Barrier()
+    last = list_checkpoints(shared / "run" / "checkpoints")[-1]
+    assert main(["restart", str(shared / "run"), "--scene", str(shared / "longer.toml"), "--out",
+                 str(shared / "longer"), "--quiet"]) == 0
+    extended = Results.open(shared / "longer" / "results.h5")
+    n = len(short.series["t"])
+    assert int(last.stem[5:]) == n - 1 and len(extended.series["t"]) > n + 5
+    assert np.array_equal(extended.series["force"][:n], short.series["force"])
+    assert extended.series["distance"][-1] == pytest.approx(2 * LENGTH, rel=1e-6)
+    assert list(extended.field_steps)[: len(short.field_steps)] == list(short.field_steps)
+    assert not (shared / "longer" / "checkpoints").exists()
+    if comm.rank == 0:
+        assert "Results: " + str(shared / "longer" / "results.h5") in capsys.readouterr().out
+
+
+# -- write failures ---------------------------------------------------------------------------------------
+def test_disk_full_during_a_checkpoint_is_a_clear_error_and_the_last_one_stays_usable(comm, shared,
+                                                                                      monkeypatch):
+    scene = make_scene(raw_scene())
+    reference = run(scene, comm, shared / "reference")
+    real, calls = ckpt._write_dataset, []
+
+    def full(f, name, data):
+        calls.append(name)
+        if len(calls) > 30:  # the second checkpoint, part-written
+            raise OSError(errno.ENOSPC, "No space left on device")
+        return real(f, name, data)
+
+    monkeypatch.setattr(ckpt, "_write_dataset", full)
+    with pytest.raises(CheckpointError) as info:
+        run(scene, comm, shared / "full")
+    monkeypatch.undo()
+    path = shared / "full" / "checkpoints" / "step-00000008.h5"
+    assert str(info.value) == (f"{path}: cannot write the checkpoint (No space left on device); the earlier "
+                               f"checkpoints in {path.parent} are unchanged")
+    assert sorted(p.name for p in path.parent.iterdir()) == ["step-00000004.h5"]  # no temporary file left
+    partial = Results.open(shared / "full" / "results.h5")
+    assert not partial.complete and len(partial.series["t"]) == 5
+    check = read_checkpoint(path.parent / "step-00000004.h5", comm)
+    assert_identical(run(scene, comm, shared / "full", restart=check), reference)
+
+
+def test_unwritable_output_directory_is_refused_before_any_step(comm, shared, capsys):
+    if comm.rank == 0:
+        (shared / "file").write_text("not a directory")
+    comm.Barrier()
+    with pytest.raises(OutputError, match=r"file/out: cannot write to the output directory \(Not a dir"):
+        run(make_scene(raw_scene()), comm, shared / "file" / "out")
+    if comm.rank == 0:
+        write_toml(shared / "s.toml", raw_scene())
+    comm.Barrier()
+    capsys.readouterr()
+    assert main(["run", str(shared / "s.toml"), "--out", str(shared / "file" / "out"), "--quiet"]) == 2
+    if comm.rank == 0:
+        assert capsys.readouterr().err.count("\n") == 1
+
+
+# -- real processes ---------------------------------------------------------------------------------------
+def child_env() -> dict:
+    env = dict(os.environ)
+    env.update(OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1", PYTHONDONTWRITEBYTECODE="1")
+    return env
+
+
+def petroll(*args, cwd) -> subprocess.CompletedProcess:
+    return subprocess.run([str(PETROLL), *map(str, args)], cwd=cwd, env=child_env(), capture_output=True,
+                          text=True, timeout=120)
+
+
+def wait_for(path: pathlib.Path, proc: subprocess.Popen, limit=60.0) -> None:
+    start = time.monotonic()
+    while not path.exists():
+        assert proc.poll() is None, proc.communicate()
+        assert time.monotonic() - start < limit
+        time.sleep(0.005)
+
+
+def long_raw() -> dict:
+    """~80 steps (about a second): long enough to be interrupted after its first checkpoint."""
+    raw = raw_scene(PRONY, SINUSOIDAL, ("load", 0.1), distance=2.4e-3)
+    raw["output"] = {"every": 10, "checkpoint_every": 5, "keep": 2}
+    return raw
+
+
+@pytest.mark.serial
+def test_sigterm_during_a_cli_run_leaves_a_checkpoint_that_restart_finishes_identically(tmp_path):
+    write_toml(tmp_path / "long.toml", long_raw())
+    reference = run(make_scene(long_raw()), MPI.COMM_SELF, tmp_path / "reference")
+    proc = subprocess.Popen([str(PETROLL), "run", "long.toml", "--out", "stopped", "--quiet"], cwd=tmp_path,
+                            env=child_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    wait_for(tmp_path / "stopped" / "checkpoints" / "step-00000005.h5", proc)
+    proc.send_signal(signal.SIGTERM)
+    out, err = proc.communicate(timeout=60)
+    assert proc.returncode == 143, err
+    last = list_checkpoints(tmp_path / "stopped" / "checkpoints")[-1]
+    step = int(last.stem[5:])
+    assert 5 <= step < len(reference.series["t"]) - 1
+    assert err.strip() == (f"petroll: long.toml: interrupted by SIGTERM after step {step} (t = "
+                           f"{reference.series['t'][step]:.6g} s); checkpoint stopped/checkpoints/"
+                           f"{last.name}; continue with: petroll restart stopped/checkpoints/{last.name}")
+    partial = Results.open(tmp_path / "stopped" / "results.h5")
+    assert not partial.complete and len(partial.series["t"]) == step + 1
+    done = petroll("restart", f"stopped/checkpoints/{last.name}", "--quiet", cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
+    assert_identical(Results.open(tmp_path / "stopped" / "results.h5"), reference)
+
+
+KILLER = """
+import os, signal, sys
+from petroll import checkpoint
+from petroll.scene import load_scene
+from petroll.simulation import run
+
+real, calls = checkpoint._write_dataset, []
+
+def write_then_die(f, name, data):
+    calls.append(name)
+    if len(calls) == int(sys.argv[2]):
+        f.flush()  # part of the file is on disk, as when a writer dies in the middle
+        os.kill(os.getpid(), signal.SIGKILL)
+    return real(f, name, data)
+
+checkpoint._write_dataset = write_then_die
+run(load_scene(sys.argv[1]), out="killed")
+"""
+
+
+@pytest.mark.serial
+def test_sigkill_during_a_checkpoint_write_leaves_the_previous_checkpoint_and_results_usable(tmp_path):
+    raw = long_raw()
+    write_toml(tmp_path / "long.toml", raw)
+    reference = run(make_scene(raw), MPI.COMM_SELF, tmp_path / "reference")
+    # 25 whole datasets per checkpoint (p, W, direction, 21 series, fields/step): die in the third (step 15).
+    proc = subprocess.run([sys.executable, "-c", KILLER, "long.toml", str(2 * 25 + 12)], cwd=tmp_path,
+                          env=child_env(), capture_output=True, text=True, timeout=120)
+    assert proc.returncode == -signal.SIGKILL, proc.stderr
+    directory = tmp_path / "killed" / "checkpoints"
+    leftovers = sorted(p.name for p in directory.iterdir())
+    assert leftovers[0].startswith(".step-00000015.h5.tmp") and leftovers[1:] == ["step-00000005.h5",
+                                                                                  "step-00000010.h5"]
+    assert latest_checkpoint(tmp_path / "killed") == directory / "step-00000010.h5"
+    partial = Results.open(tmp_path / "killed" / "results.h5")  # what results.h5 held before the kill
+    assert not partial.complete and len(partial.series["t"]) == 11
+    # A truncated copy at a checkpoint's name (a non-atomic copy killed midway) is refused, not used.
+    bad = directory / "step-00000015.h5"
+    bad.write_bytes((directory / "step-00000010.h5").read_bytes()[:20000])
+    before = snapshot(tmp_path / "killed")
+    refused = petroll("restart", "killed", cwd=tmp_path)
+    assert refused.returncode == 2 and refused.stderr.count("\n") == 1
+    expected = f"petroll: error: {bad.relative_to(tmp_path)}: truncated"
+    assert refused.stderr.startswith(expected), refused.stderr
+    assert snapshot(tmp_path / "killed") == before
+    bad.unlink()
+    done = petroll("restart", "killed", "--quiet", cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
+    assert_identical(Results.open(tmp_path / "killed" / "results.h5"), reference)
+
+
+@pytest.mark.serial
+def test_sigkill_at_random_moments_never_leaves_a_bad_checkpoint_or_results_file(tmp_path):
+    raw = long_raw()
+    raw["output"].update(checkpoint_every=1, keep=3)
+    write_toml(tmp_path / "long.toml", raw)
+    rng = np.random.default_rng(7)
+    kills = 0
+    for attempt in range(4):
+        out = tmp_path / f"run{attempt}"
+        proc = subprocess.Popen([str(PETROLL), "run", "long.toml", "--out", out.name, "--quiet"],
+                                cwd=tmp_path, env=child_env(), stdout=subprocess.DEVNULL,
+                                stderr=subprocess.DEVNULL)
+        wait_for(out / "checkpoints" / "step-00000002.h5", proc)
+        time.sleep(rng.uniform(0.0, 0.3))
+        proc.kill()
+        proc.wait()
+        kills += proc.returncode == -signal.SIGKILL
+        found = list_checkpoints(out / "checkpoints")
+        assert found
+        for path in found:
+            read_checkpoint(path, MPI.COMM_SELF)
+        Results.open(out / "results.h5")
+    assert kills >= 3
