@@ -97,3 +97,21 @@ def move_rows(local: np.ndarray, src: list[tuple[int, int]], dst: list[tuple[int
 def _overlap(a: tuple[int, int], b: tuple[int, int]) -> tuple[int, int]:
     lo, hi = max(a[0], b[0]), min(a[1], b[1])
     return (lo, max(lo, hi))
+
+
+def shift_field(local: np.ndarray, di: int, dj: int, rows: RowPartition, comm) -> np.ndarray:
+    """The distributed field moved by (di, dj) cells: out[i, j] = field[i - di, j - dj], zero where that
+    falls outside the grid. ``local`` holds this rank's rows of ``rows``."""
+    ranges = [rows.range(r) for r in range(comm.size)]
+    wanted = [(min(max(a - di, 0), rows.n), min(max(b - di, 0), rows.n)) for a, b in ranges]
+    wanted = [(a, max(a, b)) for a, b in wanted]
+    got = move_rows(local, ranges, wanted, comm)
+    out = np.zeros_like(local)
+    r0 = ranges[comm.rank][0]
+    a, b = wanted[comm.rank]
+    start = a + di - r0
+    ny = local.shape[1]
+    c0, c1 = max(dj, 0), min(ny, ny + dj)
+    if c1 > c0 and b > a:
+        out[start : start + (b - a), c0:c1] = got[:, c0 - dj : c1 - dj]
+    return out

@@ -50,6 +50,7 @@ class PolonskyKeer:
             if res <= gatol and not fresh:
                 gap()  # confirm on an exact gap
                 fresh, res = True, residual()
+            tao.setIterationNumber(its)
             tao.monitor(its, 0.0, res, 0.0, 0.0)
             if res <= gatol:
                 reason = PETSc.TAO.Reason.CONVERGED_GATOL

@@ -93,3 +93,19 @@ def test_move_rows_between_partitions(comm):
     moved = move_rows(field[a:b], grid, window, comm)
     c, d = window[comm.rank]
     assert np.array_equal(moved, field[c:d])
+
+
+@pytest.mark.parametrize("di,dj", [(0, 0), (1, 0), (3, -2), (-4, 1), (12, 0), (0, -7), (-2, -3)])
+def test_shift_field_moves_a_distributed_field_by_whole_cells(comm, di, dj):
+    from petroll.grid import shift_field
+
+    nx, ny = 11, 7
+    field = np.arange(nx * ny, dtype=float).reshape(nx, ny) + 1
+    expected = np.zeros_like(field)
+    for i in range(nx):
+        for j in range(ny):
+            if 0 <= i - di < nx and 0 <= j - dj < ny:
+                expected[i, j] = field[i - di, j - dj]
+    rows = RowPartition(nx, comm.size)
+    r0, r1 = rows.range(comm.rank)
+    assert np.array_equal(shift_field(field[r0:r1], di, dj, rows, comm), expected[r0:r1])
