@@ -1,5 +1,11 @@
 """Benchmarks that print tables and write CSV files (never timed unit tests).
 
+``petroll bench peers [--out DIR]``: the elastic Hertz step under load control on the same grids, same
+tolerance, solved by petroll (``pk``) and by Tamaas (``PolonskyKeerRey`` with its non-periodic ``dcfft``
+operator), each checked against Hertz, timed side by side in one invocation (median of 3). Tamaas runs in
+its own virtual environment, ``.venv-peers`` (created on first use with pip: it needs numpy 2, which must
+not enter petroll's environment).
+
 ``petroll bench tao [--out DIR]``: every TAO type on the elastic Hertz step (sphere, displacement control)
 at two resolutions, cold (from p = 0) and warm (from the solution at a 1 % smaller penetration): TAO
 iterations, operator applications, median wall time of repeated solves, and the force error against Hertz.
@@ -14,6 +20,7 @@ import pathlib
 import statistics
 import time
 
+import numpy as np
 from mpi4py import MPI
 
 from petroll.bodies import Sphere
@@ -60,6 +67,73 @@ def tao_types(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, repeats: int =
             writer.writerows(rows)
         _print_table(rows)
     return rows
+
+
+PEERS_VENV = pathlib.Path(".venv-peers")
+
+
+def peers(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, cells: tuple[int, ...] = (128, 256, 512),
+          tol: float = 1e-8, repeats: int = 3) -> list[dict]:
+    """petroll against Tamaas on the Hertz step (rank 0 runs Tamaas); writes ``out/peers.csv``."""
+    import json
+    import subprocess
+
+    width = 3.2  # grid side in contact radii
+    nu, E = 0.5, 1e7
+    J = (1 - nu**2) / E
+    a = math.sqrt(_R * _DELTA)
+    force = 4 * math.sqrt(_R) * _DELTA**1.5 / (3 * J)
+    p0 = 2 * math.sqrt(_DELTA / _R) / (math.pi * J)
+    python = _peers_python() if comm.rank == 0 else None
+    rows = []
+    for n in cells:
+        grid = Grid(n, n, -width * a / 2, width * a / 2, -width * a / 2, width * a / 2)
+        solver = ContactSolver(grid, comm, tao_type="pk", tol=tol)
+        height = Sphere(_R).height(grid.x[solver.r0 : solver.r1, None], grid.y[None, :])
+        solver.influence.window(n, n)  # kernels built before timing, as Tamaas builds its own in set-up
+        times = []
+        for _ in range(repeats):
+            t0 = time.perf_counter()
+            step = solver.solve_load(height, J, force, _R)
+            times.append(time.perf_counter() - t0)
+        r = np.hypot(grid.x[solver.r0 : solver.r1, None], grid.y[None, :])
+        hertz = p0 * np.sqrt(np.clip(1 - r**2 / a**2, 0, None))
+        error = comm.allreduce(float(np.abs(step.pressure - hertz).max()), op=MPI.MAX) / p0
+        ours = statistics.median(times)
+        row = dict(cells=f"{n}x{n}", petroll_s=f"{ours:.3f}", petroll_pressure_error=f"{error:.3e}",
+                   petroll_force_error=f"{step.force / force - 1:+.1e}")
+        if comm.rank == 0:
+            runs = []
+            for _ in range(repeats):
+                done = subprocess.run([python, str(pathlib.Path(__file__).with_name("bench_tamaas.py")), str(n),
+                                       str(tol), str(_R), str(E), str(nu), str(_DELTA), str(width)],
+                                      capture_output=True, text=True, check=True)
+                runs.append(json.loads(done.stdout.strip().splitlines()[-1]))
+            theirs = statistics.median(r["seconds"] for r in runs)
+            row.update(tamaas_s=f"{theirs:.3f}", tamaas_pressure_error=f"{runs[0]['pressure_error']:.3e}",
+                       tamaas_force_error=f"{runs[0]['force_error']:+.1e}", ratio=f"{ours / theirs:.2f}")
+        rows.append(row)
+    if comm.rank == 0:
+        out.mkdir(parents=True, exist_ok=True)
+        with open(out / "peers.csv", "w", newline="") as fh:
+            writer = csv.DictWriter(fh, fieldnames=list(rows[0]))
+            writer.writeheader()
+            writer.writerows(rows)
+        _print_table(rows)
+    return rows
+
+
+def _peers_python() -> str:
+    """The Python of .venv-peers, created with Tamaas on first use."""
+    import subprocess
+    import sys
+
+    python = PEERS_VENV / "bin" / "python"
+    if not python.exists() or subprocess.run([str(python), "-c", "import tamaas"]).returncode:
+        print(f"petroll bench: creating {PEERS_VENV} with tamaas (benchmark-only peer, pip)", file=sys.stderr)
+        subprocess.run([sys.executable, "-m", "venv", "--clear", str(PEERS_VENV)], check=True)
+        subprocess.run([str(python), "-m", "pip", "install", "-q", "tamaas"], check=True)
+    return str(python)
 
 
 def _print_table(rows: list[dict]) -> None:

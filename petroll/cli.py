@@ -55,7 +55,8 @@ def _parser() -> argparse.ArgumentParser:
     stability.add_argument("--fast", action="store_true", help="only the subset that the test suite runs")
     stability.add_argument("--out", default="results/stability", help="directory for stability.csv and .md")
     bench = verbs.add_parser("bench", help="run a benchmark, print its table and write CSV (docs/benchmarks.md)")
-    bench.add_argument("which", choices=["tao"], help="tao: every TAO type on the Hertz step")
+    bench.add_argument("which", choices=["tao", "peers"], help="tao: every TAO type on the Hertz step; "
+                       "peers: petroll against Tamaas on the Hertz step")
     bench.add_argument("--out", default="results/bench", help="directory for the CSV files")
     plot = verbs.add_parser("plot", help="write PNG figures of a run (pressure maps, patch outlines, series)")
     plot.add_argument("dir", help="a run's output directory (holding results.h5)")
@@ -202,9 +203,9 @@ def _main(args: argparse.Namespace, comm) -> int:
     if args.verb == "bench":
         import pathlib
 
-        from petroll.bench import tao_types
+        from petroll import bench
 
-        tao_types(pathlib.Path(args.out), comm)
+        {"tao": bench.tao_types, "peers": bench.peers}[args.which](pathlib.Path(args.out), comm)
         return 0
     if args.verb == "stability":
         from petroll.stability import command
