@@ -8,13 +8,14 @@ The Python API (the ``petroll`` command is a thin layer over it)::
     results.series["mu_r"], results.pressure, results.x, results.y
 
 Scenes can also be built from a dict of sections with :func:`parse_scene`; :class:`Results` reopens a
-results file.
+results file, and ``results.steady`` (:class:`SteadyState`) gives the final force and mu_r with their
+convergence measure. Sweeps over a key: :func:`petroll.sweep.sweep`. Reference: docs/api.md.
 """
 
 __version__ = "0.1.0"
 
-from petroll.results import Results  # noqa: E402
+from petroll.results import Results, SteadyState  # noqa: E402
 from petroll.scene import Scene, load_scene, parse_scene  # noqa: E402
 from petroll.simulation import run  # noqa: E402
 
-__all__ = ["Results", "Scene", "load_scene", "parse_scene", "run", "__version__"]
+__all__ = ["Results", "Scene", "SteadyState", "load_scene", "parse_scene", "run", "__version__"]

@@ -5,6 +5,7 @@
     petroll keys            print the scene reference (docs/scene.md) generated from the schema
     petroll stability [--fast] [--out DIR]   the stability map (docs/stability.md): CSV and Markdown in DIR
     petroll plot DIR [--out PLOTS] [--times T1,T2,...]   PNG figures of DIR/results.h5 (needs matplotlib)
+    petroll sweep SCENE.toml --vary KEY=SPEC [--out DIR]   one scene over values of a key (docs/sweep.md)
 
 Options that argparse does not know are handed to PETSc's options database. A user mistake (bad scene,
 unreachable load, solver failure) prints one line ``petroll: error: ...`` and exits with status 2 (a bad
@@ -58,6 +59,14 @@ def _parser() -> argparse.ArgumentParser:
     bench.add_argument("which", choices=["tao", "peers"], help="tao: every TAO type on the Hertz step; "
                        "peers: petroll against Tamaas on the Hertz step")
     bench.add_argument("--out", default="results/bench", help="directory for the CSV files")
+    sweep = verbs.add_parser("sweep", help="run a scene over values of one key to steady state; table and "
+                             "plot in DIR (docs/sweep.md); run again to resume")
+    sweep.add_argument("scene", help="scene file (TOML)")
+    sweep.add_argument("--vary", action="append", required=True, metavar="KEY=SPEC",
+                       help="KEY=V1,V2,... or KEY=START..STOP:log:N or KEY=START..STOP:lin:N, e.g. "
+                       "motion.velocity=1e-4..1e-1:log:7 (a vector key varies its magnitude)")
+    sweep.add_argument("--out", help="output directory (default: the scene's [output] dir + -sweep)")
+    sweep.add_argument("--quiet", action="store_true", help="no progress line (also off when not a terminal)")
     plot = verbs.add_parser("plot", help="write PNG figures of a run (pressure maps, patch outlines, series)")
     plot.add_argument("dir", help="a run's output directory (holding results.h5)")
     plot.add_argument("--out", help="directory for the PNG files (default: DIR/plots)")
@@ -207,6 +216,10 @@ def _main(args: argparse.Namespace, comm) -> int:
 
         {"tao": bench.tao_types, "peers": bench.peers}[args.which](pathlib.Path(args.out), comm)
         return 0
+    if args.verb == "sweep":
+        from petroll.sweep import command
+
+        return command(args.scene, args.vary, args.out, args.quiet, comm)
     if args.verb == "stability":
         from petroll.stability import command
 

@@ -267,3 +267,205 @@ def _widen_flat(ax, values: np.ndarray, floor: float) -> None:
     if hi - lo < half:
         mid = 0.5 * (lo + hi)
         ax.set_ylim(mid - half, mid + half)
+
+
+# -- sweeps (petroll sweep) ----------------------------------------------------------------------------
+def plot_sweep(table, path: str | pathlib.Path) -> pathlib.Path:
+    """One PNG of a sweep (a :class:`petroll.sweep.SweepTable`): mu_r (linear and log), force or penetration,
+    contact area, patch edges and the convergence measures against the varied value, with V tau/a on a
+    second axis where it applies and the rolling limits (formulation §7) where they apply."""
+    import tomllib
+
+    c = {name: np.asarray(values, dtype=float) for name, values in table.columns.items()}
+    order = np.argsort(c["value"])
+    c = {name: values[order] for name, values in c.items()}
+    x = c["value"]
+    logx = bool(np.all(x > 0) and x.max() >= 10 * x.min())
+    try:
+        raw = tomllib.loads(table.scene_text)
+    except tomllib.TOMLDecodeError:
+        raw = {}
+    load_control = table.key == "motion.load" or ("load" in raw.get("motion", {})
+                                                  and table.key != "motion.penetration")
+    tol = raw.get("time", {}).get("steady")
+    if tol is None and "time" in raw:
+        from petroll.sweep import DEFAULT_STEADY
+
+        tol = DEFAULT_STEADY
+    limits = bool(np.all(np.isfinite(c["mu_r_slow"])))
+    unit = "" if table.unit == "-" else f" ({table.unit})"
+    vector = table.key in ("motion.velocity", "body.position")
+    xlabel = f"{table.key}{unit}" + (" (magnitude)" if vector else "")
+    dense = np.geomspace(x.min(), x.max(), 200) if logx else np.linspace(x.min(), x.max(), 200)
+    secondary = _secondary_axis(x, c["v_tau_a"], logx)
+    style = {"marker": "o", "markersize": 4}
+
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    figure = Figure(figsize=(12.0, 11.5))  # fixed margins: constrained layout costs seconds with log ticks
+    FigureCanvasAgg(figure)
+    axes = figure.subplots(3, 2, sharex=True)
+    figure.subplots_adjust(left=0.08, right=0.98, bottom=0.06, top=0.9, wspace=0.22, hspace=0.3)
+    (mu_ax, log_ax), (force_ax, area_ax), (edge_ax, conv_ax) = axes
+
+    mu_ax.plot(x, c["mu_r"], color="tab:green", label=r"petroll, steady $\mu_r$", **style)
+    top = max(float(np.nanmax(c["mu_r"], initial=0.0)), 1e-300)
+    bottom = min(float(np.nanmin(c["mu_r"], initial=0.0)), 0.0)
+    if limits:
+        slow = _proportional(x, c["mu_r_slow"], dense)
+        mu_ax.plot(dense if slow is not None else x, slow if slow is not None else c["mu_r_slow"],
+                   color="black", linestyle="--", label=r"slow-rolling limit $V\tau(1 - J_0/J_\infty)/R$")
+        mu_ax.axhline(0.0, color="tab:blue", linestyle=":", linewidth=1.5,
+                      label=r"fast-rolling limit $\mu_r \to 0$ (Hertz with $J_0$)")
+    else:
+        mu_ax.axhline(0.0, color="grey", linewidth=0.6)
+    mu_ax.set_ylim(bottom - 0.05 * (top - bottom), top + 0.25 * (top - bottom))
+    mu_ax.set_ylabel(r"rolling resistance $\mu_r$ (-)")
+    mu_ax.set_title(r"$\mu_r$ = resisting force / normal force (steady)", fontsize=10)
+    mu_ax.legend(fontsize=8, loc="upper left")
+
+    positive = c["mu_r"] > 0
+    if np.any(positive):
+        log_ax.plot(x[positive], c["mu_r"][positive], color="tab:green", label=r"petroll, steady $\mu_r$",
+                    **style)
+        if limits:
+            slow = _proportional(x, c["mu_r_slow"], dense)
+            log_ax.plot(dense if slow is not None else x, slow if slow is not None else c["mu_r_slow"],
+                        color="black", linestyle="--", label="slow-rolling limit")
+        log_ax.set_yscale("log")
+        lo, hi = float(c["mu_r"][positive].min()), float(c["mu_r"][positive].max())
+        log_ax.set_ylim(lo / 3, hi * 3)
+        log_ax.legend(fontsize=8, loc="lower center")
+    else:
+        log_ax.text(0.5, 0.5, r"no positive $\mu_r$", transform=log_ax.transAxes, ha="center")
+    log_ax.set_ylabel(r"$\mu_r$ (-), log scale")
+    log_ax.set_title(r"$\mu_r$ on a log scale" + (" (the slow limit is a slope-1 line)" if limits else ""),
+                     fontsize=10)
+
+    if load_control:
+        force_ax.plot(x, c["delta"] * 1e6, color="tab:orange", label="petroll, steady", **style)
+        pairs = (("delta_J0", "fast-rolling limit: Hertz with $J_0$"),
+                 ("delta_Jinf", r"slow-rolling limit: Hertz with $J_\infty$"))
+        scale, what = 1e6, "penetration (µm)"
+    else:
+        force_ax.plot(x, c["force"], color="tab:blue", label="petroll, steady", **style)
+        pairs = (("force_J0", "fast-rolling limit: Hertz with $J_0$"),
+                 ("force_Jinf", r"slow-rolling limit: Hertz with $J_\infty$"))
+        scale, what = 1.0, "normal force (N)"
+    if limits:
+        for (name, text), color in zip(pairs, ("tab:blue", "black")):
+            force_ax.plot(x, c[name] * scale, color=color, linestyle=":" if name.endswith("J0") else "--",
+                          label=text)
+    elif np.all(np.isfinite(c[pairs[0][0]])):  # an elastic sphere: Hertz itself
+        force_ax.plot(x, c[pairs[0][0]] * scale, color="black", linestyle="--", label="Hertz")
+    force_ax.legend(fontsize=8)
+    force_ax.set_ylabel(what)
+    force_ax.set_title(("penetration under the given load" if load_control else
+                        "normal force at the given penetration") + " (steady)", fontsize=10)
+
+    area_ax.plot(x, c["area"] * MM**2, color="tab:purple", label="contact area", **style)
+    if np.all(np.isfinite(c["a"])):
+        area_ax.plot(x, np.pi * c["a"] ** 2 * MM**2, color="grey", linestyle=":",
+                     label=r"$\pi a^2$ ($a$: Hertz radius of the first step)")
+    area_ax.set_ylabel("contact area (mm²)")
+    area_ax.set_title("contact area (steady)", fontsize=10)
+    area_ax.legend(fontsize=8)
+
+    edge_ax.plot(x, c["lead"] * MM, color="tab:red", label="leading edge", **style)
+    edge_ax.plot(x, c["trail"] * MM, color="tab:purple", label="trailing edge", **style)
+    if np.all(np.isfinite(c["a"])):
+        edge_ax.plot(x, c["a"] * MM, color="grey", linestyle=":", label=r"$\pm a$")
+        edge_ax.plot(x, -c["a"] * MM, color="grey", linestyle=":")
+    edge_ax.axhline(0.0, color="black", linewidth=0.6)
+    edge_ax.set_ylabel("along the motion, relative\nto the body (mm)")
+    edge_ax.set_title("contact-patch edges (steady)", fontsize=10)
+    edge_ax.legend(fontsize=8)
+    edge_ax.set_xlabel(xlabel)
+
+    for name, color, text in (("force_change", "tab:blue", "force"), ("mu_r_change", "tab:green", r"$\mu_r$"),
+                              ("resisting_change", "tab:red", r"$\mu_r F$ / F")):
+        values = np.where(c[name] > 0, c[name], np.nan)
+        conv_ax.plot(x, values, label=text, color=color, **style)
+    if tol is not None:
+        conv_ax.axhline(tol, color="black", linestyle="--", linewidth=0.8, label=f"[time] steady = {tol:g}")
+    unsteady = c["steady"] == 0
+    if np.any(unsteady) and tol is not None:
+        conv_ax.plot(x[unsteady], np.full(int(unsteady.sum()), tol), linestyle="none", marker="x",
+                     color="red", markersize=9, label="not steady at its end")
+    if np.any(np.isfinite(np.where(c["force_change"] > 0, c["force_change"], np.nan))):
+        conv_ax.set_yscale("log")
+    if not np.any(np.isfinite(c["force_change"])):
+        conv_ax.text(0.5, 0.5, "no convergence measure:\nno run rolled one contact length",
+                     transform=conv_ax.transAxes, ha="center", va="center")
+    conv_ax.set_ylabel("relative change over the\nlast contact length (-)")
+    conv_ax.set_title("convergence of the steady values", fontsize=10)
+    conv_ax.legend(fontsize=8)
+    conv_ax.set_xlabel(xlabel)
+
+    from matplotlib.ticker import LogLocator
+
+    for ax in axes.ravel():
+        if logx:
+            ax.set_xscale("log")
+            ax.xaxis.set_minor_locator(LogLocator(subs=(2.0, 5.0)))  # fewer ticks: each costs time
+        ax.grid(alpha=0.3)
+    if secondary is not None:
+        for ax in axes[0]:
+            top_axis = ax.secondary_xaxis("top", functions=secondary)
+            top_axis.set_xlabel(r"$V\tau/a$ (-)")
+    label = pathlib.Path(table.directory).resolve().name
+    figure.suptitle(f"{label}: steady state against {table.key} ({len(x)} runs)")
+    path = pathlib.Path(path)
+    figure.savefig(path, dpi=110)
+    return path
+
+
+def _proportional(x: np.ndarray, y: np.ndarray, dense: np.ndarray) -> np.ndarray | None:
+    """y on ``dense`` if y = k x for one k (to 1e-9), else None."""
+    if np.any(x == 0):
+        return None
+    k = y / x
+    if not np.all(np.isfinite(k)) or np.ptp(k) > 1e-9 * np.abs(k).max():
+        return None
+    return k[0] * dense
+
+
+def _secondary_axis(x: np.ndarray, v: np.ndarray, logx: bool):
+    """(forward, inverse) from the varied value to V tau/a, when V tau/a is finite, positive and strictly
+    monotone in it (linear in logs on a log axis, extrapolated linearly); else None."""
+    if len(x) < 2 or not np.all(np.isfinite(v) & (v > 0)):
+        return None
+    k = v / x
+    if np.all(x > 0) and np.ptp(k) <= 1e-9 * k.max():  # V tau/a = k x (a speed sweep): exact and fast
+        k0 = float(k[0])
+        return (lambda q: np.asarray(q, dtype=float) * k0), (lambda q: np.asarray(q, dtype=float) / k0)
+    if logx:
+        u, w = np.log(x), np.log(v)
+    else:
+        u, w = x, np.log(v)
+    if not (np.all(np.diff(w) > 0) or np.all(np.diff(w) < 0)) or not np.all(np.diff(u) > 0):
+        return None
+    if w[0] > w[-1]:
+        u_rev, w_rev = u[::-1], w[::-1]
+    else:
+        u_rev, w_rev = u, w
+
+    def extrapolated(q, a, b):
+        q = np.asarray(q, dtype=float)
+        out = np.interp(q, a, b)
+        low, high = q < a[0], q > a[-1]
+        out = np.where(low, b[0] + (q - a[0]) * (b[1] - b[0]) / (a[1] - a[0]), out)
+        return np.where(high, b[-1] + (q - a[-1]) * (b[-1] - b[-2]) / (a[-1] - a[-2]), out)
+
+    def forward(q):
+        with np.errstate(divide="ignore", invalid="ignore"):
+            q = np.log(np.maximum(q, 1e-300)) if logx else q
+        return np.exp(extrapolated(q, u, w))
+
+    def inverse(q):
+        with np.errstate(divide="ignore", invalid="ignore"):
+            r = extrapolated(np.log(np.maximum(q, 1e-300)), w_rev, u_rev)
+        return np.exp(r) if logx else r
+
+    return forward, inverse

@@ -15,6 +15,7 @@ half-written file, and a run killed at any moment leaves the previous complete f
 
 from __future__ import annotations
 
+import math
 import os
 import pathlib
 from dataclasses import dataclass
@@ -40,9 +41,83 @@ SERIES_UNITS = {
 """The series every run writes, with their units (attribute ``units`` of each dataset)."""
 
 
+@dataclass(frozen=True)
+class SteadyState:
+    """A run's final (steady-state) values with a measure of how converged they are.
+
+    The values are those of the last step. Their convergence is measured over the last contact length of
+    rolling, as ``[time] steady`` does: ``window`` = the last step's patch length along the motion
+    (lead - trail), compared with the last step at least ``window`` earlier along the path (step 0, the
+    sudden start, excluded). The changes are NaN when there is no such step (a run that did not roll one
+    contact length, or lost contact).
+    """
+
+    force: float  # normal force, N
+    mu_r: float  # rolling-resistance coefficient, - (resisting force along the motion / normal force)
+    delta: float  # penetration, m
+    area: float  # contact area, m^2
+    lead: float  # leading patch edge along the motion, relative to the body, m
+    trail: float  # trailing patch edge along the motion, relative to the body, m
+    p_max: float  # peak pressure, Pa
+    step: int  # the last step's number
+    t: float  # its time, s
+    distance: float  # path length rolled, m
+    window: float  # rolled length over which the changes are measured, m
+    force_change: float  # |F - F_then| / |F|, -
+    mu_r_change: float  # |mu_r - mu_r_then| / |mu_r|, - (inf when mu_r = 0 but mu_r_then is not)
+    resisting_change: float  # |mu_r F - (mu_r F)_then| / |F|, - (with force_change: what [time] steady tests)
+    reached: bool  # the run stopped on its [time] steady criterion, before its end or distance
+
+    def converged(self, tol: float) -> bool:
+        """The ``[time] steady`` test at tolerance ``tol``: force and resisting force changed by at most
+        ``tol`` x force over the last contact length (False when that cannot be measured)."""
+        return bool(self.force_change <= tol and self.resisting_change <= tol)
+
+
+def steady_state(series: dict[str, np.ndarray], scene_text: str = "") -> SteadyState:
+    """The :class:`SteadyState` of a run's series (``scene_text``: its scene, for ``reached``)."""
+    import tomllib
+
+    s = {name: np.asarray(values) for name, values in series.items()}
+    last = len(s["t"]) - 1
+    if last < 0:
+        raise ValueError("no steps in the series")
+    force, mu_r, distance = (float(s[name][last]) for name in ("force", "mu_r", "distance"))
+    window = float(s["lead"][last] - s["trail"][last])
+    changes = (math.nan, math.nan, math.nan)
+    if math.isfinite(window) and force != 0:
+        # a step exactly one window back counts (1e-9 of slack for round-off in the distances): with k
+        # steps per cell it sits at the same place relative to the cells as the last one
+        earlier = np.flatnonzero(s["distance"][1:last] <= distance - window * (1 - 1e-9))
+        if earlier.size:
+            k = int(earlier[-1]) + 1
+            f0, m0 = float(s["force"][k]), float(s["mu_r"][k])
+            dm = abs(mu_r - m0)
+            changes = (abs(force - f0) / abs(force),
+                       dm / abs(mu_r) if mu_r != 0 else (0.0 if dm == 0 else math.inf),
+                       abs(mu_r * force - m0 * f0) / abs(force))
+    try:
+        time = tomllib.loads(scene_text).get("time", {}) if scene_text else {}
+    except tomllib.TOMLDecodeError:
+        time = {}
+    end, length = time.get("end"), time.get("distance")
+    reached = bool("steady" in time and (
+        (end is not None and float(s["t"][last]) < end * (1 - 1e-9))
+        or (length is not None and distance < length * (1 - 1e-9))))
+    return SteadyState(force=force, mu_r=mu_r, delta=float(s["delta"][last]), area=float(s["area"][last]),
+                       lead=float(s["lead"][last]), trail=float(s["trail"][last]),
+                       p_max=float(s["p_max"][last]), step=int(s["step"][last]), t=float(s["t"][last]),
+                       distance=distance, window=window, force_change=changes[0], mu_r_change=changes[1],
+                       resisting_change=changes[2], reached=reached)
+
+
 @dataclass
 class Results:
-    """A run's results as numpy arrays: ``series[name]`` (one value per step) and the saved fields."""
+    """A run's results as numpy arrays: ``series[name]`` (one value per step) and the saved fields.
+
+    Units: see :data:`SERIES_UNITS` (SI); ``pressure`` in Pa, ``x`` and ``y`` in m. ``steady`` gives the
+    final values with their convergence measure (:class:`SteadyState`).
+    """
 
     path: pathlib.Path
     series: dict[str, np.ndarray]
@@ -62,6 +137,12 @@ class Results:
             fields = f["fields"]
             return cls(path, series, fields["pressure"][()], fields["step"][()], fields["x"][()],
                        fields["y"][()], str(f.attrs["scene"]), bool(f.attrs.get("complete", True)))
+
+    @property
+    def steady(self) -> SteadyState:
+        """The last step's force (N), mu_r and other values, with their relative change over the last
+        contact length of rolling (computed from the series: the same for a reopened file)."""
+        return steady_state(self.series, self.scene_text)
 
 
 def write_results(path: pathlib.Path, series: dict[str, np.ndarray], pressure: np.ndarray,

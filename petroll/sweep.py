@@ -1,0 +1,487 @@
+"""Parameter sweeps: one scene run over a list or a range of values of one key (``petroll sweep``).
+
+    petroll sweep SCENE.toml --vary KEY=SPEC [--out DIR]
+
+SPEC is one of (docs/sweep.md)::
+
+    V1,V2,...            the listed values                  material.tau_relax=0.001,0.01,0.1
+    START..STOP:log:N    N values evenly spaced in log      motion.velocity=1e-5..10:log:25
+    START..STOP:lin:N    N values evenly spaced             motion.penetration=10e-6..30e-6:lin:5
+
+KEY is a scene key ``section.key`` holding a number. A vector key (``motion.velocity``, ``body.position``)
+varies its magnitude along the scene's own direction: the scene's ``velocity = [0.01, 0]`` with the value
+0.5 runs ``velocity = [0.5, 0]``. Varying one key of an exclusive pair drops the other (penetration/load,
+tau_creep/tau_relax, dt/steps_per_cell, end/distance).
+
+Each point is the scene with that value, run to steady state: a scene with a [time] table but no
+``steady`` gets ``steady = 1e-3`` (:data:`DEFAULT_STEADY`); the scene's ``distance`` (or ``end``) must
+leave room to reach it, and a point that ends before is flagged (column ``steady`` = 0, a warning). A
+scene without [time] gives one instantaneous step per point (a static sweep, e.g. force against
+penetration).
+
+Output in DIR (default: the scene's output directory + ``-sweep``)::
+
+    points/KEY=VALUE/results.h5   each point's run (docs/results.md), checkpoints as the scene asks
+    sweep.csv, sweep.h5           one row per point: the steady values and the derived ones (COLUMNS)
+    sweep.png                     mu_r, force or penetration, area, patch edges, convergence against
+                                  the value, with V tau/a on a second axis where it applies
+
+A point whose complete results.h5 holds the same scene is not run again, so an interrupted sweep (or
+one extended by more values) resumes where it stopped; a point interrupted by SIGTERM/SIGINT continues
+from its checkpoint.
+
+Reuse: every point builds its own contact solver (influence kernels), since petroll.simulation.run
+does not take one; measured, kernels cost about 1-3 % of a point's run (docs/sweep.md).
+
+All functions here are collective over ``comm`` (every rank calls them with the same arguments) and
+return the same values on every rank.
+"""
+
+from __future__ import annotations
+
+import math
+import pathlib
+import re
+import warnings
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+
+import h5py
+import numpy as np
+from mpi4py import MPI
+
+from petroll import __version__
+from petroll import motion as motions
+from petroll.errors import PetrollError
+from petroll.material import Prony
+from petroll.results import Results, _reason, atomic_write
+from petroll.scene import SCHEMA, Scene
+
+DEFAULT_STEADY = 1e-3
+"""[time] steady given to every point of a sweep whose scene has a [time] table without one."""
+
+FORMS = "KEY=V1,V2,... or KEY=START..STOP:log:N or KEY=START..STOP:lin:N (docs/sweep.md)"
+
+EXCLUSIVE = {
+    "motion.penetration": "motion.load", "motion.load": "motion.penetration",
+    "material.tau_creep": "material.tau_relax", "material.tau_relax": "material.tau_creep",
+    "time.dt": "time.steps_per_cell", "time.steps_per_cell": "time.dt",
+    "time.end": "time.distance", "time.distance": "time.end",
+}
+"""Keys of which a scene gives exactly one: varying one removes the other."""
+
+COLUMNS: dict[str, tuple[str, str]] = {
+    "value": ("(of KEY)", "the varied value (a vector key: its magnitude)"),
+    "force": ("N", "normal force at the last step"),
+    "mu_r": ("-", "rolling-resistance coefficient at the last step"),
+    "delta": ("m", "penetration at the last step"),
+    "area": ("m^2", "contact area at the last step"),
+    "lead": ("m", "leading patch edge along the motion, relative to the body"),
+    "trail": ("m", "trailing patch edge along the motion, relative to the body"),
+    "p_max": ("Pa", "peak pressure at the last step"),
+    "force_change": ("-", "|relative change| of the force over the last contact length of rolling"),
+    "mu_r_change": ("-", "|relative change| of mu_r over the last contact length of rolling"),
+    "resisting_change": ("-", "change of mu_r x force over the last contact length, / force"),
+    "steady": ("-", "1: the run stopped on its [time] steady criterion; 0: at its end or distance"),
+    "steps": ("-", "number of steps (step 0 included)"),
+    "t": ("s", "time at the last step"),
+    "distance": ("m", "path length rolled"),
+    "solve_time": ("s", "wall time of the point's steps (their sum; file writes excluded)"),
+    "speed": ("m/s", "|V| of a constant velocity (NaN otherwise)"),
+    "tau": ("s", "longest creep (retardation) time of a Prony/SLS material (NaN otherwise)"),
+    "a": ("m", "Hertz radius of the first step: sqrt(R delta_0) for a sphere, else sqrt(area_0/pi)"),
+    "v_tau_a": ("-", "V tau / a (NaN where speed or tau is)"),
+    "mu_r_slow": ("-", "slow-rolling limit V sum(dJ_r tau_r) / (Jinf R) (sphere, Prony; = V tau (1 - "
+                  "J0/Jinf)/R for an SLS)"),
+    "force_J0": ("N", "Hertz force with J0 at the last penetration (sphere): the fast-rolling limit "
+                 "under displacement control"),
+    "force_Jinf": ("N", "Hertz force with Jinf at the last penetration (sphere): the slow-rolling limit"),
+    "delta_J0": ("m", "Hertz penetration with J0 at the last force (sphere): the fast limit under load "
+                 "control"),
+    "delta_Jinf": ("m", "Hertz penetration with Jinf at the last force (sphere): the slow limit"),
+}
+"""The table's columns: name -> (unit, meaning). One row per point, in the order of the values."""
+
+
+class SweepError(PetrollError):
+    """A --vary specification or a sweep that cannot be run (one line: what is wrong, what is allowed)."""
+
+
+class SweepInterrupted(Exception):
+    """SIGTERM/SIGINT stopped the sweep (finished points are kept; the same call resumes it)."""
+
+    def __init__(self, signum: int, index: int, total: int, label: str):
+        import signal
+
+        self.signum, self.index, self.total, self.label = signum, index, total, label
+        name = signal.Signals(signum).name if signum in signal.Signals._value2member_map_ else str(signum)
+        super().__init__(f"interrupted by {name} at point {index + 1} of {total} ({label}); finished points "
+                         "are kept: the same command resumes the sweep")
+
+    @property
+    def exit_code(self) -> int:
+        return 128 + self.signum
+
+
+@dataclass(frozen=True)
+class Vary:
+    """What a sweep varies: ``key`` (section.key) over ``values`` (in the key's unit)."""
+
+    key: str
+    values: tuple[float, ...]
+    spec: str = ""  # the text it was parsed from
+
+
+_NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
+_RANGE = re.compile(rf"^({_NUMBER})\.\.({_NUMBER}):(log|lin):(\d+)$")
+
+
+def parse_vary(text: str) -> Vary:
+    """Read ``KEY=SPEC`` (module docstring); SweepError with one line for anything else."""
+    def bad(reason: str) -> SweepError:
+        return SweepError(f"--vary {text!r}: {reason}; allowed: {FORMS}")
+
+    key, eq, spec = (part.strip() for part in str(text).partition("="))
+    if not eq or not key or not spec:
+        raise bad("must be KEY=VALUES")
+    section, dot, name = key.partition(".")
+    if not dot or not section or not name:
+        raise bad(f"KEY must be written section.key (e.g. motion.velocity), not {key!r}")
+    if section not in SCHEMA:
+        raise bad(f"unknown section [{section}]; sections: " + ", ".join(SCHEMA))
+    spec = "".join(spec.split())
+    found = _RANGE.match(spec)
+    if found:
+        start, stop, kind, count = float(found[1]), float(found[2]), found[3], int(found[4])
+        if count < 2:
+            raise bad("a range needs N >= 2 values")
+        if not (math.isfinite(start) and math.isfinite(stop)) or start == stop:
+            raise bad("a range needs finite START != STOP")
+        if kind == "log":
+            if start <= 0 or stop <= 0:
+                raise bad("a log range needs START > 0 and STOP > 0")
+            values = np.geomspace(start, stop, count)
+            values[0], values[-1] = start, stop
+        else:
+            values = np.linspace(start, stop, count)
+        return Vary(key, tuple(float(v) for v in values), text)
+    if ".." in spec or ":" in spec:
+        raise bad("a range is START..STOP:log:N or START..STOP:lin:N, with numbers START, STOP and N")
+    items = spec.split(",")
+    if not all(re.fullmatch(_NUMBER, item) for item in items):
+        raise bad("a list must hold numbers separated by commas")
+    values = tuple(float(item) for item in items)
+    if not all(math.isfinite(v) for v in values):
+        raise bad("values must be finite")
+    if len(set(values)) != len(values):
+        raise bad("values must differ")
+    return Vary(key, values, text)
+
+
+def key_unit(scene: Scene, key: str) -> str:
+    """The unit of a scene key (``section.key``), from the schema ("-" when unknown)."""
+    section, _, name = key.partition(".")
+    spec = SCHEMA.get(section, {}).get(name)
+    if spec is not None:
+        return spec.unit
+    from petroll.bodies import BODY_KEYS
+
+    doc = BODY_KEYS.get(str(scene.raw.get("body", {}).get("shape")), {}).get(name, "")
+    return "m" if re.search(r", m\b", doc) else "-"
+
+
+def point_scene(scene: Scene, key: str, value: float) -> Scene:
+    """The scene of one sweep point: ``key`` set to ``value`` (module docstring), [time] steady added."""
+    section, _, name = key.partition(".")
+    current = scene.raw.get(section, {}).get(name)
+    if isinstance(current, dict):
+        raise SweepError(f"--vary {key}: the scene gives {key} as a program ({current.get('kind')!r}); only "
+                         "a number or a constant [x, y] can be varied")
+    new: object = value
+    if isinstance(current, list):
+        norm = math.hypot(*current) if len(current) == 2 else 0.0
+        if norm == 0:
+            raise SweepError(f"--vary {key}: the scene's {key} = {current!r} gives no direction to vary its "
+                             "magnitude along; give it a non-zero [x, y] in the scene")
+        new = [value * c / norm for c in current]
+    elif key == "motion.velocity" and current is None:
+        raise SweepError(f"--vary {key}: the scene gives no velocity, hence no direction; write "
+                         "velocity = [1.0, 0.0] (any magnitude) in its [motion]")
+    elif isinstance(current, int) and not isinstance(current, bool):
+        if abs(value - round(value)) > 1e-9 * max(abs(value), 1.0):
+            raise SweepError(f"--vary {key}: {value!r} is not an integer, and {key} is one")
+        new = int(round(value))
+    changes: dict[str, object] = {key: new}
+    if key in EXCLUSIVE:
+        changes[EXCLUSIVE[key]] = None
+    if "time" in scene.raw and "steady" not in scene.raw["time"] and key != "time.steady":
+        changes["time.steady"] = DEFAULT_STEADY
+    return scene.replace(changes)
+
+
+def point_name(key: str, value: float) -> str:
+    """The directory of a point under DIR/points (the value, so that a longer list reuses points)."""
+    return f"{key}={value:.10g}"
+
+
+@dataclass
+class SweepTable:
+    """A sweep's table: ``columns[name]`` (numpy arrays, one value per point; units in :data:`COLUMNS`,
+    the varied value in ``unit``), with where it was written. Returned on every rank."""
+
+    key: str
+    unit: str  # unit of the varied value
+    columns: dict[str, np.ndarray]
+    scene_text: str  # the swept scene (before the value is set)
+    points: list[str]  # each point's directory, relative to the sweep directory
+    directory: pathlib.Path
+    computed: list[int] = field(default_factory=list)  # points run by this call (others: found finished)
+
+    @property
+    def csv(self) -> pathlib.Path:
+        return self.directory / "sweep.csv"
+
+    @property
+    def h5(self) -> pathlib.Path:
+        return self.directory / "sweep.h5"
+
+    @property
+    def png(self) -> pathlib.Path:
+        return self.directory / "sweep.png"
+
+    @classmethod
+    def open(cls, path: str | pathlib.Path) -> "SweepTable":
+        """Read ``sweep.h5`` (or the sweep directory holding it)."""
+        path = pathlib.Path(path)
+        if path.is_dir():
+            path = path / "sweep.h5"
+        with h5py.File(path, "r") as f:
+            table = f["table"]
+            columns = {name: table[name][()] for name in COLUMNS if name in table}
+            return cls(str(f.attrs["key"]), str(f.attrs["unit"]), columns, str(f.attrs["scene"]),
+                       [str(p) for p in f.attrs["points"]], path.parent)
+
+
+def sweep(scene: Scene, vary: Vary | str, out: str | pathlib.Path | None = None,
+          comm: MPI.Comm = MPI.COMM_WORLD, progress: bool = False, stop=None,
+          log: Callable[[str], None] | None = None, plot: bool = True) -> SweepTable:
+    """Run ``scene`` at every value of ``vary`` (a :class:`Vary` or its ``KEY=SPEC`` text), each point to
+    steady state, and write the table (sweep.csv, sweep.h5) and the plot (sweep.png) in ``out`` (default:
+    the scene's output directory + ``-sweep``). Points already finished there are read, not run again.
+
+    Collective. ``progress``: each run's status line on rank 0's stderr; ``stop``: a
+    :class:`petroll.checkpoint.StopRequest` (SIGTERM/SIGINT): the sweep then raises
+    :class:`SweepInterrupted` after the running point's checkpoint; ``log(line)``: called on rank 0 after
+    each point. Every point's scene is built and validated before the first run.
+    """
+    from petroll.checkpoint import RunInterrupted
+    from petroll.limits import PetrollWarning
+    from petroll.simulation import prepare_output
+
+    if isinstance(vary, str):
+        vary = parse_vary(vary)
+    if out is None:
+        out = scene.output_dir.with_name(scene.output_dir.name + "-sweep")
+    out = pathlib.Path(out)
+    scenes = [point_scene(scene, vary.key, v) for v in vary.values]
+    names = [point_name(vary.key, v) for v in vary.values]
+    if len(set(names)) != len(names):
+        raise SweepError(f"--vary {vary.spec or vary.key}: values closer than 10 significant digits")
+    prepare_output(out, comm)
+    unit = key_unit(scene, vary.key)
+    rows, computed = [], []
+    total = len(scenes)
+    for index, (value, point, name) in enumerate(zip(vary.values, scenes, names)):
+        label = f"{vary.key} = {value:.6g}" + (f" {unit}" if unit != "-" else "")
+        signum = stop.agreed(comm) if stop is not None else 0
+        if signum:
+            raise SweepInterrupted(signum, index, total, label)
+        directory = out / "points" / name
+        results = _finished(directory, point, comm)
+        if results is None:
+            try:
+                results = _run_point(point, directory, comm, progress, stop)
+            except RunInterrupted as exc:
+                raise SweepInterrupted(exc.signum, index, total, label) from None
+            computed.append(index)
+        row = table_row(point, results, value)
+        rows.append(row)
+        if point.time.steady is not None and not row["steady"]:
+            warnings.warn(PetrollWarning(
+                f"sweep point {label}: not steady at the end of the run ({row['distance']:.4g} m rolled; "
+                f"force changed by {row['force_change']:.2g}, mu_r by {row['mu_r_change']:.2g} over the last "
+                f"contact length): lengthen its [time] distance or end (and the grid)"), stacklevel=2)
+        if log is not None and comm.rank == 0:
+            done = "ran" if computed and computed[-1] == index else "kept (finished earlier)"
+            static = point.time.dt is None and point.time.steps_per_cell is None
+            state = "steady" if row["steady"] else "one step (no [time])" if static else "NOT steady"
+            log(f"point {index + 1}/{total} {label}: {done}; mu_r {row['mu_r']:.4e}, force "
+                f"{row['force']:.5g} N, {int(row['steps'])} steps, "
+                f"{state}"
+                + (f", V tau/a {row['v_tau_a']:.3g}" if math.isfinite(row["v_tau_a"]) else ""))
+    columns = {name: np.array([row[name] for row in rows], dtype=float) for name in COLUMNS}
+    table = SweepTable(vary.key, unit, columns, scene.text, [f"points/{n}" for n in names], out, computed)
+    _on_rank0(comm, lambda: write_table(table))
+    if plot:
+        _on_rank0(comm, lambda: _plot(table))
+    return table
+
+
+def _finished(directory: pathlib.Path, scene: Scene, comm: MPI.Comm) -> Results | None:
+    """The point's results if its results.h5 is complete and holds this very scene (rank 0 decides)."""
+    path = directory / "results.h5"
+    done = False
+    if comm.rank == 0 and path.is_file():
+        try:
+            with h5py.File(path, "r") as f:
+                done = bool(f.attrs.get("complete", False)) and str(f.attrs["scene"]) == scene.text
+        except (OSError, KeyError):
+            done = False  # unreadable: run it again
+    if not comm.bcast(done, root=0):
+        return None
+    return Results.open(path)
+
+
+def _run_point(scene: Scene, directory: pathlib.Path, comm: MPI.Comm, progress: bool, stop) -> Results:
+    """Run one point, continuing from its newest checkpoint if that holds this scene."""
+    from petroll.checkpoint import CheckpointError, list_checkpoints, read_checkpoint, restart_scene
+    from petroll.simulation import run
+
+    found = list_checkpoints(directory / "checkpoints") if comm.rank == 0 else None
+    found = comm.bcast([str(p) for p in found] if found is not None else None, root=0)
+    if found:
+        try:
+            check = read_checkpoint(found[-1], comm)
+            if check.scene_text == scene.text:
+                return run(restart_scene(check), comm, directory, progress=progress, restart=check, stop=stop)
+        except CheckpointError:
+            pass  # a damaged checkpoint (raised on every rank): run the point from its start
+    return run(scene, comm, directory, progress=progress, stop=stop)
+
+
+def table_row(scene: Scene, results: Results, value: float) -> dict[str, float]:
+    """One row of the table (COLUMNS) for a point's scene and results."""
+    from petroll.bodies import Sphere
+
+    s, st = results.series, results.steady
+    row: dict[str, float] = {
+        "value": value, "force": st.force, "mu_r": st.mu_r, "delta": st.delta, "area": st.area,
+        "lead": st.lead, "trail": st.trail, "p_max": st.p_max, "force_change": st.force_change,
+        "mu_r_change": st.mu_r_change, "resisting_change": st.resisting_change, "steady": float(st.reached),
+        "steps": float(len(s["t"])), "t": st.t, "distance": st.distance,
+        "solve_time": float(np.sum(s["solve_time"])),
+    }
+    velocity = scene.velocity
+    speed = float(np.hypot(*velocity.value)) if isinstance(velocity, motions.Constant) else math.nan
+    material = scene.material
+    viscous = isinstance(material, Prony) and len(material.tau) > 0
+    tau = material.longest_time if viscous else math.nan
+    sphere = isinstance(scene.body, Sphere)
+    delta0 = float(s["delta"][0])
+    if sphere and delta0 > 0:
+        a = math.sqrt(scene.body.radius * delta0)
+    else:
+        a = math.sqrt(float(s["area"][0]) / math.pi)
+    row.update(speed=speed, tau=tau, a=a,
+               v_tau_a=speed * tau / a if a > 0 and speed > 0 else math.nan)
+    nan = math.nan
+    row.update(mu_r_slow=nan, force_J0=nan, force_Jinf=nan, delta_J0=nan, delta_Jinf=nan)
+    if sphere and isinstance(material, Prony):
+        radius = scene.body.radius
+        if viscous and math.isfinite(speed):
+            creep = sum(d * t for d, t in zip(material.dJ, material.tau))
+            row["mu_r_slow"] = speed * creep / (material.Jinf * radius)
+        for name, J in (("J0", material.J0), ("Jinf", material.Jinf)):
+            if st.delta > 0:
+                row[f"force_{name}"] = 4 * math.sqrt(radius) * st.delta**1.5 / (3 * J)
+            if st.force > 0:
+                row[f"delta_{name}"] = (3 * J * st.force / (4 * math.sqrt(radius))) ** (2 / 3)
+    return row
+
+
+def write_table(table: SweepTable) -> None:
+    """Write sweep.csv and sweep.h5 (each atomically). Call on one rank."""
+    names = list(COLUMNS)
+    units = [table.unit if n == "value" else COLUMNS[n][0] for n in names]
+    header = ",".join(f"{table.key if n == 'value' else n} ({u})" for n, u in zip(names, units))
+    lines = [header] + [",".join(f"{table.columns[n][i]:.10g}" for n in names)
+                        for i in range(len(table.points))]
+    text = "\n".join(lines) + "\n"
+    atomic_write(table.csv, lambda tmp: tmp.write_text(text, encoding="utf-8"))
+
+    def fill(tmp: pathlib.Path) -> None:
+        with h5py.File(tmp, "w") as f:
+            f.attrs["format"] = "petroll-sweep"
+            f.attrs["petroll_version"] = __version__
+            f.attrs["key"] = table.key
+            f.attrs["unit"] = table.unit
+            f.attrs["scene"] = table.scene_text
+            f.attrs["points"] = np.array(table.points, dtype=h5py.string_dtype())
+            group = f.create_group("table")
+            for n, u in zip(names, units):
+                dataset = group.create_dataset(n, data=table.columns[n])
+                dataset.attrs["units"] = u
+                dataset.attrs["meaning"] = COLUMNS[n][1]
+
+    atomic_write(table.h5, fill)
+
+
+def _plot(table: SweepTable) -> None:
+    from petroll.limits import PetrollWarning
+
+    try:
+        import matplotlib  # noqa: F401
+    except ImportError:
+        warnings.warn(PetrollWarning("sweep: matplotlib is not installed: the table is written, not the "
+                                     "plot"), stacklevel=3)
+        return
+    from petroll.plot import plot_sweep
+
+    plot_sweep(table, table.png)
+
+
+def _on_rank0(comm: MPI.Comm, action: Callable[[], None]) -> None:
+    """Run ``action`` on rank 0; an OSError or PetrollError there is raised on every rank (one line)."""
+    message = None
+    if comm.rank == 0:
+        try:
+            action()
+        except OSError as exc:
+            message = f"{getattr(exc, 'filename', None) or 'sweep output'}: cannot write ({_reason(exc)})"
+        except PetrollError as exc:
+            message = str(exc)
+    message = comm.bcast(message, root=0)
+    if message is not None:
+        raise SweepError(message)
+
+
+def command(scene_path: str, vary_text: Sequence[str], out: str | None, quiet: bool, comm: MPI.Comm) -> int:
+    """``petroll sweep``: every rank; prints one line per point and a summary on rank 0."""
+    import sys
+    import time
+
+    from petroll.checkpoint import StopRequest
+    from petroll.scene import load_scene
+
+    if len(vary_text) != 1:
+        raise SweepError(f"--vary given {len(vary_text)} times; a sweep varies exactly one key "
+                         f"({FORMS})")
+    vary = parse_vary(vary_text[0])
+    scene = load_scene(scene_path)
+    start = time.perf_counter()
+    stop = StopRequest()
+    say = (lambda line: print(f"petroll: {line}", flush=True))
+    try:
+        with stop.handling():
+            table = sweep(scene, vary, out, comm, progress=not quiet and sys.stderr.isatty(), stop=stop,
+                          log=say)
+    except SweepInterrupted as exc:
+        if comm.rank == 0:
+            print(f"petroll: {scene.source}: sweep {exc}", file=sys.stderr, flush=True)
+        return exc.exit_code
+    if comm.rank == 0:
+        n, ran = len(table.points), len(table.computed)
+        print(f"petroll: {scene.source}: sweep of {vary.key} over {n} values ({ran} run, {n - ran} kept from "
+              f"an earlier call; wall time {time.perf_counter() - start:.1f} s). Table: {table.csv}, "
+              f"{table.h5}; plot: {table.png}")
+    return 0

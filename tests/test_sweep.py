@@ -1,0 +1,215 @@
+"""petroll sweep: the --vary forms, a small sweep's table and plot, resuming without recomputation
+(finished points, and a point interrupted mid-run), and bad specifications as one line with exit 2."""
+
+import csv
+import pathlib
+
+import h5py
+import numpy as np
+import pytest
+
+import petroll
+from petroll.cli import main
+from petroll.scene import dumps
+from petroll.sweep import (COLUMNS, DEFAULT_STEADY, SweepError, SweepInterrupted, SweepTable, Vary,
+                           parse_vary, point_scene, sweep)
+
+RAW = {  # a/dx = 4.5: tiny, each point a few tenths of a second
+    "grid": {"nx": 40, "ny": 16, "x": [-0.8e-3, 3.2e-3], "y": [-0.8e-3, 0.8e-3]},
+    "material": {"model": "sls", "E0": 10e6, "Einf": 2e6, "nu": 0.5, "tau_relax": 0.01},
+    "body": {"shape": "sphere", "radius": 0.01},
+    "motion": {"velocity": [0.003, 0.004], "penetration": 2e-5},  # |V| = 5 mm/s, direction (0.6, 0.8)
+    "time": {"steps_per_cell": 1, "distance": 1.6e-3},  # no steady: the sweep adds it
+    "solver": {"tol": 1e-9},
+}
+RAW_X = {**RAW, "motion": {"velocity": [0.005, 0.0], "penetration": 2e-5},
+         "time": {"steps_per_cell": 1, "distance": 2.4e-3}}
+SPEEDS = (0.002, 0.005, 0.01)
+
+
+def shared_dir(comm, tmp_path) -> pathlib.Path:
+    return pathlib.Path(comm.bcast(str(tmp_path) if comm.rank == 0 else None, root=0))
+
+
+def test_vary_forms():
+    assert parse_vary("material.tau_relax=0.001,0.01,0.1") == Vary("material.tau_relax", (0.001, 0.01, 0.1),
+                                                                   "material.tau_relax=0.001,0.01,0.1")
+    log = parse_vary("motion.velocity=1e-4..1e-1:log:4")
+    assert log.key == "motion.velocity" and log.values == pytest.approx((1e-4, 1e-3, 1e-2, 1e-1), rel=1e-12)
+    assert log.values[0] == 1e-4 and log.values[-1] == 1e-1  # the ends exactly as written
+    assert parse_vary("motion.penetration = 1e-5..3e-5:lin:3").values == pytest.approx((1e-5, 2e-5, 3e-5))
+    assert parse_vary("grid.nx=16,32").values == (16.0, 32.0)
+
+
+@pytest.mark.parametrize("spec, reason", [
+    ("motion.velocity", "must be KEY=VALUES"),
+    ("velocity=1,2", "section.key"),
+    ("nothing.velocity=1,2", "unknown section [nothing]"),
+    ("motion.velocity=abc", "numbers separated by commas"),
+    ("motion.velocity=1,,2", "numbers separated by commas"),
+    ("motion.velocity=1,1", "values must differ"),
+    ("motion.velocity=1e-4..1e-1:log:1", "N >= 2"),
+    ("motion.velocity=0..1e-1:log:5", "START > 0"),
+    ("motion.velocity=1e-4..1e-1:geo:5", "START..STOP:log:N"),
+    ("motion.velocity=1e-4..1e-1", "START..STOP:log:N"),
+    ("motion.velocity=logspace(-3,1,9)*[1,0]", "numbers separated by commas"),
+])
+def test_bad_vary_specs_are_one_line(spec, reason):
+    with pytest.raises(SweepError) as info:
+        parse_vary(spec)
+    message = str(info.value)
+    assert "\n" not in message and reason in message and message.startswith(f"--vary {spec!r}: ")
+    assert "KEY=START..STOP:log:N" in message  # says what is allowed
+
+
+def test_point_scenes_vary_vectors_along_their_direction_and_drop_exclusive_keys():
+    scene = petroll.parse_scene(RAW)
+    point = point_scene(scene, "motion.velocity", 0.01)
+    assert np.allclose(point.velocity(0.0), [0.006, 0.008], rtol=1e-14)
+    assert point.time.steady == DEFAULT_STEADY and scene.time.steady is None
+    load = point_scene(scene, "motion.load", 0.05)
+    assert load.penetration is None and float(load.load(0.0)) == 0.05
+    with pytest.raises(SweepError, match="not an integer"):
+        point_scene(scene, "grid.nx", 40.5)
+    assert point_scene(scene, "grid.nx", 44.0).grid.nx == 44
+    ramp = scene.replace("motion.velocity", {"kind": "ramp", "start": [0.0, 0.0], "end": [0.01, 0.0],
+                                             "duration": 0.1})
+    with pytest.raises(SweepError, match="as a program"):
+        point_scene(ramp, "motion.velocity", 0.01)
+    still = scene.replace("motion.velocity", [0.0, 0.0])
+    with pytest.raises(SweepError, match="no direction"):
+        point_scene(still, "motion.velocity", 0.01)
+
+
+def _mtimes(directory: pathlib.Path) -> dict[str, int]:
+    return {p.parent.name: p.stat().st_mtime_ns for p in sorted(directory.glob("points/*/results.h5"))}
+
+
+def test_a_small_sweep_writes_its_table_and_plot_and_resumes_without_recomputing(comm, tmp_path):
+    shared = shared_dir(comm, tmp_path)
+    scene = petroll.parse_scene(RAW_X)
+    out = shared / "sweep"
+    lines = []
+    table = sweep(scene, "motion.velocity=0.002,0.005,0.01", out, comm, log=lines.append)
+    assert table.computed == [0, 1, 2]
+    assert table.csv.is_file() and table.h5.is_file() and table.png.stat().st_size > 10_000
+    c = table.columns
+    assert set(c) == set(COLUMNS) and all(len(v) == 3 for v in c.values())
+    assert np.array_equal(c["value"], SPEEDS)
+    a = np.sqrt(0.01 * 2e-5)
+    assert c["v_tau_a"] == pytest.approx(np.array(SPEEDS) * 0.05 / a, rel=1e-12)  # tau = 50 ms creep time
+    assert c["mu_r_slow"] == pytest.approx(np.array(SPEEDS) * 0.05 * 0.8 / 0.01, rel=1e-12)
+    assert np.all(c["steady"] == 1) and np.all(c["distance"] < 2.4e-3 * 0.9)
+    assert np.all(c["mu_r"] > 0.005) and np.all(c["mu_r"] < c["mu_r_slow"])
+    assert np.all((c["force"] > c["force_Jinf"]) & (c["force"] < c["force_J0"]))
+    for k, path in enumerate(table.points):  # each row is its point's Results.steady
+        results = petroll.Results.open(out / path / "results.h5")
+        assert results.steady.mu_r == c["mu_r"][k] and results.steady.force == c["force"][k]
+        assert results.scene_text == point_scene(scene, "motion.velocity", SPEEDS[k]).text
+    if comm.rank == 0:
+        assert len(lines) == 3 and all("ran;" in line for line in lines)
+        with open(table.csv, newline="") as fh:
+            rows = list(csv.reader(fh))
+        assert rows[0][0] == "motion.velocity (m/s)" and rows[0][2] == "mu_r (-)" and len(rows) == 4
+        assert [float(r[2]) for r in rows[1:]] == pytest.approx(c["mu_r"], rel=1e-9)
+        with h5py.File(table.h5, "r") as f:
+            assert f["table/force"].attrs["units"] == "N" and f.attrs["key"] == "motion.velocity"
+    reopened = SweepTable.open(out)
+    assert all(np.array_equal(reopened.columns[n], c[n], equal_nan=True) for n in COLUMNS)
+
+    before = comm.bcast(_mtimes(out) if comm.rank == 0 else None, root=0)
+    assert len(before) == 3
+    again = sweep(scene, "motion.velocity=0.002,0.005,0.01", out, comm, plot=False)
+    assert again.computed == []  # nothing run again
+    assert all(np.array_equal(again.columns[n], c[n], equal_nan=True) for n in COLUMNS)
+    # a longer list runs only the new value; a changed scene runs every point again
+    longer = sweep(scene, "motion.velocity=0.002,0.0035,0.005,0.01", out, comm, plot=False)
+    assert longer.computed == [1]
+    after = comm.bcast(_mtimes(out) if comm.rank == 0 else None, root=0)
+    assert {k: after[k] for k in before} == before
+    changed = sweep(scene.replace("solver.tol", 1e-10), "motion.velocity=0.002,0.005", out, comm, plot=False)
+    assert changed.computed == [0, 1]
+
+
+class StopAfter:
+    """A stop request that comes after ``calls`` agreements (the run agrees once per step)."""
+
+    def __init__(self, calls: int):
+        self.calls = calls
+
+    def agreed(self, comm) -> int:
+        self.calls -= 1
+        return 15 if self.calls < 0 else 0
+
+
+def test_an_interrupted_sweep_resumes_its_point_from_the_checkpoint(comm, tmp_path):
+    shared = shared_dir(comm, tmp_path)
+    scene = petroll.parse_scene(RAW_X)
+    spec = "motion.velocity=0.002,0.01"
+    with pytest.raises(SweepInterrupted) as info:  # point 1 runs 13 steps; stop in point 2's 6th step
+        sweep(scene, spec, shared / "cut", comm, stop=StopAfter(1 + 13 + 1 + 6), plot=False)
+    assert info.value.index == 1 and info.value.exit_code == 143 and "resumes" in str(info.value)
+    point = shared / "cut" / "points" / "motion.velocity=0.01"
+    assert len(list((point / "checkpoints").glob("step-*.h5"))) == 1
+    assert not petroll.Results.open(point / "results.h5").complete
+    resumed = sweep(scene, spec, shared / "cut", comm, plot=False)
+    assert resumed.computed == [1]
+    whole = sweep(scene, spec, shared / "whole", comm, plot=False)
+    cut = petroll.Results.open(point / "results.h5")
+    full = petroll.Results.open(shared / "whole" / "points" / "motion.velocity=0.01" / "results.h5")
+    assert cut.complete and len(cut.series["t"]) == len(full.series["t"]) > 6
+    for name in cut.series:
+        if name != "solve_time":
+            assert np.array_equal(cut.series[name], full.series[name]), name
+    assert np.array_equal(resumed.columns["mu_r"], whole.columns["mu_r"])
+
+
+def _cli(argv, capsys):
+    try:
+        code = main(argv)
+    except SystemExit as exc:  # argparse
+        code = exc.code
+    captured = capsys.readouterr()
+    return code, captured.out, captured.err
+
+
+def test_the_sweep_command_runs_and_refuses_bad_specs_in_one_line(comm, tmp_path, capsys):
+    shared = shared_dir(comm, tmp_path)
+    if comm.rank == 0:
+        (shared / "scene.toml").write_text(dumps(RAW_X), encoding="utf-8")
+    comm.Barrier()
+    scene = str(shared / "scene.toml")
+    capsys.readouterr()
+    code, out, err = _cli(["sweep", scene, "--vary", "motion.velocity=0.005,0.01", "--out",
+                           str(shared / "cli"), "--quiet"], capsys)
+    assert code == 0, err
+    if comm.rank == 0:
+        assert out.count("petroll: point ") == 2 and "sweep of motion.velocity over 2 values (2 run" in out
+    assert (shared / "cli" / "sweep.png").is_file()
+    for argv, expected in [
+        (["--vary", "motion.velocity=fast"], "petroll: error: --vary 'motion.velocity=fast': a list must "
+                                             "hold"),
+        (["--vary", "motion.velocity=1..2:log:0"], "petroll: error: --vary 'motion.velocity=1..2:log:0': a "
+                                                   "range needs N >= 2"),
+        (["--vary", "material.E0=1e6,-1"], "petroll: error: "),  # the scene refuses the value
+        (["--vary", "motion.velocity=1,2", "--vary", "material.E0=1,2"], "petroll: error: --vary given 2 "
+                                                                         "times"),
+        ([], "petroll: error: the following arguments are required: --vary"),
+    ]:
+        code, out, err = _cli(["sweep", scene, "--out", str(shared / "bad"), *argv], capsys)
+        assert code == 2
+        if comm.rank == 0:
+            lines = [line for line in err.splitlines() if line.strip()]
+            assert len(lines) == 1 and lines[0].startswith(expected), (argv, lines)
+        assert not (shared / "bad" / "points").exists()
+
+
+def test_the_docs_name_every_table_column_and_steady_field():
+    import dataclasses
+
+    root = pathlib.Path(__file__).resolve().parents[1]
+    sweep_doc = (root / "docs" / "sweep.md").read_text(encoding="utf-8")
+    assert all(f"`{name}`" in sweep_doc for name in COLUMNS), [n for n in COLUMNS if f"`{n}`" not in sweep_doc]
+    api_doc = (root / "docs" / "api.md").read_text(encoding="utf-8")
+    fields = [f.name for f in dataclasses.fields(petroll.SteadyState)]
+    assert all(f"`{name}`" in api_doc for name in fields), [n for n in fields if f"`{n}`" not in api_doc]
