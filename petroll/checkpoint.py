@@ -19,6 +19,8 @@ step N exactly as if it had never stopped (format version 1, readable with plain
     /state/times         (n,)          times of all past steps, s        (history "hereditary")
     /state/increments    (n, nx, ny)   all past pressure increments, Pa  (history "hereditary")
     /state/direction     (2,)          the last direction of motion (for the diagnostics)
+    /state/recent        (k, nx, ny)   the last k <= 3 solutions, Pa, and /state/recent_position (k, 2) the
+                                       body's positions, m: the first guess of the next step (petroll.warm)
     /series/<name>       (N + 1,)      the per-step series so far (as in results.h5)
     /fields/pressure     (n_saved, nx, ny), /fields/step (n_saved,): the pressure fields saved so far
 
@@ -194,6 +196,9 @@ def write_checkpoint(directory: str | pathlib.Path, sim, t: float, next_dt: floa
     prony = isinstance(history, PronyHistory)
     sink.array("state/pressure", lambda: gather_field(history.pressure, g.nx, comm))
     sink.array("state/direction", lambda: np.asarray(sim.direction, dtype=float))
+    recent = sim.warm.recent
+    sink.stack("state/recent", (len(recent), g.nx, g.ny), lambda k: gather_field(recent[k][0], g.nx, comm))
+    sink.array("state/recent_position", lambda: np.array([r[1:] for r in recent], dtype=float).reshape(-1, 2))
     if prony:
         sink.stack("state/q", (len(history.q), g.nx, g.ny), lambda r: gather_field(history.q[r], g.nx, comm))
         if _has_displacement(history):
@@ -436,6 +441,12 @@ class Checkpoint:
         n = len(self.series["step"])
         sim.records = [StepRecord(**{name: types[name](self.series[name][i]) for name in names})
                        for i in range(n)]
+        positions = comm.bcast(self.state.get("recent_position") if root else None, root=0)
+        if positions is None:  # a checkpoint written before the guesses were kept: carry the last pressure
+            sim.warm.record(sim.pressure, sim.records[-1].sx, sim.records[-1].sy)
+        else:
+            sim.warm.recent = [(scatter_rows(self.state["recent"][k] if root else None, nx, ny, comm), *xy)
+                               for k, xy in enumerate(positions.tolist())]
         saved = len(self.field_steps)
         fields = [self.fields[k] for k in range(saved)] if root else [None] * saved
         return self.t, fields, [int(s) for s in self.field_steps]
@@ -537,6 +548,8 @@ def _load(path: pathlib.Path) -> dict:
     if absent:
         raise CheckpointError(f"{path}: incomplete (dataset {absent[0]} is missing)")
     state = {"pressure": data["state/pressure"]}
+    if "state/recent_position" in data and "state/recent" in data:
+        state.update(recent=data["state/recent"], recent_position=data["state/recent_position"])
     if prony:
         state["q"] = data["state/q"]
         if "state/displacement" in data:

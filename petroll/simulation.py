@@ -22,10 +22,10 @@ from mpi4py import MPI
 
 from petroll.contact import ContactSolver
 from petroll.errors import SceneError
-from petroll.grid import shift_field
 from petroll.material import make_history
 from petroll.results import OutputError, Results, write_results
 from petroll.scene import Scene
+from petroll.warm import WarmStart
 
 
 @dataclass
@@ -68,6 +68,7 @@ class Simulation:
         self.direction = np.array([1.0, 0.0])
         self.records: list[StepRecord] = []
         self.pressure = np.zeros(self.solver.local_shape)
+        self.warm = WarmStart(scene.grid, self.solver.rows, comm)
 
     # -- the clock --------------------------------------------------------------------------------------
     def next_dt(self, t: float, distance: float) -> float | None:
@@ -106,7 +107,7 @@ class Simulation:
         if v is not None:
             height = height + solver.influence.window(scene.grid.nx, scene.grid.ny)(v)
         compliance = self.history.compliance(dt)
-        warm = self._warm_start(sx, sy)
+        warm = self.warm.guess(sx, sy)
         if scene.penetration is not None:
             solution = solver.solve_penetration(height, compliance, float(scene.penetration(t)), warm)
         else:
@@ -115,6 +116,7 @@ class Simulation:
                                          delta_guess=previous, warm=warm)
         self.history.advance(solution.pressure, dt)
         self.pressure = solution.pressure
+        self.warm.record(solution.pressure, sx, sy)
         elapsed = clock.perf_counter() - start
         velocity = np.asarray(scene.velocity(t), dtype=float)
         if np.hypot(*velocity) > 0:
@@ -125,18 +127,6 @@ class Simulation:
         record = self._diagnose(len(self.records), t, sx, sy, solution, velocity, distance, elapsed)
         self.records.append(record)
         return record
-
-    def _warm_start(self, sx: float, sy: float) -> np.ndarray:
-        """The previous pressure carried along with the body (by whole cells): the first guess of the QP.
-        In steady rolling the pressure moves with the body, so this guess is nearly the answer."""
-        if not self.records:
-            return self.pressure
-        g = self.scene.grid
-        di = int(round((sx - self.records[-1].sx) / g.dx))
-        dj = int(round((sy - self.records[-1].sy) / g.dy))
-        if di == 0 and dj == 0:
-            return self.pressure
-        return shift_field(self.pressure, di, dj, self.solver.rows, self.comm)
 
     def _diagnose(self, n, t, sx, sy, solution, velocity, distance, elapsed) -> StepRecord:
         g, comm, p = self.scene.grid, self.comm, solution.pressure
