@@ -149,9 +149,7 @@ class ContactSolver:
         if window is None:
             return pressure, 0, 0, 0.0, (0, 0, 0, 0)
         i0, i1, j0, j1 = window
-        grid_ranges = [self.rows.range(r) for r in range(comm.size)]
-        part = RowPartition(i1 - i0, comm.size)
-        window_ranges = [(i0 + a, i0 + b) for a, b in (part.range(r) for r in range(comm.size))]
+        grid_ranges, window_ranges = self._box_ranges(i0, i1)
         target = move_rows(interference[:, j0:j1], grid_ranges, window_ranges, comm)
         w_ref = comm.allreduce(float(target.max(initial=0.0)), op=MPI.MAX)
         diagonal = self.influence.diagonal
@@ -182,10 +180,32 @@ class ContactSolver:
             raise SolverError(f"TAO ({self.tao_type}) stopped with the contact conditions violated by "
                               f"{residual:.3g} (relative; [solver] tol = {self.tol:g}); try another "
                               f"-{self.prefix}tao_type or a larger [solver] tol")
-        dst = [_clip(r, i0, i1) for r in grid_ranges]
-        a, b = dst[comm.rank]
-        pressure[a - self.r0 : b - self.r0, j0:j1] = move_rows(p_window, window_ranges, dst, comm)
+        self._put_box(pressure, p_window, window)
         return pressure, its, applications, residual, window
+
+    def convolve_box(self, field: np.ndarray, box: tuple[int, int, int, int]) -> np.ndarray:
+        """A ``field`` with the Love coefficients (A field, m per unit of field), sources and results both
+        restricted to the cells [i0, i1) x [j0, j1) = ``box``: this rank's grid rows, zero outside the box."""
+        i0, i1, j0, j1 = box
+        grid_ranges, window_ranges = self._box_ranges(i0, i1)
+        local = move_rows(field[:, j0:j1], grid_ranges, window_ranges, self.comm)
+        out = np.zeros(self.local_shape)
+        self._put_box(out, self.influence.window(i1 - i0, j1 - j0)(local), box)
+        return out
+
+    def _box_ranges(self, i0: int, i1: int):
+        """Row ranges of every rank: on the grid, and for rows i0..i1 split evenly (a window's layout)."""
+        part = RowPartition(i1 - i0, self.comm.size)
+        return ([self.rows.range(r) for r in range(self.comm.size)],
+                [(i0 + a, i0 + b) for a, b in (part.range(r) for r in range(self.comm.size))])
+
+    def _put_box(self, out: np.ndarray, values: np.ndarray, box: tuple[int, int, int, int]) -> None:
+        """Write a box's values (held in its window layout) into this rank's grid rows ``out``."""
+        i0, i1, j0, j1 = box
+        grid_ranges, window_ranges = self._box_ranges(i0, i1)
+        dst = [_clip(r, i0, i1) for r in grid_ranges]
+        a, b = dst[self.comm.rank]
+        out[a - self.r0 : b - self.r0, j0:j1] = move_rows(values, window_ranges, dst, self.comm)
 
     def _run_tao(self, hessian, rhs, x) -> int:
         from petsc4py import PETSc

@@ -168,11 +168,21 @@ class InfluenceOperator:
     def window(self, nx: int, ny: int) -> Convolution:
         key = (nx, ny)
         if key not in self._windows:
-            if nx > self._table.shape[0] or ny > self._table.shape[1]:
-                big = (max(nx, self._table.shape[0]), max(ny, self._table.shape[1]))
-                self._table = love_coefficients(*big, self.dx, self.dy)
-            self._windows[key] = Convolution(self._table, nx, ny, self.comm)
+            self._windows[key] = Convolution(self._table_for(nx, ny), nx, ny, self.comm)
         return self._windows[key]
+
+    def row_sum_bound(self, nx: int, ny: int) -> float:
+        """An upper bound of every row sum of A on an nx x ny block: sum_k A_ik <= this (unit compliance),
+        i.e. the largest displacement a unit field on every cell can cause."""
+        t = self._table_for(nx, ny)[:nx, :ny]
+        return float(4 * t.sum() - 2 * t[0, :].sum() - 2 * t[:, 0].sum() + t[0, 0])
+
+    def _table_for(self, nx: int, ny: int) -> np.ndarray:
+        """The Love table A(|di|, |dj|), grown to cover offsets up to nx - 1, ny - 1."""
+        if nx > self._table.shape[0] or ny > self._table.shape[1]:
+            big = (max(nx, self._table.shape[0]), max(ny, self._table.shape[1]))
+            self._table = love_coefficients(*big, self.dx, self.dy)
+        return self._table
 
 
 class ShellInfluence:

@@ -106,6 +106,12 @@ def _tolerance(value: Any) -> float:
     return tol
 
 
+def _cutoff(value: Any) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 <= value <= 1e-2:
+        raise _Invalid("must be a number between 0 and 0.01")
+    return float(value)
+
+
 def _choice(*options: str) -> Callable[[Any], str]:
     def check(value: Any) -> str:
         if not isinstance(value, str) or value not in options:
@@ -273,6 +279,10 @@ SCHEMA: dict[str, dict[str, Key]] = {
                           _choice("relaxation", "exponential", "paper"), default=None),
         "tol": Key("number", "relative tolerance on the contact conditions: max |min(p, gap)| in units "
                    "of the largest interference (gap) and its pressure (p)", _tolerance, default=1e-8),
+        "history_cutoff": Key("number", "history fields below this fraction of their largest value are "
+                              "left out of the preceding displacement (the fading wake behind a rolling "
+                              "body); changes it by at most this fraction of its scale; 0: keep all "
+                              "(docs/design.md)", _cutoff, default=1e-9),
     },
     "output": {
         "dir": Key("string", "output directory, relative to the current directory (command line: --out); "
@@ -294,6 +304,7 @@ class Solver:
     tao_type: str
     tol: float
     integrator: str  # "relaxation", "exponential" or "paper"
+    history_cutoff: float = 1e-9  # relative; see petroll/wake.py
 
 
 @dataclass(frozen=True)
@@ -406,7 +417,8 @@ def parse_scene(raw: dict, source: str = "<python>", base_dir: str | pathlib.Pat
     scene = Scene(source=source, text=text if text is not None else dumps(raw), raw=raw, grid=grid,
                   material=material, body=body, position=values["body"]["position"],
                   velocity=m["velocity"], penetration=m["penetration"], load=m["load"], time=time,
-                  solver=Solver(values["solver"]["tao_type"], values["solver"]["tol"], integrator),
+                  solver=Solver(values["solver"]["tao_type"], values["solver"]["tol"], integrator,
+                                values["solver"]["history_cutoff"]),
                   output_dir=output_dir, every=values["output"]["every"], base_dir=base_dir,
                   checkpoint_every=values["output"]["checkpoint_every"], keep=values["output"]["keep"])
     _check_contact_inside(scene)

@@ -25,6 +25,7 @@ from petroll.errors import SceneError
 from petroll.material import make_history
 from petroll.results import OutputError, Results, write_results
 from petroll.scene import Scene
+from petroll.wake import Wake
 from petroll.warm import WarmStart
 
 
@@ -69,6 +70,7 @@ class Simulation:
         self.records: list[StepRecord] = []
         self.pressure = np.zeros(self.solver.local_shape)
         self.warm = WarmStart(scene.grid, self.solver.rows, comm)
+        self.wake = Wake(self.solver, scene.solver.history_cutoff)
 
     # -- the clock --------------------------------------------------------------------------------------
     def next_dt(self, t: float, distance: float) -> float | None:
@@ -102,18 +104,26 @@ class Simulation:
         scene, solver = self.scene, self.solver
         start = clock.perf_counter()
         sx, sy = np.asarray(scene.position) + scene.velocity.integral(t)
-        height = scene.body.height(self.x - sx, self.y - sy)
+        profile = scene.body.height(self.x - sx, self.y - sy)
         v = self.history.preceding(dt)
-        if v is not None:
-            height = height + solver.influence.window(scene.grid.nx, scene.grid.ny)(v)
         compliance = self.history.compliance(dt)
         warm = self.warm.guess(sx, sy)
         if scene.penetration is not None:
-            solution = solver.solve_penetration(height, compliance, float(scene.penetration(t)), warm)
+            delta = float(scene.penetration(t))
+            height = profile if v is None else profile + self.wake.displacement(v, profile, delta)
+            solution = solver.solve_penetration(height, compliance, delta, warm)
         else:
             previous = self.records[-1].delta if self.records else None
-            solution = solver.solve_load(height, compliance, float(scene.load(t)), scene.body.radius_hint,
-                                         delta_guess=previous, warm=warm)
+            reach = 1.5 * previous if previous and previous > 0 else None  # checked below
+            while True:
+                height = profile
+                if v is not None:
+                    height = profile + self.wake.displacement(v, profile, np.inf if reach is None else reach)
+                solution = solver.solve_load(height, compliance, float(scene.load(t)),
+                                             scene.body.radius_hint, delta_guess=previous, warm=warm)
+                if reach is None or solution.delta <= reach:
+                    break
+                reach = None  # the load needed a deeper penetration: u on every cell the body may touch
         self.history.advance(solution.pressure, dt)
         self.pressure = solution.pressure
         self.warm.record(solution.pressure, sx, sy)

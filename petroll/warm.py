@@ -46,7 +46,7 @@ class WarmStart:
         if len(whole) == DEPTH:
             q0, q1, q2 = (self._carry(p, c) for (p, _, _), c in zip(self.recent[::-1], cells[::-1]))
             d1, d2 = q0 - q1, q1 - q2
-            dots = self.comm.allreduce(np.array([float(np.vdot(d1, d2)), float(np.vdot(d2, d2))]))
+            dots = self.comm.allreduce(np.array([float((d1 * d2).sum()), float((d2 * d2).sum())]))
             rho = min(max(dots[0] / dots[1], 0.0), 1.0) if dots[1] > 0 else 0.0
             return np.maximum(q0 + rho * d1, 0.0)
         for (p, _, _), c in zip(self.recent[::-1], cells[::-1]):

@@ -1,0 +1,74 @@
+"""The preceding displacement u = A v of a step, computed on a box of cells only.
+
+``v`` is the history's field (pressure space: u = A v, A the Love coefficients, m) on the whole track.
+Most of it is not needed, and a full-track convolution per step would make a step's cost grow with the
+track's length:
+
+* sources: cells with |v| > cutoff * max|v| (``[solver] history_cutoff``). Behind a rolling body the
+  wake fades like exp(-distance / (V tau)); dropping the rest changes u by at most
+  cutoff * max|v| * S everywhere, S the largest row sum of A on the grid (the displacement a unit field on
+  every cell would cause): with the default cutoff 1e-9 that is 1e-9 of the displacement scale, below the
+  contact tolerance. A cutoff of 0 keeps every non-zero cell (exact).
+* targets: cells the body can touch. A > 0, so u >= -S max(-v, 0) everywhere; a cell whose rigid
+  interference reach - Z is below that bound cannot be in contact at a penetration <= reach (exact).
+
+u is computed on the bounding box of both (its sides rounded up to multiples of ``QUANTUM`` cells, so
+that few kernel shapes are built) and is zero outside it, where no cell can touch.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from mpi4py import MPI
+
+QUANTUM = 16
+"""Box sides are multiples of this many cells (or the whole grid side)."""
+
+
+class Wake:
+    """Computes u on the boxes of one ContactSolver's grid; ``boxes`` counts the steps that used a box
+    smaller than the grid."""
+
+    def __init__(self, solver, cutoff: float):
+        self.solver, self.cutoff = solver, cutoff
+        g = solver.grid
+        self.row_sum = solver.influence.row_sum_bound(g.nx, g.ny)
+        self.boxes = 0
+
+    def displacement(self, v: np.ndarray, profile: np.ndarray, reach: float) -> np.ndarray:
+        """u = A v (m; this rank's rows) where it matters for a penetration <= ``reach`` (m) of a body of
+        rigid heights ``profile`` (m, this rank's rows); see the module docstring for the error bound."""
+        comm, g = self.solver.comm, self.solver.grid
+        extremes = np.array([np.abs(v).max(initial=0.0), (-v).max(initial=0.0)])
+        comm.Allreduce(MPI.IN_PLACE, extremes, op=MPI.MAX)
+        largest, negative = extremes
+        if largest == 0:
+            return np.zeros_like(v)
+        needed = (np.abs(v) > self.cutoff * largest) | (reach - profile > -self.row_sum * max(negative, 0.0))
+        box = self._box(needed)
+        if box == (0, g.nx, 0, g.ny):
+            return self.solver.influence.window(g.nx, g.ny)(v)
+        self.boxes += 1
+        return self.solver.convolve_box(v, box)
+
+    def _box(self, needed: np.ndarray) -> tuple[int, int, int, int]:
+        """The bounding box over all ranks of the needed cells, sides rounded up to QUANTUM cells."""
+        solver, g = self.solver, self.solver.grid
+        rows = np.flatnonzero(needed.any(axis=1)) + solver.r0
+        cols = np.flatnonzero(needed.any(axis=0))
+        lo = np.array([rows.min(initial=g.nx), cols.min(initial=g.ny)])
+        hi = np.array([rows.max(initial=-1), cols.max(initial=-1)]) + 1
+        solver.comm.Allreduce(MPI.IN_PLACE, lo, op=MPI.MIN)
+        solver.comm.Allreduce(MPI.IN_PLACE, hi, op=MPI.MAX)
+        if hi[0] <= lo[0]:
+            lo, hi = np.zeros(2, int), np.ones(2, int)
+        i0, i1 = _rounded(int(lo[0]), int(hi[0]), g.nx)
+        j0, j1 = _rounded(int(lo[1]), int(hi[1]), g.ny)
+        return i0, i1, j0, j1
+
+
+def _rounded(a: int, b: int, n: int) -> tuple[int, int]:
+    """[a, b) grown to a multiple of QUANTUM cells (or to [0, n)), staying inside [0, n)."""
+    size = min(-(-(b - a) // QUANTUM) * QUANTUM, n)
+    start = min(a, n - size)
+    return start, start + size
