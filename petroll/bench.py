@@ -1,10 +1,13 @@
 """Benchmarks that print tables and write CSV files (never timed unit tests).
 
-``petroll bench peers [--out DIR]``: the elastic Hertz step under load control on the same grids, same
-tolerance, solved by petroll (``pk``) and by Tamaas (``PolonskyKeerRey`` with its non-periodic ``dcfft``
-operator), each checked against Hertz, timed side by side in one invocation (median of 3). Tamaas runs in
-its own virtual environment, ``.venv-peers`` (created on first use with pip: it needs numpy 2, which must
-not enter petroll's environment).
+``petroll bench peers [--out DIR]``: the elastic Hertz step under load control on the same grids (N x N
+cells over 3.2 contact radii, non-periodic), same tolerance, solved by petroll (``pk``), by Tamaas
+(``PolonskyKeerRey`` with its non-periodic ``dcfft`` operator) and by ContactMechanics
+(``constrained_conjugate_gradients`` on a ``FreeFFTElasticHalfSpace``), each checked against Hertz, timed
+side by side in one invocation (median of 3; set-up such as kernels excluded for all three). Writes
+``peers.csv`` and ``peers.png`` (time against cells). The peers run in their own virtual environment,
+``.venv-peers`` (created or completed on first use with pip: they need numpy 2, which must not enter
+petroll's environment), through the standalone scripts ``bench_tamaas.py`` and ``bench_contactmechanics.py``.
 
 ``petroll bench tao [--out DIR]``: every TAO type on the elastic Hertz step (sphere, displacement control)
 at two resolutions, cold (from p = 0) and warm (from the solution at a 1 % smaller penetration): TAO
@@ -67,14 +70,19 @@ def tao_types(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, repeats: int =
 
 
 PEERS_VENV = pathlib.Path(".venv-peers")
+PEERS = {"tamaas": "bench_tamaas.py", "contactmechanics": "bench_contactmechanics.py"}  # CSV prefix: script
+_PEER_PACKAGES = {"tamaas": "tamaas", "ContactMechanics": "ContactMechanics"}  # import name: pip name
 
 
 def peers(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, cells: tuple[int, ...] = (128, 256, 512),
           tol: float = 1e-8, repeats: int = 3) -> list[dict]:
-    """petroll against Tamaas on the Hertz step (rank 0 runs Tamaas); writes ``out/peers.csv``."""
-    import json
-    import subprocess
+    """petroll against Tamaas and ContactMechanics on the Hertz step (rank 0 runs the peers).
 
+    Times in s (median of ``repeats`` solves, kernels built before timing), pressure error = max |p - p_Hertz|
+    / p0 over the cell centres, force error = F / F_Hertz - 1. Columns ``ratio`` (petroll / Tamaas, the
+    original name) and ``ratio_contactmechanics`` (petroll / ContactMechanics): < 1 means petroll is faster.
+    Writes ``out/peers.csv`` and ``out/peers.png``.
+    """
     width = 3.2  # grid side in contact radii
     nu, E = 0.5, 1e7
     J = (1 - nu**2) / E
@@ -87,7 +95,7 @@ def peers(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, cells: tuple[int, 
         grid = Grid(n, n, -width * a / 2, width * a / 2, -width * a / 2, width * a / 2)
         solver = ContactSolver(grid, comm, tao_type="pk", tol=tol)
         height = Sphere(_R).height(grid.x[solver.r0 : solver.r1, None], grid.y[None, :])
-        solver.influence.window(n, n)  # kernels built before timing, as Tamaas builds its own in set-up
+        solver.influence.window(n, n)  # kernels built before timing, as the peers build theirs in set-up
         times = []
         for _ in range(repeats):
             t0 = time.perf_counter()
@@ -100,31 +108,75 @@ def peers(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, cells: tuple[int, 
         row = dict(cells=f"{n}x{n}", petroll_s=f"{ours:.3f}", petroll_pressure_error=f"{error:.3e}",
                    petroll_force_error=f"{step.force / force - 1:+.1e}")
         if comm.rank == 0:
-            runs = []
-            for _ in range(repeats):
-                done = subprocess.run([python, str(pathlib.Path(__file__).with_name("bench_tamaas.py")), str(n),
-                                       str(tol), str(_R), str(E), str(nu), str(_DELTA), str(width)],
-                                      capture_output=True, text=True, check=True)
-                runs.append(json.loads(done.stdout.strip().splitlines()[-1]))
-            theirs = statistics.median(r["seconds"] for r in runs)
-            row.update(tamaas_s=f"{theirs:.3f}", tamaas_pressure_error=f"{runs[0]['pressure_error']:.3e}",
-                       tamaas_force_error=f"{runs[0]['force_error']:+.1e}", ratio=f"{ours / theirs:.2f}")
+            args = [str(v) for v in (n, tol, _R, E, nu, _DELTA, width)]
+            for name, script in PEERS.items():
+                run = _peer(python, script, args, repeats)
+                row.update({f"{name}_s": f"{run['seconds']:.3f}",
+                            f"{name}_pressure_error": f"{run['pressure_error']:.3e}",
+                            f"{name}_force_error": f"{run['force_error']:+.1e}"})
+                row["ratio" if name == "tamaas" else f"ratio_{name}"] = f"{ours / run['seconds']:.2f}"
         rows.append(row)
     if comm.rank == 0:
         _report(rows, out / "peers.csv")
+        _plot_peers(rows, out / "peers.png")
     return rows
 
 
+def _peer(python: str, script: str, args: list[str], repeats: int) -> dict:
+    """Run a peer script ``repeats`` times; its first JSON answer with the median time in s."""
+    import json
+    import subprocess
+
+    runs = []
+    for _ in range(repeats):
+        done = subprocess.run([python, str(pathlib.Path(__file__).with_name(script)), *args],
+                              capture_output=True, text=True, check=True)
+        runs.append(json.loads(done.stdout.strip().splitlines()[-1]))
+    return dict(runs[0], seconds=statistics.median(r["seconds"] for r in runs))
+
+
+def _plot_peers(rows: list[dict], path: pathlib.Path) -> None:
+    """Log-log plot of the solve time (s) against the number of cells N^2, one line per solver."""
+    try:
+        import matplotlib
+    except ImportError:
+        print("petroll bench: matplotlib is not installed; no peers.png (pip install petroll[plot])")
+        return
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    cells = [int(r["cells"].split("x")[0]) ** 2 for r in rows]
+    fig, ax = plt.subplots(figsize=(5, 4))
+    for key, label in (("petroll_s", "petroll (pk)"), ("tamaas_s", "Tamaas"),
+                       ("contactmechanics_s", "ContactMechanics")):
+        ax.loglog(cells, [float(r[key]) for r in rows], "o-", label=label)
+    ax.set_xticks(cells, [r["cells"] for r in rows], minor=False)
+    ax.set_xticks([], minor=True)
+    ax.set(xlabel="cells", ylabel="solve time (s)", title="Hertz step, load control, tol 1e-8")
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    print(f"wrote {path}")
+
+
 def _peers_python() -> str:
-    """The Python of .venv-peers, created with Tamaas on first use."""
+    """The Python of .venv-peers, created on first use; installs whichever peer it lacks (pip, PyPI).
+
+    Tamaas and ContactMechanics share it: both install from wheels against numpy 2 (checked with pip check).
+    """
     import subprocess
     import sys
 
     python = PEERS_VENV / "bin" / "python"
-    if not python.exists() or subprocess.run([str(python), "-c", "import tamaas"]).returncode:
-        print(f"petroll bench: creating {PEERS_VENV} with tamaas (benchmark-only peer, pip)", file=sys.stderr)
+    if not python.exists():
         subprocess.run([sys.executable, "-m", "venv", "--clear", str(PEERS_VENV)], check=True)
-        subprocess.run([str(python), "-m", "pip", "install", "-q", "tamaas"], check=True)
+    missing = [pip for module, pip in _PEER_PACKAGES.items()
+               if subprocess.run([str(python), "-c", f"import {module}"], capture_output=True).returncode]
+    if missing:
+        print(f"petroll bench: installing {' '.join(missing)} into {PEERS_VENV} (benchmark-only peers, pip)",
+              file=sys.stderr)
+        subprocess.run([str(python), "-m", "pip", "install", "-q", *missing], check=True)
     return str(python)
 
 
