@@ -9,6 +9,13 @@ side by side in one invocation (median of 3; set-up such as kernels excluded for
 ``.venv-peers`` (created or completed on first use with pip: they need numpy 2, which must not enter
 petroll's environment), through the standalone scripts ``bench_tamaas.py`` and ``bench_contactmechanics.py``.
 
+``petroll bench warm [--out DIR]``: the rolling sphere of runs/sphere.toml on square cells at a/dx = 16 (the
+Hertz radius over 16 cells), rolled one cell per step to steady state, with every step's QP started from
+p = 0 (``cold``), from the last solution carried along with the body (``carried``) and from the last three
+extrapolated in the body's frame (``extrapolated``, the default; petroll/warm.py): operator applications
+per step (all warm steps, and the last 20, at steady state), time per step, and the steady force and mu_r
+(the guess changes the cost, not the answer). Writes warm.csv and warm.png (applications per step).
+
 ``petroll bench tao [--out DIR]``: every TAO type on the elastic Hertz step (sphere, displacement control)
 at two resolutions, cold (from p = 0) and warm (from the solution at a 1 % smaller penetration): TAO
 iterations, operator applications, median wall time of repeated solves, and the force error against Hertz.
@@ -30,6 +37,7 @@ from petroll.bodies import Sphere
 from petroll.contact import TAO_TYPES, ContactSolver
 from petroll.errors import PetrollError
 from petroll.grid import Grid
+from petroll.warm import DEPTH, WarmStart
 
 _R, _J, _DELTA = 0.01, 7.5e-8, 1e-5  # m, 1/Pa, m: a steel ball on rubber (E = 10 MPa, nu = 0.5)
 
@@ -66,6 +74,46 @@ def tao_types(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, repeats: int =
                                  force_error=f"{step.force / force - 1:+.2e}"))
     if comm.rank == 0:
         _report(rows, out / "tao_types.csv")
+    return rows
+
+
+WARM_STARTS = {"cold": 0, "carried": 1, "extrapolated": DEPTH}  # name: solutions kept (WarmStart depth)
+
+
+def warm_starts(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, cells_per_radius: float = 16.0,
+                repeats: int = 3) -> list[dict]:
+    """Applications and time per rolling step for each first guess; writes ``out/warm.csv`` and warm.png."""
+    from petroll.scene import load_scene
+    from petroll.simulation import Simulation
+
+    base = load_scene(pathlib.Path(__file__).parents[1] / "runs" / "sphere.toml")
+    cell = math.sqrt(base.body.radius_hint * base.penetration(0.0)) / cells_per_radius
+    (x0, x1), (y0, y1) = (base.grid.x0, base.grid.x1), (base.grid.y0, base.grid.y1)
+    ny = 2 * round((y1 - y0) / (2 * cell))
+    scene = base.replace({"grid.nx": round((x1 - x0) / cell), "grid.ny": ny, "grid.x": [x0, x0 + round(
+        (x1 - x0) / cell) * cell], "grid.y": [-ny * cell / 2, ny * cell / 2], "output.every": 0})
+    rows, series = [], {}
+    for name, depth in WARM_STARTS.items():
+        per_step = []
+        for _ in range(repeats):
+            sim = Simulation(scene, comm)
+            sim.warm = WarmStart(scene.grid, sim.solver.rows, comm, depth)
+            t, dt, records = 0.0, 0.0, []
+            while dt is not None:
+                records.append(sim.step(t, dt))
+                dt = None if sim.steady() else sim.next_dt(t, records[-1].distance)
+                t += dt or 0.0
+            per_step.append([r.solve_time for r in records[1:]])
+        apps = [r.applications for r in records[1:]]
+        series[name] = apps
+        rows.append(dict(start=name, cells=f"{scene.grid.nx}x{scene.grid.ny}", steps=len(records),
+                         apps_per_step=f"{np.mean(apps):.1f}", apps_last_20=f"{np.mean(apps[-20:]):.1f}",
+                         ms_per_step=f"{1e3 * statistics.median(np.sum(per_step, axis=1)) / len(apps):.2f}",
+                         force=f"{records[-1].force:.7g}", mu_r=f"{records[-1].mu_r:.6g}"))
+    if comm.rank == 0:
+        _report(rows, out / "warm.csv")
+        _plot_lines(series, out / "warm.png", "step", "operator applications",
+                    f"rolling sphere, a/dx = {cells_per_radius:g}, one cell per step")
     return rows
 
 
@@ -197,3 +245,24 @@ def _print_table(rows: list[dict]) -> None:
     print("-|-".join("-" * w for w in widths))
     for r in rows:
         print(" | ".join(str(r[n]).ljust(w) for n, w in zip(names, widths)))
+
+
+def _plot_lines(series: dict[str, list], path: pathlib.Path, xlabel: str, ylabel: str, title: str) -> None:
+    """One line per entry of ``series`` (values against their index + 1) in a PNG."""
+    try:
+        import matplotlib
+    except ImportError:
+        print(f"petroll bench: matplotlib is not installed; no {path.name} (pip install petroll[plot])")
+        return
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6, 4))
+    for label, values in series.items():
+        ax.plot(range(1, len(values) + 1), values, label=label)
+    ax.set(xlabel=xlabel, ylabel=ylabel, title=title)
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    print(f"wrote {path}")

@@ -27,15 +27,20 @@ _WHOLE = 1e-6  # a displacement within this many cells of a whole number of cell
 
 
 class WarmStart:
-    """The last solutions of a run (pressure on this rank's rows, Pa, with the body position sx, sy, m)."""
+    """The last solutions of a run (pressure on this rank's rows, Pa, with the body position sx, sy, m).
 
-    def __init__(self, scene_grid, rows, comm):
-        self.grid, self.rows, self.comm = scene_grid, rows, comm
+    ``depth`` solutions are kept: DEPTH (the default) extrapolates, 1 only carries the last solution along,
+    0 keeps none (every step starts from p = 0; for benchmarks).
+    """
+
+    def __init__(self, scene_grid, rows, comm, depth: int = DEPTH):
+        self.grid, self.rows, self.comm, self.depth = scene_grid, rows, comm, depth
         self.recent: list[tuple[np.ndarray, float, float]] = []  # oldest first
 
     def record(self, pressure: np.ndarray, sx: float, sy: float) -> None:
         """Keep the solution of the step just solved, with the body's position (m)."""
-        self.recent = [*self.recent, (pressure, float(sx), float(sy))][-DEPTH:]
+        kept = [*self.recent, (pressure, float(sx), float(sy))]
+        self.recent = kept[max(len(kept) - self.depth, 0) :]
 
     def guess(self, sx: float, sy: float) -> np.ndarray | None:
         """The first guess for the body at (sx, sy) (m); None before the first step (start from p = 0)."""

@@ -72,7 +72,7 @@ def test_rolling_converges_to_the_same_answer_and_cheaper_in_steady_state(comm):
     plain, extrapolated = [], []
     for records, depth in ((plain, 1), (extrapolated, 3)):
         sim = Simulation(scene, comm)
-        sim.warm = _Limited(sim.warm, depth)
+        sim.warm = WarmStart(scene.grid, sim.solver.rows, comm, depth)
         t, dt = 0.0, 0.0
         while dt is not None:
             records.append(sim.step(t, dt))
@@ -85,16 +85,3 @@ def test_rolling_converges_to_the_same_answer_and_cheaper_in_steady_state(comm):
     assert (np.mean([r.applications for r in extrapolated[late]])
             < 0.7 * np.mean([r.applications for r in plain[late]]))
 
-
-class _Limited:
-    """A WarmStart keeping only ``depth`` solutions (depth 1: no extrapolation)."""
-
-    def __init__(self, warm, depth):
-        self.warm, self.depth = warm, depth
-
-    def record(self, pressure, sx, sy):
-        self.warm.record(pressure, sx, sy)
-        self.warm.recent = self.warm.recent[-self.depth:]
-
-    def guess(self, sx, sy):
-        return self.warm.guess(sx, sy)
