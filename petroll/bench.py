@@ -74,7 +74,25 @@ def tao_types(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, repeats: int =
                                  force_error=f"{step.force / force - 1:+.2e}"))
     if comm.rank == 0:
         _report(rows, out / "tao_types.csv")
+        _plot_tao(rows, out / "tao_types.png")
     return rows
+
+
+def _plot_tao(rows: list[dict], path: pathlib.Path) -> None:
+    """Operator applications of each type, cold and warm, one panel per grid (failed solves left out)."""
+    figure = _figure(10, 3.6)
+    if figure is None:
+        return
+    grids = list(dict.fromkeys(r["cells"] for r in rows))
+    for ax, cells in zip(figure.subplots(1, len(grids), squeeze=False)[0], grids):
+        for k, start in enumerate(("cold", "warm")):
+            done = [r for r in rows if r["cells"] == cells and r["start"] == start and r["applications"] != "-"]
+            ax.bar([TAO_TYPES.index(r["tao_type"]) + 0.4 * k for r in done], [r["applications"] for r in done],
+                   width=0.4, label=start)
+        ax.set_xticks([i + 0.2 for i in range(len(TAO_TYPES))], TAO_TYPES, rotation=45)
+        ax.set(yscale="log", ylabel="operator applications", title=f"Hertz step, {cells} cells")
+        ax.legend()
+    _save(figure, path)
 
 
 WARM_STARTS = {"cold": 0, "carried": 1, "extrapolated": DEPTH}  # name: solutions kept (WarmStart depth)
@@ -185,16 +203,11 @@ def _peer(python: str, script: str, args: list[str], repeats: int) -> dict:
 
 def _plot_peers(rows: list[dict], path: pathlib.Path) -> None:
     """Log-log plot of the solve time (s) against the number of cells N^2, one line per solver."""
-    try:
-        import matplotlib
-    except ImportError:
-        print("petroll bench: matplotlib is not installed; no peers.png (pip install petroll[plot])")
+    figure = _figure(5, 4)
+    if figure is None:
         return
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    ax = figure.subplots()
     cells = [int(r["cells"].split("x")[0]) ** 2 for r in rows]
-    fig, ax = plt.subplots(figsize=(5, 4))
     for key, label in (("petroll_s", "petroll (pk)"), ("tamaas_s", "Tamaas"),
                        ("contactmechanics_s", "ContactMechanics")):
         ax.loglog(cells, [float(r[key]) for r in rows], "o-", label=label)
@@ -202,10 +215,7 @@ def _plot_peers(rows: list[dict], path: pathlib.Path) -> None:
     ax.set_xticks([], minor=True)
     ax.set(xlabel="cells", ylabel="solve time (s)", title="Hertz step, load control, tol 1e-8")
     ax.legend()
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    print(f"wrote {path}")
+    _save(figure, path)
 
 
 def _peers_python() -> str:
@@ -228,14 +238,15 @@ def _peers_python() -> str:
     return str(python)
 
 
-def _report(rows: list[dict], path: pathlib.Path) -> None:
-    """Write the rows as CSV to ``path`` and print them as a table."""
+def _report(rows: list[dict], path: pathlib.Path, show: bool = True) -> None:
+    """Write the rows as CSV to ``path`` and (``show``) print them as a table."""
     path.parent.mkdir(parents=True, exist_ok=True)
     with open(path, "w", newline="") as fh:
         writer = csv.DictWriter(fh, fieldnames=list(rows[0]))
         writer.writeheader()
         writer.writerows(rows)
-    _print_table(rows)
+    if show:
+        _print_table(rows)
 
 
 def _print_table(rows: list[dict]) -> None:
@@ -249,20 +260,32 @@ def _print_table(rows: list[dict]) -> None:
 
 def _plot_lines(series: dict[str, list], path: pathlib.Path, xlabel: str, ylabel: str, title: str) -> None:
     """One line per entry of ``series`` (values against their index + 1) in a PNG."""
-    try:
-        import matplotlib
-    except ImportError:
-        print(f"petroll bench: matplotlib is not installed; no {path.name} (pip install petroll[plot])")
+    figure = _figure(6, 4)
+    if figure is None:
         return
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(6, 4))
+    ax = figure.subplots()
     for label, values in series.items():
         ax.plot(range(1, len(values) + 1), values, label=label)
     ax.set(xlabel=xlabel, ylabel=ylabel, title=title)
     ax.legend()
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    print(f"wrote {path}")
+    _save(figure, path)
+
+
+def _figure(width: float, height: float):
+    """A matplotlib Figure on the Agg canvas (inches), or None with one line printed if matplotlib is
+    missing."""
+    try:
+        from matplotlib.backends.backend_agg import FigureCanvasAgg
+        from matplotlib.figure import Figure
+    except ImportError:
+        print("petroll bench: matplotlib is not installed: no PNG (pip install matplotlib)")
+        return None
+    figure = Figure(figsize=(width, height), layout="constrained")
+    FigureCanvasAgg(figure)
+    return figure
+
+
+def _save(figure, path: pathlib.Path) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    figure.savefig(path, dpi=110)
+    print(f"petroll bench: wrote {path}")

@@ -56,9 +56,16 @@ def _parser() -> argparse.ArgumentParser:
     stability.add_argument("--fast", action="store_true", help="only the subset that the test suite runs")
     stability.add_argument("--out", default="results/stability", help="directory for stability.csv and .md")
     bench = verbs.add_parser("bench", help="run a benchmark, print its table and write CSV (docs/benchmarks.md)")
-    bench.add_argument("which", choices=["tao", "peers"], help="tao: every TAO type on the Hertz step; "
-                       "peers: petroll against Tamaas on the Hertz step")
-    bench.add_argument("--out", default="results/bench", help="directory for the CSV files")
+    bench.add_argument("which", choices=["tao", "warm", "peers", "precision", "growth", "mpi"],
+                       help="tao: every TAO type on the Hertz step; warm: operator applications per rolling "
+                       "step for each first guess; peers: petroll against Tamaas and "
+                       "ContactMechanics on the Hertz step; precision: error against run time of the "
+                       "integrators and of grid refinement on the rolling sphere; growth: time per rolling "
+                       "step against the contact window's cells, and along a long track; mpi: time per "
+                       "rolling step against the rank count")
+    bench.add_argument("--out", default="results/bench", help="directory for the CSV (and PNG) files")
+    bench.add_argument("--ranks", type=_ranks, help="mpi only: rank counts to run side by side as mpirun "
+                       "children, e.g. 1,2 (default: the current communicator only)")
     sweep = verbs.add_parser("sweep", help="run a scene over values of one key to steady state; table and "
                              "plot in DIR (docs/sweep.md); run again to resume")
     sweep.add_argument("scene", help="scene file (TOML)")
@@ -73,6 +80,16 @@ def _parser() -> argparse.ArgumentParser:
     plot.add_argument("--times", type=_seconds, help="comma-separated times in s: draw the saved pressure "
                       "fields nearest to them (default: up to 4 spread over the run)")
     return parser
+
+
+def _ranks(text: str) -> tuple[int, ...]:
+    try:
+        counts = tuple(int(item) for item in text.split(","))
+    except ValueError:
+        counts = ()
+    if not counts or min(counts) < 1:
+        raise argparse.ArgumentTypeError(f"expected comma-separated rank counts >= 1, got {text!r}")
+    return counts
 
 
 def _seconds(text: str) -> list[float]:
@@ -212,9 +229,17 @@ def _main(args: argparse.Namespace, comm) -> int:
     if args.verb == "bench":
         import pathlib
 
-        from petroll import bench
+        from petroll import bench, bench_rolling
+        from petroll.errors import PetrollError
 
-        {"tao": bench.tao_types, "peers": bench.peers}[args.which](pathlib.Path(args.out), comm)
+        if args.ranks is not None and args.which != "mpi":
+            raise PetrollError(f"petroll bench {args.which}: --ranks applies to petroll bench mpi only")
+        out = pathlib.Path(args.out)
+        if args.which == "mpi":
+            bench_rolling.mpi_scaling(out, comm, ranks=args.ranks)
+        else:
+            {"tao": bench.tao_types, "warm": bench.warm_starts, "peers": bench.peers,
+             "precision": bench_rolling.precision, "growth": bench_rolling.growth}[args.which](out, comm)
         return 0
     if args.verb == "sweep":
         from petroll.sweep import command

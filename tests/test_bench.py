@@ -1,0 +1,75 @@
+"""The rolling benchmarks (petroll.bench_rolling) on tiny sizes: what they measure, never how fast.
+
+Serial only: the MPI benchmark starts its own mpirun children (ranks 1 and 2, compared inside the test).
+"""
+
+import csv
+import math
+
+import pytest
+
+from petroll.bench_rolling import growth, mpi_scaling, precision
+
+pytestmark = pytest.mark.serial
+
+
+def _order(coarse: dict, fine: dict, quantity: str = "force") -> float:
+    """Observed order of convergence between two points of a dt ladder."""
+    return math.log(coarse[f"{quantity}_error"] / fine[f"{quantity}_error"]) / math.log(
+        fine["steps_per_cell"] / coarse["steps_per_cell"])
+
+
+def test_precision_orders_of_the_integrators_and_the_summary(tmp_path):
+    runs, summary = precision(tmp_path, steps_per_cell=(0.25, 4, 8), reference=32, grids=(0.5, 1),
+                              grid_scale=0.5, distance=2e-3, short=0)
+    ladder = {name: [r for r in runs if r["kind"] == "dt" and r["integrator"] == name]
+              for name in ("paper", "exponential", "relaxation")}
+    assert math.isnan(ladder["paper"][0]["run_s"]) and "refused" in ladder["paper"][0]["note"]  # the guard
+    assert not math.isnan(ladder["relaxation"][0]["run_s"])  # relaxation takes any step
+    assert 1.6 < _order(*ladder["exponential"][1:]) < 3.0  # second order
+    assert 0.7 < _order(*ladder["paper"][1:]) < 1.4  # first order
+    reference = next(r for r in runs if r["kind"] == "dt reference" and r["note"])
+    assert reference["force_error"] < 0.2 * ladder["exponential"][-1]["force_error"]  # a reference well below
+    ratio = summary[-1]
+    assert ratio["line"] == "paper / exponential" and ratio["seconds"] > 0 and ratio["relation"] != "?"
+    with open(tmp_path / "precision.csv") as fh:
+        assert len(list(csv.DictReader(fh))) == len(runs)
+    assert (tmp_path / "precision.png").stat().st_size > 0
+
+
+def test_growth_sizes_the_window_as_asked_and_writes_its_tables(tmp_path):
+    growth(tmp_path, windows=(24, 32, 48), steps=6, track_window=16, track_steps=40, track_skip=10,
+           track_span=10)
+    with open(tmp_path / "growth.csv") as fh:
+        rows = list(csv.DictReader(fh))
+    assert list(rows[0]) == ["window", "requested", "first_cells", "cells", "grid", "timed_steps", "step_s",
+                             "applications", "application_s", "convolution_share", "peak_rss_mib"]
+    for row in rows:
+        assert int(row["first_cells"]) == int(row["requested"]), row  # N x N cells at the first step
+        assert 0.6 < float(row["cells"]) / float(row["requested"]) <= 1, row  # it shrinks as the body rolls
+        assert int(row["timed_steps"]) == 3
+    with open(tmp_path / "growth_track.csv") as fh:
+        track = list(csv.DictReader(fh))
+    assert [int(r["step"]) for r in track] == list(range(40))
+    assert [int(r["step"]) for r in track if r["early_run_s"]] == list(range(10, 20))  # the second run's span
+    assert (tmp_path / "growth.png").stat().st_size > 0
+
+
+def test_mpi_forces_agree_between_rank_counts(tmp_path):
+    rows = mpi_scaling(tmp_path, windows=(24,), ranks=(1, 2), steps=5, repeats=1)
+    assert [r["ranks"] for r in rows] == [1, 2]
+    assert rows[1]["force_difference"] < 1e-6  # the same answer on 2 ranks, to the solver's tolerance
+    assert rows[0]["efficiency"] == 1.0 and rows[1]["efficiency"] == pytest.approx(rows[1]["speedup"] / 2)
+    assert (tmp_path / "mpi.csv").exists() and (tmp_path / "mpi.png").exists()
+
+
+def test_warm_start_bench_same_answer_fewer_applications(tmp_path):
+    from petroll.bench import warm_starts
+
+    rows = {r["start"]: r for r in warm_starts(tmp_path, cells_per_radius=6, repeats=1)}
+    assert list(rows) == ["cold", "carried", "extrapolated"]
+    forces = [float(r["force"]) for r in rows.values()]
+    assert max(forces) / min(forces) - 1 < 1e-6  # the first guess changes the cost, not the answer
+    late = [float(r["apps_last_20"]) for r in rows.values()]
+    assert late[0] > late[1] > late[2]  # cold > carried > extrapolated at steady state
+    assert (tmp_path / "warm.csv").exists() and (tmp_path / "warm.png").stat().st_size > 0
