@@ -152,7 +152,7 @@ class InfluenceOperator:
     """Love-coefficient convolutions on windows of one grid's cells (dx x dy), with kernels built once.
 
     ``window(nx, ny)`` returns the :class:`Convolution` for an nx x ny block of cells; the Love table and
-    each window shape's kernel spectrum are computed on first use and kept.
+    each window shape's kernel spectrum are computed on first use and kept (the last ``kept`` shapes).
     """
 
     def __init__(self, dx: float, dy: float, comm: MPI.Comm = MPI.COMM_SELF):
@@ -165,11 +165,17 @@ class InfluenceOperator:
         """A_ii, the displacement at a loaded cell's own centre per unit pressure (unit compliance)."""
         return float(self._table[0, 0])
 
+    kept = 8
+    """Window shapes whose kernels are kept (the most recently used): a transient that changes the window
+    every step would otherwise keep a spectrum per shape."""
+
     def window(self, nx: int, ny: int) -> Convolution:
         key = (nx, ny)
-        if key not in self._windows:
-            self._windows[key] = Convolution(self._table_for(nx, ny), nx, ny, self.comm)
-        return self._windows[key]
+        conv = self._windows.pop(key, None) or Convolution(self._table_for(nx, ny), nx, ny, self.comm)
+        self._windows[key] = conv  # the newest last
+        while len(self._windows) > self.kept:
+            del self._windows[next(iter(self._windows))]
+        return conv
 
     def row_sum_bound(self, nx: int, ny: int) -> float:
         """An upper bound of every row sum of A on an nx x ny block: sum_k A_ik <= this (unit compliance),

@@ -109,3 +109,18 @@ def test_shift_field_moves_a_distributed_field_by_whole_cells(comm, di, dj):
     rows = RowPartition(nx, comm.size)
     r0, r1 = rows.range(comm.rank)
     assert np.array_equal(shift_field(field[r0:r1], di, dj, rows, comm), expected[r0:r1])
+
+
+def test_kernels_of_the_most_recent_window_shapes_are_kept(comm):
+    op = InfluenceOperator(1e-3, 1e-3, comm)
+    first = op.window(4, 5)
+    for n in range(6, 6 + op.kept - 1):  # fill the cache
+        op.window(n, n)
+    assert op.window(4, 5) is first  # still kept, now the newest
+    for n in range(20, 20 + op.kept - 1):
+        op.window(n, n)
+    assert op.window(4, 5) is first and len(op._windows) == op.kept
+    op.window(40, 40)  # one shape more: the least recently used goes
+    assert (20, 20) not in op._windows and (4, 5) in op._windows
+    x = np.random.default_rng(1).random((op.window(9, 9).r1 - op.window(9, 9).r0, 9))
+    assert np.array_equal(op.window(9, 9)(x), Convolution(op._table_for(9, 9), 9, 9, comm)(x))
