@@ -185,6 +185,21 @@ def test_interrupted_and_restarted_run_is_bitwise_the_uninterrupted_run(case, co
         assert_identical(again, reference)
 
 
+def test_a_checkpoint_without_the_kept_first_guesses_restarts_to_the_same_answer(comm, shared):
+    """Checkpoints written before the warm start kept its last solutions lack state/recent: the restart
+    then carries the checkpoint's pressure as the first guess and reaches the same answer within the
+    tolerance (not bitwise: the first guesses differ)."""
+    raw = raw_scene(SLS, CONSTANT, ("load", 0.1))
+    raw["solver"]["tol"] = 1e-12
+    scene = make_scene(raw)
+    reference = run(scene, comm, shared / "reference")
+    check = read_checkpoint(shared / "reference" / "checkpoints" / "step-00000004.h5", comm)
+    if comm.rank == 0:
+        assert check.state["recent"].shape[0] == 3
+        del check.state["recent"], check.state["recent_position"]
+    assert_close(run(scene, comm, shared / "older", restart=check), reference, rtol=1e-10)
+
+
 @pytest.mark.parallel
 @pytest.mark.parametrize("material", ["sls", "prony"])
 def test_restart_on_another_rank_count_agrees_to_1e_10(material, comm, shared):
