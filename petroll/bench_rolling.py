@@ -288,7 +288,8 @@ def roll(scene: Scene, comm: MPI.Comm) -> dict:
     comm.Allreduce(np.array([seconds, convolution]), slowest, op=MPI.MAX)
     return dict(seconds=slowest[0], convolution=slowest[1],
                 applications=np.array([r.applications for r in sim.records]),
-                cells=np.array([(b - a) * (d - c) for a, b, c, d in windows]), force=sim.records[-1].force,
+                cells=np.array([(b - a) * (d - c) for a, b, c, d in windows]), last_window=windows[-1],
+                force=sim.records[-1].force,
                 mu_r=sim.records[-1].mu_r, forces=[r.force for r in sim.records])
 
 
@@ -434,6 +435,76 @@ def _plot_growth(result: dict, path: pathlib.Path) -> None:
                     f"{result['flatness']:.3f}", fontsize=9)
     right.grid(True, alpha=0.3)
     _save(figure, path)
+
+
+# -- what each saving is worth ------------------------------------------------------------------------------
+def skips(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, track_cells: int = 1000,
+          repeats: int = 20) -> list[dict]:
+    """Each saving of docs/design.md measured on and off side by side: time with and without it (s), and
+    how much it changes the answer. Writes ``out/skips.csv``."""
+    from petroll.influence import Convolution, InfluenceOperator
+
+    scene = sphere_scene()
+    g = scene.grid
+    window = InfluenceOperator(g.dx, g.dy, comm)
+    i0, i1, j0, j1 = roll(scene, comm)["last_window"]
+    shapes = {"window": (i1 - i0, j1 - j0), "grid": (g.nx, g.ny)}
+    application = {k: _median_application(window.window(*shape), repeats, comm) for k, shape in shapes.items()}
+    start = time.perf_counter()
+    Convolution(window._table_for(*shapes["window"]), *shapes["window"], comm)
+    build = comm.allreduce(time.perf_counter() - start, op=MPI.MAX)
+    rows = [dict(saving="QP on the interference window", scene=f"runs/sphere.toml, steady window "
+                 f"{shapes['window'][0]}x{shapes['window'][1]} of {g.nx}x{g.ny} cells",
+                 with_s=application["window"], without_s=application["grid"], unit="per application",
+                 change="0 (exact)"),
+            dict(saving="kernels built once per window shape", scene="the same window",
+                 with_s=application["window"], without_s=application["window"] + build,
+                 unit="per application", change="0 (exact)")]
+
+    steady_s, steady = _timed_run(load_scene(SPHERE).replace("output.every", 0), comm)
+    full_s, full = _timed_run(scene, comm)
+    change = max(abs(steady.series["force"][-1] / full.series["force"][-1] - 1),
+                 abs(steady.series["mu_r"][-1] / full.series["mu_r"][-1] - 1))
+    rows.append(dict(saving="stop at steady state ([time] steady = 1e-3)",
+                     scene=f"runs/sphere.toml: {len(steady.series['t'])} of {len(full.series['t'])} steps",
+                     with_s=steady_s, without_s=full_s, unit="per run",
+                     change=f"{change:.1e} (force, mu_r at the end)"))
+
+    track = scene.replace({"grid.nx": track_cells, "grid.x": [g.x0, g.x0 + track_cells * g.dx],
+                           "time.distance": (track_cells - 2 * round(1e-3 / g.dx)) * g.dx})
+    boxed, whole = Simulation(track, comm), Simulation(track, comm)
+    whole.wake.displacement = lambda v, profile, reach: whole.solver.influence.window(track_cells, g.ny)(v)
+    times = {"boxed": [], "whole": []}
+    forces = {"boxed": [], "whole": []}
+    for (a, ta), (b, tb) in zip(stepping(boxed), stepping(whole)):  # alternately: the same machine state
+        times["boxed"].append(ta)
+        times["whole"].append(tb)
+        forces["boxed"].append(a.force)
+        forces["whole"].append(b.force)
+    late = slice(2 * len(times["boxed"]) // 3, None)
+    change = max(abs(x / y - 1) for x, y in zip(forces["boxed"], forces["whole"]))
+    rows.append(dict(saving="preceding displacement on a box (history_cutoff 1e-9)",
+                     scene=f"runs/sphere.toml on a {track_cells}-cell track ({len(times['boxed'])} steps)",
+                     with_s=statistics.median(times["boxed"][late]), without_s=statistics.median(
+                         times["whole"][late]), unit="per step (last third)", change=f"{change:.1e} (force)"))
+    for row in rows:
+        row["factor"] = f"{row['without_s'] / row['with_s']:.2f}"
+        row["with_s"], row["without_s"] = f"{row['with_s']:.3g}", f"{row['without_s']:.3g}"
+    if comm.rank == 0:
+        _report(rows, out / "skips.csv")
+    return rows
+
+
+def _median_application(conv, repeats: int, comm: MPI.Comm) -> float:
+    """Median wall time (s, slowest rank) of one application of ``conv`` to a random field."""
+    x = np.random.default_rng(0).random((conv.r1 - conv.r0, conv.ny))
+    times = []
+    for _ in range(repeats):
+        comm.Barrier()
+        start = time.perf_counter()
+        conv(x)
+        times.append(comm.allreduce(time.perf_counter() - start, op=MPI.MAX))
+    return statistics.median(times)
 
 
 # -- MPI scaling -------------------------------------------------------------------------------------------

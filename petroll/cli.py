@@ -56,9 +56,9 @@ def _parser() -> argparse.ArgumentParser:
     stability.add_argument("--fast", action="store_true", help="only the subset that the test suite runs")
     stability.add_argument("--out", default="results/stability", help="directory for stability.csv and .md")
     bench = verbs.add_parser("bench", help="run a benchmark, print its table and write CSV (docs/benchmarks.md)")
-    bench.add_argument("which", choices=["tao", "warm", "peers", "precision", "growth", "mpi"],
+    bench.add_argument("which", choices=["tao", "warm", "skips", "peers", "precision", "growth", "mpi"],
                        help="tao: every TAO type on the Hertz step; warm: operator applications per rolling "
-                       "step for each first guess; peers: petroll against Tamaas and "
+                       "step for each first guess; skips: each saving on and off; peers: petroll against Tamaas and "
                        "ContactMechanics on the Hertz step; precision: error against run time of the "
                        "integrators and of grid refinement on the rolling sphere; growth: time per rolling "
                        "step against the contact window's cells, and along a long track; mpi: time per "
@@ -239,7 +239,8 @@ def _main(args: argparse.Namespace, comm) -> int:
             bench_rolling.mpi_scaling(out, comm, ranks=args.ranks)
         else:
             {"tao": bench.tao_types, "warm": bench.warm_starts, "peers": bench.peers,
-             "precision": bench_rolling.precision, "growth": bench_rolling.growth}[args.which](out, comm)
+             "precision": bench_rolling.precision, "growth": bench_rolling.growth,
+             "skips": bench_rolling.skips}[args.which](out, comm)
         return 0
     if args.verb == "sweep":
         from petroll.sweep import command

@@ -73,3 +73,19 @@ def test_warm_start_bench_same_answer_fewer_applications(tmp_path):
     late = [float(r["apps_last_20"]) for r in rows.values()]
     assert late[0] > late[1] > late[2]  # cold > carried > extrapolated at steady state
     assert (tmp_path / "warm.csv").exists() and (tmp_path / "warm.png").stat().st_size > 0
+
+
+def test_skips_bench_each_saving_keeps_the_answer(tmp_path):
+    from petroll.bench_rolling import skips
+
+    rows = {r["saving"].split(" (")[0]: r for r in skips(tmp_path, track_cells=140, repeats=3)}
+    assert set(rows) == {"QP on the interference window", "kernels built once per window shape",
+                         "stop at steady state", "preceding displacement on a box"}
+    window = rows["QP on the interference window"]["scene"]  # "... steady window AxB of CxD cells"
+    a, b, c, d = map(int, window.split("window ")[1].replace(" of ", "x").split(" ")[0].split("x"))
+    assert a * b < 0.2 * c * d  # the QP is posed on a small part of the grid
+    counts = rows["stop at steady state"]["scene"].split(": ")[1].split(" steps")[0]  # "52 of 108"
+    steps, total = map(int, counts.split(" of "))
+    assert steps < total
+    assert float(rows["preceding displacement on a box"]["change"].split(" ")[0]) < 1e-7  # within the tolerance
+    assert (tmp_path / "skips.csv").exists()
