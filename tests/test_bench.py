@@ -89,3 +89,13 @@ def test_skips_bench_each_saving_keeps_the_answer(tmp_path):
     assert steps < total
     assert float(rows["preceding displacement on a box"]["change"].split(" ")[0]) < 1e-7  # within the tolerance
     assert (tmp_path / "skips.csv").exists()
+
+
+def test_tao_types_on_the_rolling_scene_agree(tmp_path):
+    from petroll.bench import tao_types_rolling
+
+    rows = tao_types_rolling(tmp_path, distance=0.3e-3)
+    forces = [float(r["force"]) for r in rows]  # a failed type would not parse
+    assert len(rows) == 9 and max(forces) / min(forces) - 1 < 1e-6  # every solver, the same answer
+    assert all(int(r["steps"]) == rows[0]["steps"] for r in rows)
+    assert (tmp_path / "tao_rolling.csv").exists()
