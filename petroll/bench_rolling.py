@@ -278,7 +278,7 @@ def roll(scene: Scene, comm: MPI.Comm) -> dict:
         return solution
 
     sim.solver.solve_penetration = solve_penetration  # these instances only: record each QP's window
-    sim.solver.influence.window = lambda nx, ny: _Timed(window(nx, ny), clock)  # and time the convolutions
+    sim.solver.influence.window = lambda *shape, **kind: _Timed(window(*shape, **kind), clock)  # time them
     seconds, convolution = [], []
     for _, elapsed in stepping(sim):
         seconds.append(elapsed)

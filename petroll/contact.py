@@ -156,7 +156,8 @@ class ContactSolver:
         to_pressure = w_ref / (compliance * diagonal)  # p = to_pressure * p_hat
 
         conv = self.influence.window(i1 - i0, j1 - j0)
-        hessian = shell_matrix(conv, 1.0 / diagonal)
+        inverse = self.influence.window(i1 - i0, j1 - j0, inverse=True) if self.tao_type == "pk" else None
+        hessian = shell_matrix(conv, 1.0 / diagonal, inverse)
         x, rhs = hessian.createVecs()
         gap = rhs.duplicate()
         try:

@@ -57,17 +57,29 @@ class Convolution:
 
     ``coefficients`` is a Love table at least nx x ny (a larger one is cut); x and y are the local rows,
     shape (local rows, ny). One instance per grid shape: the kernel spectrum is computed once.
+
+    ``inverse=True`` gives instead y = C^-1 x, C the circulant (periodic, Strang) approximation of A on the
+    nx x ny torus: the kernel wrapped without padding. Its spectrum is A's symbol sampled on the torus
+    (positive: A's kernel is a positive definite function), and C^-1 is the preconditioner of the contact
+    QP's conjugate gradients (petroll/pk.py): it undoes A's 1/|k| smoothing, whose spread of scales makes
+    plain conjugate gradients need more iterations as the grid is refined.
     """
 
-    def __init__(self, coefficients: np.ndarray, nx: int, ny: int, comm: MPI.Comm = MPI.COMM_SELF):
+    def __init__(self, coefficients: np.ndarray, nx: int, ny: int, comm: MPI.Comm = MPI.COMM_SELF,
+                 inverse: bool = False):
         self.nx, self.ny, self.comm = nx, ny, comm
-        # padded lengths: >= 2n - 1 (no wrap-around), rounded up to a product of 2, 3 and 5 (fast FFTs)
-        self.lx, self.ly = fft_length(2 * nx - 1), fft_length(2 * ny - 1)
+        if inverse:
+            self.lx, self.ly = nx, ny
+        else:  # padded lengths: >= 2n - 1 (no wrap-around), rounded up to 2^a 3^b 5^c (fast FFTs)
+            self.lx, self.ly = fft_length(2 * nx - 1), fft_length(2 * ny - 1)
         self.rows = RowPartition(nx, comm.size)
         self.freqs = RowPartition(self.ly // 2 + 1, comm.size)  # Y-frequencies, split after transposing
         self.r0, self.r1 = self.rows.range(comm.rank)
         self.diagonal = float(coefficients[0, 0])
         self.spectrum = self._kernel_spectrum(np.asarray(coefficients)[:nx, :ny])
+        if inverse:
+            floor = comm.allreduce(float(self.spectrum.max(initial=0.0)), op=MPI.MAX) * 1e-12
+            self.spectrum = 1.0 / np.maximum(self.spectrum, floor)
 
     def _kernel_spectrum(self, table: np.ndarray) -> np.ndarray:
         """The kernel's lx x ly DFT (real: the kernel is even), for this rank's Y-frequencies."""
@@ -165,13 +177,14 @@ class InfluenceOperator:
         """A_ii, the displacement at a loaded cell's own centre per unit pressure (unit compliance)."""
         return float(self._table[0, 0])
 
-    kept = 8
+    kept = 12
     """Window shapes whose kernels are kept (the most recently used): a transient that changes the window
     every step would otherwise keep a spectrum per shape."""
 
-    def window(self, nx: int, ny: int) -> Convolution:
-        key = (nx, ny)
-        conv = self._windows.pop(key, None) or Convolution(self._table_for(nx, ny), nx, ny, self.comm)
+    def window(self, nx: int, ny: int, inverse: bool = False) -> Convolution:
+        """A on an nx x ny block; ``inverse``: the inverse of its circulant approximation (a preconditioner)."""
+        key = (nx, ny, inverse)
+        conv = self._windows.pop(key, None) or Convolution(self._table_for(nx, ny), nx, ny, self.comm, inverse)
         self._windows[key] = conv  # the newest last
         while len(self._windows) > self.kept:
             del self._windows[next(iter(self._windows))]
@@ -195,11 +208,19 @@ class ShellInfluence:
     """Context of a PETSc Python (shell) matrix y = scale A x over a distributed window of cells.
 
     Vectors hold the window's local rows flattened (index ix * ny + iy). The matrix is symmetric positive
-    definite; ``applications`` counts the mults (the operator applications of a solve).
+    definite; ``applications`` counts the mults (the operator applications of a solve). With ``inverse``
+    (the window's inverse circulant, :class:`Convolution` with inverse=True), ``precondition`` applies an
+    approximate inverse of the matrix (used by petroll/pk.py).
     """
 
-    def __init__(self, conv: Convolution, scale: float = 1.0):
-        self.conv, self.scale, self.applications = conv, scale, 0
+    def __init__(self, conv: Convolution, scale: float = 1.0, inverse: Convolution | None = None):
+        self.conv, self.scale, self.inverse, self.applications = conv, scale, inverse, 0
+
+    def precondition(self, x: np.ndarray) -> np.ndarray:
+        """(scale C)^-1 x for a vector's local array ``x`` (flattened rows); x unchanged without inverse."""
+        if self.inverse is None:
+            return x
+        return self.inverse(x.reshape(-1, self.conv.ny)).ravel() / self.scale
 
     def mult(self, mat, x, y) -> None:
         local = x.getArray(readonly=True).reshape(-1, self.conv.ny)
@@ -213,13 +234,15 @@ class ShellInfluence:
         d.set(self.conv.diagonal * self.scale)
 
 
-def shell_matrix(conv: Convolution, scale: float = 1.0):
-    """A PETSc shell matrix applying ``scale * A`` with the FFT convolution ``conv`` (on conv's comm)."""
+def shell_matrix(conv: Convolution, scale: float = 1.0, inverse: Convolution | None = None):
+    """A PETSc shell matrix applying ``scale * A`` with the FFT convolution ``conv`` (on conv's comm);
+    ``inverse``: the preconditioner's inverse circulant (see :class:`ShellInfluence`)."""
     from petsc4py import PETSc
 
     n_local = (conv.r1 - conv.r0) * conv.ny
     n = conv.nx * conv.ny
-    mat = PETSc.Mat().createPython([(n_local, n), (n_local, n)], ShellInfluence(conv, scale), comm=conv.comm)
+    context = ShellInfluence(conv, scale, inverse)
+    mat = PETSc.Mat().createPython([(n_local, n), (n_local, n)], context, comm=conv.comm)
     mat.setOption(PETSc.Mat.Option.SYMMETRIC, True)
     mat.setUp()
     return mat
