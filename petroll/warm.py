@@ -1,17 +1,19 @@
 """First guesses for the contact QP of a time step, from the last solutions carried along with the body.
 
 Rolling is stationary in the body's frame once steady: the pressure of step n moved by the body's
-displacement is then the answer of step n + 1. The guess is built from the last ``DEPTH`` solutions:
+displacement is then the answer of step n + 1. The guess is built from the last solutions:
 
-* moved by whole cells (exact when the body moved by whole cells: square cells and ``steps_per_cell``
-  = 1 along X or Y, or a body at rest), the most recent such solution is taken; otherwise the last one,
-  rounded to the nearest whole cell;
-* when the last three solutions all sit whole cells from the body's new position, they are extrapolated
-  in the body's frame: guess = q0 + rho (q0 - q1), q_k the solution k + 1 steps back moved along, with
+* a body that moves by 1/k of a cell per step (k = 1..MAX_LAG, e.g. square cells and ``steps_per_cell``
+  = k along X or Y; k = 1 for a body at rest) has every k-th solution a whole number of cells away. When
+  the solutions k, 2k and 3k steps back all are, they are moved along and extrapolated in the body's
+  frame: guess = q0 + rho (q0 - q1), q_j the solution (j + 1) k steps back moved along, with
   rho = <q0 - q1, q1 - q2> / |q1 - q2|^2 clipped to [0, 1], the decay ratio of a transient that fades
-  geometrically (rho = 0: the plain carried solution). Negative values are clipped to zero.
+  geometrically (rho = 0: the plain carried solution);
+* otherwise the most recent solution a whole number of cells away is carried, or else the newest one,
+  rounded to the nearest whole cell.
 
-Only the first guess depends on this; the QP's tolerance decides the answer.
+Negative values are clipped to zero. Only the first guess depends on this; the QP's tolerance decides
+the answer. 3k solutions are kept (k from the last step's move; 3 when no k fits).
 """
 
 from __future__ import annotations
@@ -21,7 +23,10 @@ import numpy as np
 from petroll.grid import shift_field
 
 DEPTH = 3
-"""Solutions kept (fields of this rank's rows): the extrapolation needs three."""
+"""Solutions per lag that the extrapolation uses."""
+
+MAX_LAG = 4
+"""Largest k (steps per whole cell) for which solutions are kept to extrapolate."""
 
 _WHOLE = 1e-6  # a displacement within this many cells of a whole number of cells counts as whole
 
@@ -29,8 +34,8 @@ _WHOLE = 1e-6  # a displacement within this many cells of a whole number of cell
 class WarmStart:
     """The last solutions of a run (pressure on this rank's rows, Pa, with the body position sx, sy, m).
 
-    ``depth`` solutions are kept: DEPTH (the default) extrapolates, 1 only carries the last solution along,
-    0 keeps none (every step starts from p = 0; for benchmarks).
+    ``depth``: DEPTH (the default) extrapolates, 1 only carries solutions along, 0 keeps none (every
+    step starts from p = 0; for benchmarks).
     """
 
     def __init__(self, scene_grid, rows, comm, depth: int = DEPTH):
@@ -40,25 +45,35 @@ class WarmStart:
     def record(self, pressure: np.ndarray, sx: float, sy: float) -> None:
         """Keep the solution of the step just solved, with the body's position (m)."""
         kept = [*self.recent, (pressure, float(sx), float(sy))]
-        self.recent = kept[max(len(kept) - self.depth, 0) :]
+        keep = self.depth * (self._lag(kept) or 1)
+        self.recent = kept[max(len(kept) - keep, 0) :]
 
     def guess(self, sx: float, sy: float) -> np.ndarray | None:
         """The first guess for the body at (sx, sy) (m); None before the first step (start from p = 0)."""
         if not self.recent:
             return None
         cells = [self._cells(sx - x, sy - y) for _, x, y in self.recent]
-        whole = [c for c in cells if c is not None]
-        if len(whole) == DEPTH:
-            q0, q1, q2 = (self._carry(p, c) for (p, _, _), c in zip(self.recent[::-1], cells[::-1]))
-            d1, d2 = q0 - q1, q1 - q2
-            dots = self.comm.allreduce(np.array([float((d1 * d2).sum()), float((d2 * d2).sum())]))
-            rho = min(max(dots[0] / dots[1], 0.0), 1.0) if dots[1] > 0 else 0.0
-            return np.maximum(q0 + rho * d1, 0.0)
+        lag = self._lag(self.recent)
+        if lag and len(self.recent) >= DEPTH * lag:
+            chosen = [len(self.recent) - j * lag for j in range(1, DEPTH + 1)]  # k, 2k, 3k steps back
+            if all(cells[i] is not None for i in chosen):
+                q0, q1, q2 = (self._carry(self.recent[i][0], cells[i]) for i in chosen)
+                d1, d2 = q0 - q1, q1 - q2
+                dots = self.comm.allreduce(np.array([float((d1 * d2).sum()), float((d2 * d2).sum())]))
+                rho = min(max(dots[0] / dots[1], 0.0), 1.0) if dots[1] > 0 else 0.0
+                return np.maximum(q0 + rho * d1, 0.0)
         for (p, _, _), c in zip(self.recent[::-1], cells[::-1]):
             if c is not None:
                 return self._carry(p, c)
         p, x, y = self.recent[-1]
         return self._carry(p, (int(round((sx - x) / self.grid.dx)), int(round((sy - y) / self.grid.dy))))
+
+    def _lag(self, kept) -> int | None:
+        """k: the last step moved the body by 1/k of a whole number of cells (k <= MAX_LAG), else None."""
+        if len(kept) < 2:
+            return 1
+        (_, x0, y0), (_, x1, y1) = kept[-2], kept[-1]
+        return next((k for k in range(1, MAX_LAG + 1) if self._cells(k * (x1 - x0), k * (y1 - y0))), None)
 
     def _cells(self, mx: float, my: float) -> tuple[int, int] | None:
         """The move (mx, my) (m) in whole cells, or None if it is not a whole number of cells."""

@@ -53,6 +53,20 @@ def test_extrapolation_is_exact_for_a_geometric_transient_moving_by_whole_cells(
     assert off == pytest.approx(rho**2 * (1 - rho) * (0.36 - 2 * 0.05**2) * 3e4, rel=1e-9)  # nearest centres
 
 
+@pytest.mark.parametrize("lag", [2, 4])
+def test_a_body_moving_part_of_a_cell_per_step_extrapolates_every_kth_solution(comm, lag):
+    rows, x, y = rows_of(comm)
+    warm = WarmStart(GRID, rows, comm)
+    step, rho = (0.1 / lag, 0.0), 0.8
+    for n in range(3 * lag + 2):  # more than the 3 k solutions kept
+        warm.record(moving(x, y, n, step, rho), 1.0 + n * step[0], 0.0)
+    assert len(warm.recent) == 3 * lag
+    n = 3 * lag + 2
+    guess = warm.guess(1.0 + n * step[0], 0.0)
+    exact = moving(x, y, n, step, rho)
+    assert comm.allreduce(float(np.abs(guess - exact).max(initial=0.0)), op=MPI.MAX) <= 1e-9 * 1e5
+
+
 def test_a_move_by_part_of_a_cell_carries_the_newest_whole_cell_solution_or_rounds(comm):
     rows, x, y = rows_of(comm)
     warm = WarmStart(GRID, rows, comm)
