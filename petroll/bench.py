@@ -124,9 +124,10 @@ def _plot_tao(rows: list[dict], path: pathlib.Path) -> None:
     grids = list(dict.fromkeys(r["cells"] for r in rows))
     for ax, cells in zip(figure.subplots(1, len(grids), squeeze=False)[0], grids):
         for k, start in enumerate(("cold", "warm")):
-            done = [r for r in rows if r["cells"] == cells and r["start"] == start and r["applications"] != "-"]
-            ax.bar([TAO_TYPES.index(r["tao_type"]) + 0.4 * k for r in done], [r["applications"] for r in done],
-                   width=0.4, label=start)
+            done = [r for r in rows
+                    if r["cells"] == cells and r["start"] == start and r["applications"] != "-"]
+            ax.bar([TAO_TYPES.index(r["tao_type"]) + 0.4 * k for r in done],
+                   [r["applications"] for r in done], width=0.4, label=start)
         ax.set_xticks([i + 0.2 for i in range(len(TAO_TYPES))], TAO_TYPES, rotation=45)
         ax.set(yscale="log", ylabel="operator applications", title=f"Hertz step, {cells} cells")
         ax.legend()
@@ -148,10 +149,9 @@ def warm_starts(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, cells_per_ra
     ny = 2 * round((y1 - y0) / (2 * cell))
     scene = base.replace({"grid.nx": round((x1 - x0) / cell), "grid.ny": ny, "grid.x": [x0, x0 + round(
         (x1 - x0) / cell) * cell], "grid.y": [-ny * cell / 2, ny * cell / 2], "output.every": 0})
-    rows, series = [], {}
-    for name, depth in WARM_STARTS.items():
-        per_step = []
-        for _ in range(repeats):
+    rows, series, per_step, last = [], {}, {name: [] for name in WARM_STARTS}, {}
+    for _ in range(repeats):  # the variants in turn within each repeat: the machine's drift hits all
+        for name, depth in WARM_STARTS.items():
             sim = Simulation(scene, comm)
             sim.warm = WarmStart(scene.grid, sim.solver.rows, comm, depth)
             t, dt, records = 0.0, 0.0, []
@@ -159,18 +159,26 @@ def warm_starts(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, cells_per_ra
                 records.append(sim.step(t, dt))
                 dt = None if sim.steady() else sim.next_dt(t, records[-1].distance)
                 t += dt or 0.0
-            per_step.append([r.solve_time for r in records[1:]])
+            per_step[name].append([r.solve_time for r in records[1:]])
+            last[name] = records
+    for name in WARM_STARTS:
+        records = last[name]
         apps = [r.applications for r in records[1:]]
         series[name] = apps
         rows.append(dict(start=name, cells=f"{scene.grid.nx}x{scene.grid.ny}", steps=len(records),
                          apps_per_step=f"{np.mean(apps):.1f}", apps_last_20=f"{np.mean(apps[-20:]):.1f}",
-                         ms_per_step=f"{1e3 * statistics.median(np.sum(per_step, axis=1)) / len(apps):.2f}",
+                         ms_per_step=f"{1e3 * _median_total(per_step[name]) / len(apps):.2f}",
                          force=f"{records[-1].force:.7g}", mu_r=f"{records[-1].mu_r:.6g}"))
     if comm.rank == 0:
         _report(rows, out / "warm.csv")
         _plot_lines(series, out / "warm.png", "step", "operator applications",
                     f"rolling sphere, a/dx = {cells_per_radius:g}, one cell per step")
     return rows
+
+
+def _median_total(runs: list[list[float]]) -> float:
+    """The median over runs of each run's summed times (s)."""
+    return statistics.median(sum(run) for run in runs)
 
 
 PEERS_VENV = pathlib.Path(".venv-peers")
@@ -199,7 +207,8 @@ def peers(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, cells: tuple[int, 
         grid = Grid(n, n, -width * a / 2, width * a / 2, -width * a / 2, width * a / 2)
         solver = ContactSolver(grid, comm, tao_type="pk", tol=tol)
         height = Sphere(_R).height(grid.x[solver.r0 : solver.r1, None], grid.y[None, :])
-        solver.influence.window(n, n)  # kernels built before timing, as the peers build theirs in set-up
+        solver.solve_load(height, J, force, _R)  # untimed: builds the kernels of the windows it uses, as
+        # the peers build theirs in set-up (each timed solve below starts from p = 0 all the same)
         times = []
         for _ in range(repeats):
             t0 = time.perf_counter()

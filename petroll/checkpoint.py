@@ -19,8 +19,9 @@ step N exactly as if it had never stopped (format version 1, readable with plain
     /state/times         (n,)          times of all past steps, s        (history "hereditary")
     /state/increments    (n, nx, ny)   all past pressure increments, Pa  (history "hereditary")
     /state/direction     (2,)          the last direction of motion (for the diagnostics)
-    /state/recent        (k, nx, ny)   the last k <= 3 solutions, Pa, and /state/recent_position (k, 2) the
-                                       body's positions, m: the first guess of the next step (petroll.warm)
+    /state/recent        (k, nx, ny)   the last k <= 12 solutions, Pa (3 per lag, petroll.warm), and
+                                       /state/recent_position (k, 2) the body's positions, m: the first
+                                       guess of the next step
     /series/<name>       (N + 1,)      the per-step series so far (as in results.h5)
     /fields/pressure     (n_saved, nx, ny), /fields/step (n_saved,): the pressure fields saved so far
 

@@ -64,6 +64,7 @@ class ContactSolver:
         self.influence = InfluenceOperator(grid.dx, grid.dy, comm)
         self.rows = RowPartition(grid.nx, comm.size)
         self.r0, self.r1 = self.rows.range(comm.rank)
+        self.work = [0, 0]  # TAO iterations and operator applications of every QP solved so far
 
     @staticmethod
     def _resolve_type(tao_type: str, prefix: str) -> str:
@@ -177,6 +178,8 @@ class ContactSolver:
         finally:
             for obj in (hessian, x, rhs, gap):
                 obj.destroy()
+        self.work[0] += its
+        self.work[1] += applications
         if not residual <= self.tol:
             raise SolverError(f"TAO ({self.tao_type}) stopped with the contact conditions violated by "
                               f"{residual:.3g} (relative; [solver] tol = {self.tol:g}); try another "

@@ -59,10 +59,12 @@ class Convolution:
     shape (local rows, ny). One instance per grid shape: the kernel spectrum is computed once.
 
     ``inverse=True`` gives instead y = C^-1 x, C the circulant (periodic, Strang) approximation of A on the
-    nx x ny torus: the kernel wrapped without padding. Its spectrum is A's symbol sampled on the torus
-    (positive: A's kernel is a positive definite function), and C^-1 is the preconditioner of the contact
-    QP's conjugate gradients (petroll/pk.py): it undoes A's 1/|k| smoothing, whose spread of scales makes
-    plain conjugate gradients need more iterations as the grid is refined.
+    nx x ny torus: the kernel wrapped without padding. Its spectrum is positive in every case checked
+    (400 random shapes with dx/dy from 1e-3 to 1e3, all windows up to 8 x 8 and 8 x 256: smallest
+    eigenvalue >= 0.08 A_00; this is measured, not proven for a truncated wrap), and is floored at 1e-12
+    of its largest value. C^-1 is the preconditioner of the contact QP's conjugate gradients
+    (petroll/pk.py): it undoes A's 1/|k| smoothing, whose spread of scales makes plain conjugate
+    gradients need more iterations as the grid is refined.
     """
 
     def __init__(self, coefficients: np.ndarray, nx: int, ny: int, comm: MPI.Comm = MPI.COMM_SELF,
@@ -178,8 +180,8 @@ class InfluenceOperator:
         return float(self._table[0, 0])
 
     kept = 12
-    """Window shapes whose kernels are kept (the most recently used): a transient that changes the window
-    every step would otherwise keep a spectrum per shape."""
+    """Kernels kept (the most recently used; a window's forward and inverse kernels count as two): a
+    transient that changes the window every step would otherwise keep a spectrum per shape."""
 
     def window(self, nx: int, ny: int, inverse: bool = False) -> Convolution:
         """A on an nx x ny block; ``inverse``: the inverse of its circulant approximation (a preconditioner)."""

@@ -77,7 +77,7 @@ class PolonskyKeer:
             z = np.where(contact, precondition(gc), 0.0)  # the preconditioned gap on the contact cells
             gz = comm.allreduce(float(np.dot(gc, z)))
             beta = gz / previous_gz if conjugate else 0.0
-            t.setArray(z + beta * t.array_r)
+            t.setArray(np.where(contact, z + beta * t.array_r, 0.0))
             previous_gz = gz
             hessian.mult(t, r)
             ta, ra = t.array_r, r.array_r

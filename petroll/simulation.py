@@ -21,7 +21,7 @@ import numpy as np
 from mpi4py import MPI
 
 from petroll.contact import ContactSolver
-from petroll.errors import SceneError
+from petroll.errors import SceneError, SolverError
 from petroll.material import make_history
 from petroll.results import OutputError, Results, write_results
 from petroll.scene import Scene
@@ -114,16 +114,24 @@ class Simulation:
             solution = solver.solve_penetration(height, compliance, delta, warm)
         else:
             previous = self.records[-1].delta if self.records else None
-            reach = 1.5 * previous if previous and previous > 0 else None  # checked below
-            while True:
-                height = profile
-                if v is not None:
-                    height = profile + self.wake.displacement(v, profile, np.inf if reach is None else reach)
-                solution = solver.solve_load(height, compliance, float(scene.load(t)),
-                                             scene.body.radius_hint, delta_guess=previous, warm=warm)
-                if reach is None or solution.delta <= reach:
-                    break
-                reach = None  # the load needed a deeper penetration: u on every cell the body may touch
+            load = float(scene.load(t))
+            solution, work = None, list(solver.work)
+            if v is not None and previous and previous > 0:  # first with u for a penetration <= reach
+                reach = 1.5 * previous
+                height = profile + self.wake.displacement(v, profile, reach)
+                try:
+                    solution = solver.solve_load(height, compliance, load, scene.body.radius_hint,
+                                                 delta_guess=previous, warm=warm)
+                except SolverError:  # a trial penetration beyond reach, where u is not computed
+                    solution = None
+                if solution is not None and solution.delta > reach:
+                    solution = None
+            if solution is None:  # u on every cell the body may touch
+                height = profile if v is None else profile + self.wake.displacement(v, profile, np.inf)
+                solution = solver.solve_load(height, compliance, load, scene.body.radius_hint,
+                                             delta_guess=previous, warm=warm)
+            solution.iterations = solver.work[0] - work[0]  # with those of a first attempt, if redone
+            solution.applications = solver.work[1] - work[1]
         self.history.advance(solution.pressure, dt)
         self.pressure = solution.pressure
         self.warm.record(solution.pressure, sx, sy)
