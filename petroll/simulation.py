@@ -108,30 +108,15 @@ class Simulation:
         v = self.history.preceding(dt)
         compliance = self.history.compliance(dt)
         warm = self.warm.guess(sx, sy)
+        work = list(solver.work)
         if scene.penetration is not None:
             delta = float(scene.penetration(t))
             height = profile if v is None else profile + self.wake.displacement(v, profile, delta)
             solution = solver.solve_penetration(height, compliance, delta, warm)
         else:
-            previous = self.records[-1].delta if self.records else None
-            load = float(scene.load(t))
-            solution, work = None, list(solver.work)
-            if v is not None and previous and previous > 0:  # first with u for a penetration <= reach
-                reach = 1.5 * previous
-                height = profile + self.wake.displacement(v, profile, reach)
-                try:
-                    solution = solver.solve_load(height, compliance, load, scene.body.radius_hint,
-                                                 delta_guess=previous, warm=warm)
-                except SolverError:  # a trial penetration beyond reach, where u is not computed
-                    solution = None
-                if solution is not None and solution.delta > reach:
-                    solution = None
-            if solution is None:  # u on every cell the body may touch
-                height = profile if v is None else profile + self.wake.displacement(v, profile, np.inf)
-                solution = solver.solve_load(height, compliance, load, scene.body.radius_hint,
-                                             delta_guess=previous, warm=warm)
-            solution.iterations = solver.work[0] - work[0]  # with those of a first attempt, if redone
-            solution.applications = solver.work[1] - work[1]
+            solution = self._solve_load(profile, v, compliance, float(scene.load(t)), warm)
+        solution.iterations = solver.work[0] - work[0]  # all QPs of the step, a redone attempt's too
+        solution.applications = solver.work[1] - work[1]
         self.history.advance(solution.pressure, dt)
         self.pressure = solution.pressure
         self.warm.record(solution.pressure, sx, sy)
@@ -145,6 +130,24 @@ class Simulation:
         record = self._diagnose(len(self.records), t, sx, sy, solution, velocity, distance, elapsed)
         self.records.append(record)
         return record
+
+    def _solve_load(self, profile, v, compliance: float, load: float, warm):
+        """The step under load control. With a history, u is first computed on the box for a penetration
+        up to 1.5 times the previous step's; if the load needs more (or a trial penetration beyond it
+        reaches cells where u was not computed), the step is solved again with u on every cell."""
+        solver, radius = self.solver, self.scene.body.radius_hint
+        previous = self.records[-1].delta if self.records else None
+        if v is not None and previous and previous > 0:
+            reach = 1.5 * previous
+            height = profile + self.wake.displacement(v, profile, reach)
+            try:
+                solution = solver.solve_load(height, compliance, load, radius, previous, warm)
+                if solution.delta <= reach:
+                    return solution
+            except SolverError:
+                pass
+        height = profile if v is None else profile + self.wake.displacement(v, profile, np.inf)
+        return solver.solve_load(height, compliance, load, radius, previous, warm)
 
     def _diagnose(self, n, t, sx, sy, solution, velocity, distance, elapsed) -> StepRecord:
         g, comm, p = self.scene.grid, self.comm, solution.pressure
