@@ -33,7 +33,7 @@ if [ -z "$(find "$tarball" -mtime -7 2>/dev/null)" ]; then
   fi
   say "building a fresh Debian 12 root (mmdebstrap, about 30 s)"
   start=$(date +%s)
-  mmdebstrap --quiet --variant=apt --include=python3,make,git,ca-certificates,procps \
+  mmdebstrap --quiet --format=tar --variant=apt --include=python3,make,git,ca-certificates,procps \
       bookworm "$tarball.part" >/dev/null 2>&1 \
     || { rm -f "$tarball.part"; fail "mmdebstrap could not build the root (network to Debian's mirror?)"; }
   mv "$tarball.part" "$tarball"
