@@ -9,13 +9,40 @@ The Python API (the ``petroll`` command is a thin layer over it)::
 
 Scenes can also be built from a dict of sections with :func:`parse_scene`; :class:`Results` reopens a
 results file, and ``results.steady`` (:class:`SteadyState`) gives the final force and mu_r with their
-convergence measure. Sweeps over a key: :func:`petroll.sweep.sweep`. Reference: docs/api.md.
+convergence measure. Sweeps over a key: :func:`petroll.studies.sweep.sweep`. Reference: docs/api.md.
+
+The package, by concern (each package's ``__init__`` states its rules; docs/design.md has the picture):
+
+    model/     what a scene says: schema, material laws, bodies, motion programs, limits (no PETSc, no MPI)
+    solver/    numerics on the grid: partition, influence operators, the TAO step, history integrators,
+               warm start, wake, the time loop (writes no files)
+    io/        results.h5, checkpoints, XDMF
+    studies/   sweeps, the stability map, benchmarks
+    driver.py, cli.py, plot.py, this file: the faces
+
+``import petroll`` starts neither MPI nor PETSc: the names below are imported when first used.
 """
 
 __version__ = "0.1.0"
 
-from petroll.results import Results, SteadyState  # noqa: E402
-from petroll.scene import Scene, load_scene, parse_scene  # noqa: E402
-from petroll.simulation import run  # noqa: E402
+_PUBLIC = {
+    "Results": "petroll.io.results",
+    "SteadyState": "petroll.io.results",
+    "Scene": "petroll.model.scene",
+    "load_scene": "petroll.model.scene",
+    "parse_scene": "petroll.model.scene",
+    "run": "petroll.driver",
+}
 
-__all__ = ["Results", "Scene", "SteadyState", "load_scene", "parse_scene", "run", "__version__"]
+__all__ = [*_PUBLIC, "__version__"]
+
+
+def __getattr__(name: str):
+    """Import a public name on first use (PEP 562), so that ``import petroll`` stays light."""
+    if name not in _PUBLIC:
+        raise AttributeError(f"module 'petroll' has no attribute {name!r}")
+    import importlib
+
+    value = getattr(importlib.import_module(_PUBLIC[name]), name)
+    globals()[name] = value
+    return value

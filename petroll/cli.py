@@ -135,7 +135,7 @@ def main(argv: list[str] | None = None) -> int:
     from mpi4py import MPI
 
     from petroll.errors import PetrollError
-    from petroll.limits import PetrollWarning
+    from petroll.model.limits import PetrollWarning
 
     comm = MPI.COMM_WORLD
     if args.verb == "plot":
@@ -204,7 +204,7 @@ def _test_failure(comm) -> None:
 
 def _warning_line(comm):
     """warnings.showwarning for the command line: PetrollWarnings as one line, on rank 0."""
-    from petroll.limits import PetrollWarning
+    from petroll.model.limits import PetrollWarning
 
     original = warnings.showwarning
 
@@ -221,7 +221,7 @@ def _warning_line(comm):
 def _main(args: argparse.Namespace, comm) -> int:
     """The verbs other than plot (every rank)."""
     if args.verb == "keys":
-        from petroll.docs import scene_reference
+        from petroll.model.reference import scene_reference
 
         if comm.rank == 0:
             print(scene_reference(), end="")
@@ -229,7 +229,7 @@ def _main(args: argparse.Namespace, comm) -> int:
     if args.verb == "bench":
         import pathlib
 
-        from petroll import bench, bench_rolling
+        from petroll.studies import bench, bench_rolling
         from petroll.errors import PetrollError
 
         if args.ranks is not None and args.which != "mpi":
@@ -243,16 +243,16 @@ def _main(args: argparse.Namespace, comm) -> int:
              "skips": bench_rolling.skips}[args.which](out, comm)
         return 0
     if args.verb == "sweep":
-        from petroll.sweep import command
+        from petroll.studies.sweep import command
 
         return command(args.scene, args.vary, args.out, args.quiet, comm)
     if args.verb == "stability":
-        from petroll.stability import command
+        from petroll.studies.stability import command
 
         return command(args.out, args.fast, comm)
-    from petroll.checkpoint import RunInterrupted, StopRequest
-    from petroll.scene import load_scene
-    from petroll.simulation import run
+    from petroll.io.checkpoint import RunInterrupted, StopRequest
+    from petroll.model.scene import load_scene
+    from petroll.driver import run
 
     start = time.perf_counter()
     if args.verb == "restart":
@@ -277,7 +277,7 @@ def _main(args: argparse.Namespace, comm) -> int:
 
 def _restart_inputs(args: argparse.Namespace, comm):
     """``petroll restart``: (scene, checkpoint, output directory), all checked before anything is written."""
-    from petroll.checkpoint import latest_checkpoint, read_checkpoint, restart_scene, run_directory
+    from petroll.io.checkpoint import latest_checkpoint, read_checkpoint, restart_scene, run_directory
 
     path = latest_checkpoint(args.checkpoint)
     checkpoint = read_checkpoint(path, comm)

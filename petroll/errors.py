@@ -30,3 +30,8 @@ class SceneError(PetrollError):
 class SolverError(PetrollError):
     """A numerical failure that the user can act on (the message names the cause and the remedy)."""
 
+
+def reason(exc: BaseException) -> str:
+    """An exception's message on one line (an OSError's strerror when it names no file)."""
+    text = exc.strerror if isinstance(exc, OSError) and exc.strerror and not exc.filename else str(exc)
+    return " ".join(str(text or type(exc).__name__).split())

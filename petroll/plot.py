@@ -12,7 +12,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from petroll.errors import PetrollError
-from petroll.results import Results
+from petroll.io.results import Results
 
 MAX_PANELS = 4
 """Pressure maps drawn when no times are requested: the first, the last and evenly spaced ones between."""
@@ -271,7 +271,7 @@ def _widen_flat(ax, values: np.ndarray, floor: float) -> None:
 
 # -- sweeps (petroll sweep) ----------------------------------------------------------------------------
 def plot_sweep(table, path: str | pathlib.Path) -> pathlib.Path:
-    """One PNG of a sweep (a :class:`petroll.sweep.SweepTable`): mu_r (linear and log), force or penetration,
+    """One PNG of a sweep (a :class:`petroll.studies.sweep.SweepTable`): mu_r (linear and log), force or penetration,
     contact area, patch edges and the convergence measures against the varied value, with V tau/a on a
     second axis where it applies and the rolling limits (formulation §7) where they apply."""
     import tomllib
@@ -289,7 +289,7 @@ def plot_sweep(table, path: str | pathlib.Path) -> pathlib.Path:
                                                   and table.key != "motion.penetration")
     tol = raw.get("time", {}).get("steady")
     if tol is None and "time" in raw:
-        from petroll.sweep import DEFAULT_STEADY
+        from petroll.model.scene import DEFAULT_STEADY
 
         tol = DEFAULT_STEADY
     limits = bool(np.all(np.isfinite(c["mu_r_slow"])))

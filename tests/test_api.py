@@ -10,7 +10,7 @@ import pytest
 import petroll
 from petroll.cli import main
 from petroll.errors import SceneError
-from petroll.scene import dumps
+from petroll.model.scene import dumps
 
 RAW = {
     "grid": {"nx": 40, "ny": 16, "x": [-0.8e-3, 3.2e-3], "y": [-0.8e-3, 0.8e-3]},

@@ -19,10 +19,10 @@ import pytest
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
-from petroll.bodies import BODY_KEYS
+from petroll.model.bodies import BODY_KEYS
 from petroll.errors import SceneError
-from petroll.limits import PetrollWarning
-from petroll.scene import SCHEMA, dumps, parse_scene
+from petroll.model.limits import PetrollWarning
+from petroll.model.scene import SCHEMA, dumps, parse_scene
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 FUZZ = settings(max_examples=300, deadline=None, derandomize=True,

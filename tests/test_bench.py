@@ -1,4 +1,4 @@
-"""The rolling benchmarks (petroll.bench_rolling) on tiny sizes: what they measure, never how fast.
+"""The rolling benchmarks (petroll.studies.bench_rolling) on tiny sizes: what they measure, never how fast.
 
 Serial only: the MPI benchmark starts its own mpirun children (ranks 1 and 2, compared inside the test).
 """
@@ -8,7 +8,7 @@ import math
 
 import pytest
 
-from petroll.bench_rolling import growth, mpi_scaling, precision
+from petroll.studies.bench_rolling import growth, mpi_scaling, precision
 
 pytestmark = pytest.mark.serial
 
@@ -64,7 +64,7 @@ def test_mpi_forces_agree_between_rank_counts(tmp_path):
 
 
 def test_warm_start_bench_same_answer_fewer_applications(tmp_path):
-    from petroll.bench import warm_starts
+    from petroll.studies.bench import warm_starts
 
     rows = {r["start"]: r for r in warm_starts(tmp_path, cells_per_radius=6, repeats=1)}
     assert list(rows) == ["cold", "carried", "extrapolated"]
@@ -76,7 +76,7 @@ def test_warm_start_bench_same_answer_fewer_applications(tmp_path):
 
 
 def test_skips_bench_each_saving_keeps_the_answer(tmp_path):
-    from petroll.bench_rolling import skips
+    from petroll.studies.bench_rolling import skips
 
     rows = {r["saving"].split(" (")[0]: r for r in skips(tmp_path, track_cells=140, repeats=3)}
     assert set(rows) == {"QP on the interference window", "kernels built once per window shape",
@@ -92,7 +92,7 @@ def test_skips_bench_each_saving_keeps_the_answer(tmp_path):
 
 
 def test_tao_types_on_the_rolling_scene_agree(tmp_path):
-    from petroll.bench import tao_types_rolling
+    from petroll.studies.bench import tao_types_rolling
 
     rows = tao_types_rolling(tmp_path, distance=0.3e-3)
     forces = [float(r["force"]) for r in rows]  # a failed type would not parse

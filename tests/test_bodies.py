@@ -1,4 +1,4 @@
-"""Tests of petroll.bodies: analytic bodies, height maps, rasterised meshes and the scene-table factory."""
+"""Tests of petroll.model.bodies: analytic bodies, height maps, rasterised meshes and the scene-table factory."""
 
 import math
 import pathlib
@@ -7,8 +7,8 @@ import meshio
 import numpy as np
 import pytest
 
-from petroll import bodies
-from petroll.bodies import (
+from petroll.model import bodies
+from petroll.model.bodies import (
     BODY_KEYS,
     Body,
     Cylinder,

@@ -22,15 +22,15 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from petroll import checkpoint as ckpt
-from petroll.checkpoint import (CheckpointError, RunInterrupted, StopRequest, latest_checkpoint,
+from petroll.io import checkpoint as ckpt
+from petroll.io.checkpoint import (CheckpointError, RunInterrupted, StopRequest, latest_checkpoint,
                                 list_checkpoints, read_checkpoint, restart_scene)
 from petroll.cli import main
-from petroll.contact import DEFAULT_TAO_TYPE
+from petroll.model.scene import DEFAULT_TAO_TYPE
 from petroll.errors import SceneError
-from petroll.results import OutputError, Results
-from petroll.scene import parse_scene
-from petroll.simulation import run
+from petroll.io.results import OutputError, Results
+from petroll.model.scene import parse_scene
+from petroll.driver import run
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 PETROLL = ROOT / ".venv" / "bin" / "petroll"
@@ -555,9 +555,9 @@ def test_sigterm_during_a_cli_run_leaves_a_checkpoint_that_restart_finishes_iden
 
 KILLER = """
 import os, signal, sys
-from petroll import checkpoint
-from petroll.scene import load_scene
-from petroll.simulation import run
+from petroll.io import checkpoint
+from petroll.model.scene import load_scene
+from petroll.driver import run
 
 real, calls = checkpoint._write_dataset, []
 

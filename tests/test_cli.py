@@ -37,4 +37,4 @@ def test_unprefixed_tao_options_do_not_leak_into_petroll(tmp_path):
     done = petroll("run", scene, "--out", "ok", "-tao_type", "blmvm", "-tao_max_it", "2", "-petroll_tao_view",
                    cwd=tmp_path)
     assert done.returncode == 0, done.stderr
-    assert "Python: petroll.pk.PolonskyKeer" in done.stdout  # the default, untouched by -tao_type
+    assert "Python: petroll.solver.pk.PolonskyKeer" in done.stdout  # the default, untouched by -tao_type

@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from petroll.bodies import Cylinder, Sphere
-from petroll.contact import ContactSolver
+from petroll.model.bodies import Cylinder, Sphere
+from petroll.solver.contact import ContactSolver
 from petroll.errors import SolverError
-from petroll.grid import Grid
-from petroll.influence import dense_influence, love_coefficients
-from petroll.simulation import gather_field
+from petroll.model.grid import Grid
+from petroll.solver.influence import dense_influence, love_coefficients
+from petroll.solver.partition import gather_field
 
 R, J = 0.01, 7.5e-8  # sphere radius (m) and surface compliance (1/Pa) of rubber, E = 10 MPa, nu = 0.5
 

@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from petroll.grid import RowPartition, move_rows
-from petroll.influence import Convolution, InfluenceOperator, dense_influence, love_coefficients, shell_matrix
+from petroll.solver.partition import RowPartition, move_rows
+from petroll.solver.influence import Convolution, InfluenceOperator, dense_influence, love_coefficients, shell_matrix
 
 
 def test_centre_of_a_square_cell():
@@ -97,7 +97,7 @@ def test_move_rows_between_partitions(comm):
 
 @pytest.mark.parametrize("di,dj", [(0, 0), (1, 0), (3, -2), (-4, 1), (12, 0), (0, -7), (-2, -3)])
 def test_shift_field_moves_a_distributed_field_by_whole_cells(comm, di, dj):
-    from petroll.grid import shift_field
+    from petroll.solver.partition import shift_field
 
     nx, ny = 11, 7
     field = np.arange(nx * ny, dtype=float).reshape(nx, ny) + 1

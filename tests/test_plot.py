@@ -7,8 +7,8 @@ import pathlib
 import pytest
 
 from petroll.cli import main
-from petroll.scene import parse_scene
-from petroll.simulation import run
+from petroll.model.scene import parse_scene
+from petroll.driver import run
 
 
 from petroll.plot import plot_results, select_fields

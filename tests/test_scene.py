@@ -17,10 +17,10 @@ import h5py
 import numpy as np
 import pytest
 
-from petroll.bodies import Sphere
-from petroll.contact import DEFAULT_TAO_TYPE
+from petroll.model.bodies import Sphere
+from petroll.model.scene import DEFAULT_TAO_TYPE
 from petroll.errors import MISSING, PetrollError, SceneError
-from petroll.scene import SCHEMA, Scene, load_scene, parse_scene
+from petroll.model.scene import SCHEMA, Scene, load_scene, parse_scene
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 SPHERE = ROOT / "runs" / "hertz.toml"
@@ -330,7 +330,7 @@ def test_cli_run_default_scene_writes_results_matching_hertz(tmp_path):
 
 # -- 5. in process, on every rank ----------------------------------------------------------------------------
 def test_run_in_process_matches_hertz(comm, shared_dir):
-    from petroll.simulation import run
+    from petroll.driver import run
 
     raw = default_raw()
     scene = load_scene(SPHERE)
@@ -344,7 +344,7 @@ def test_run_in_process_matches_hertz(comm, shared_dir):
 
 
 def test_load_control_gives_the_displacement_controlled_penetration(comm, shared_dir):
-    from petroll.simulation import run
+    from petroll.driver import run
 
     raw = default_raw()
     scene = load_scene(SPHERE)
@@ -361,7 +361,7 @@ def test_load_control_gives_the_displacement_controlled_penetration(comm, shared
 
 # -- 6. the generated scene reference ----------------------------------------------------------------------
 def test_docs_scene_md_is_the_generated_reference():
-    from petroll.docs import scene_reference
+    from petroll.model.reference import scene_reference
 
     assert (ROOT / "docs" / "scene.md").read_text(encoding="utf-8") == scene_reference()
 

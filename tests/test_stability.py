@@ -1,4 +1,4 @@
-"""The stability suite's fast subset (petroll.stability, docs/stability.md): every run's properties are
+"""The stability suite's fast subset (petroll.studies.stability, docs/stability.md): every run's properties are
 asserted by the suite itself (finite, contact conditions on the whole grid, dissipation, Lee-Radok bounds,
 smoothness, clear refusals); here each fast case must come out ok or refused as expected. Plus the
 integrators' holding test, the relaxation series and the command."""
@@ -9,8 +9,9 @@ import pathlib
 import numpy as np
 import pytest
 
-from petroll import material as mat
-from petroll import stability
+from petroll.model import materials as mat
+from petroll.solver import history as integrators
+from petroll.studies import stability
 from petroll.errors import SolverError
 
 FAST = [case for case in stability.cases() if case.fast]
@@ -85,24 +86,24 @@ def test_the_relaxation_integrator_holds_a_penetration_exactly_at_any_step(name)
     material = MATERIALS[name]
     Ginf, dG, theta = mat.relaxation_series(material)
     for dt in (1e-6, 1e-3, 0.1, 10.0, 1e4):
-        p = mat.holding_response(material, "relaxation", dt, steps=12)
+        p = integrators.holding_response(material, "relaxation", dt, steps=12)
         exact = [Ginf + sum(d * math.exp(-n * dt / th) for d, th in zip(dG, theta)) for n in range(12)]
         assert p == pytest.approx(exact, rel=1e-10)
-        assert mat.holding_violation(material, "relaxation", dt) <= 1e-14
+        assert integrators.holding_violation(material, "relaxation", dt) <= 1e-14
 
 
 def test_the_guard_refuses_steps_at_which_the_creep_form_schemes_ring_or_blow_up():
     material = MATERIALS["sls"]  # E0/Einf = 5: relaxation time T = 0.01 s, creep time 0.05 s
     for integrator, dt, safe in (("paper", 0.05, 0.0113), ("exponential", 0.05, 0.022)):
-        assert mat.holding_violation(material, integrator, dt) > 0.01
-        history = mat.make_history(material, integrator, (2, 2))
+        assert integrators.holding_violation(material, integrator, dt) > 0.01
+        history = integrators.make_history(material, integrator, (2, 2))
         history.compliance(0.0)  # the sudden start is always fine
         history.compliance(0.001)
         with pytest.raises(SolverError, match=rf"integrator = '{integrator}' cannot hold a penetration .* "
                                               r"time step <= .* or integrator = \"relaxation\""):
             history.compliance(dt)
-        assert mat.largest_safe_step(material, integrator, dt) == pytest.approx(safe, rel=0.05)
-    unguarded = mat.make_history(material, "paper", (2, 2), guard=False)
+        assert integrators.largest_safe_step(material, integrator, dt) == pytest.approx(safe, rel=0.05)
+    unguarded = integrators.make_history(material, "paper", (2, 2), guard=False)
     unguarded.compliance(0.05)  # the unit tests of the recursions use unguarded histories
 
 
@@ -112,7 +113,7 @@ def test_the_guard_covers_tabulated_materials_too():
     sls = MATERIALS["sls"]
     t = np.linspace(0.0, 1.0, 2001)
     table = mat.Tabulated(tuple(t), tuple(sls(t)))
-    history = mat.make_history(table, "paper", (1, 1))
+    history = integrators.make_history(table, "paper", (1, 1))
     history.compliance(0.002)
     with pytest.raises(SolverError, match=r"integrator = 'paper' cannot hold .* time step <= [0-9.e-]+ s "
                                           r"\(fixed \[time\] dt, or more steps_per_cell\)$"):
@@ -120,14 +121,14 @@ def test_the_guard_covers_tabulated_materials_too():
 
 
 def test_a_relaxation_history_rebuilds_its_displacement_when_its_state_is_set():
-    """A restart sets pressure and q (the Maxwell fields s_k): the displacement W follows from them."""
+    """A restart that sets only pressure and q (the Maxwell fields s_k): the displacement W follows from them."""
     material = MATERIALS["kelvin-3"]
-    a = mat.make_history(material, "relaxation", (3, 4))
+    a = integrators.make_history(material, "relaxation", (3, 4))
     rng = np.random.default_rng(2)
     for dt in (0.0, 0.01, 0.3, 2.0):
         a.advance(rng.random((3, 4)), dt)
-    b = mat.make_history(material, "relaxation", (3, 4))
-    b.pressure, b.q = a.pressure.copy(), [s.copy() for s in a.q]
+    b = integrators.make_history(material, "relaxation", (3, 4))
+    b.restore(a.pressure.copy(), [s.copy() for s in a.q])
     assert np.allclose(b.displacement, a.displacement, rtol=1e-12, atol=0)
     assert np.allclose(b.preceding(0.5), a.preceding(0.5), rtol=1e-11, atol=1e-300)
 

@@ -10,8 +10,8 @@ import pytest
 
 import petroll
 from petroll.cli import main
-from petroll.scene import dumps
-from petroll.sweep import (COLUMNS, DEFAULT_STEADY, SweepError, SweepInterrupted, SweepTable, Vary,
+from petroll.model.scene import dumps
+from petroll.studies.sweep import (COLUMNS, DEFAULT_STEADY, SweepError, SweepInterrupted, SweepTable, Vary,
                            parse_vary, point_scene, sweep)
 
 RAW = {  # a/dx = 4.5: tiny, each point a few tenths of a second

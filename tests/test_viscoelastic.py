@@ -7,9 +7,11 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from petroll import material as mat
-from petroll.scene import parse_scene
-from petroll.simulation import Simulation, gather_field
+from petroll.model import materials as mat
+from petroll.solver import history as integrators
+from petroll.model.scene import parse_scene
+from petroll.solver.partition import gather_field
+from petroll.solver.simulation import Simulation
 
 R, NU, E0, EINF, TAU_RELAX = 0.01, 0.5, 10e6, 2e6, 0.01
 J0, JINF = (1 - NU**2) / E0, (1 - NU**2) / EINF
@@ -183,8 +185,8 @@ def test_prony_recursion_equals_the_hereditary_sum(integrator):
     """The paper's scheme for a Prony J as a recursion equals the direct hereditary sum (any dt sequence);
     the exponential scheme's J_eff tends to J0 and Jinf at small and large dt."""
     material = mat.kelvin(2e6, 0.4, [1e-7, 3e-8, 2e-7], [1e-3, 0.1, 10.0])
-    recursion = mat.PronyHistory(material, (3, 4), beta_one=integrator == "paper")
-    direct = mat.HereditaryHistory(material, (3, 4))
+    recursion = integrators.PronyHistory(material, (3, 4), beta_one=integrator == "paper")
+    direct = integrators.HereditaryHistory(material, (3, 4))
     rng = np.random.default_rng(1)
     dts = [0.0, *rng.uniform(1e-4, 1.0, 30)]
     for dt in dts:
@@ -275,7 +277,7 @@ def test_tabulated_velocity_equals_the_constant_one(comm):
 
 def test_the_transient_reaches_a_steady_state(comm, tmp_path):
     """With [time] steady the run stops early, at values a much longer run confirms to that tolerance."""
-    from petroll.simulation import run
+    from petroll.driver import run
 
     folder = shared_dir(comm, tmp_path)
     kwargs = dict(motion={"velocity": [0.01, 0.0], "penetration": 2e-5}, length=3e-3, n=40)

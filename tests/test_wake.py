@@ -5,11 +5,11 @@ import pytest
 from mpi4py import MPI
 
 import petroll
-from petroll.bodies import Sphere
-from petroll.contact import ContactSolver
-from petroll.grid import Grid
-from petroll.influence import love_coefficients
-from petroll.wake import Wake
+from petroll.model.bodies import Sphere
+from petroll.solver.contact import ContactSolver
+from petroll.model.grid import Grid
+from petroll.solver.influence import love_coefficients
+from petroll.solver.wake import Wake
 
 GRID = Grid(200, 40, -2.0e-3, 8.0e-3, -1.0e-3, 1.0e-3)  # 50 um cells, a 10 mm track
 R, DELTA = 0.01, 2e-5  # the body sits at X = 6 mm; its wake fades over 0.5 mm behind it
@@ -65,7 +65,7 @@ def test_a_long_track_rolls_the_same_with_the_wake_cut_off(comm):
     runs = {}
     for name, cutoff in (("cut", 1e-9), ("all", 0.0), ("full", None)):
         scene = base if cutoff is None else base.replace("solver.history_cutoff", cutoff)
-        sim = petroll.simulation.Simulation(scene, comm)
+        sim = petroll.solver.simulation.Simulation(scene, comm)
         if cutoff is None:
             sim.wake.displacement = lambda v, profile, reach: sim.solver.influence.window(400, 54)(v)
         t, dt, records = 0.0, 0.0, []
@@ -93,7 +93,7 @@ def test_load_control_needing_a_much_deeper_penetration_redoes_u_on_every_cell(c
          "grid.ny": 64, "grid.x": [-0.8e-3, 0.8e-3], "grid.y": [-0.8e-3, 0.8e-3]})
     runs = []
     for full in (False, True):
-        sim = petroll.simulation.Simulation(base, comm)
+        sim = petroll.solver.simulation.Simulation(base, comm)
         if full:
             sim.wake.displacement = lambda v, profile, reach, s=sim: s.solver.influence.window(64, 64)(v)
         t, dt, records = 0.0, 0.0, []

@@ -5,9 +5,10 @@ import pytest
 from mpi4py import MPI
 
 import petroll
-from petroll.grid import Grid, RowPartition, shift_field
-from petroll.simulation import Simulation
-from petroll.warm import WarmStart
+from petroll.model.grid import Grid
+from petroll.solver.partition import RowPartition, shift_field
+from petroll.solver.simulation import Simulation
+from petroll.solver.warm import WarmStart
 
 GRID = Grid(40, 24, 0.0, 4.0, -1.2, 1.2)  # dx = dy = 0.1
 

@@ -17,12 +17,21 @@ from typing import Any, Callable
 
 import numpy as np
 
-from petroll import material as materials
-from petroll import motion
-from petroll.bodies import BODY_KEYS, Body, make_body
-from petroll.contact import DEFAULT_TAO_TYPE, TAO_TYPES
+from petroll.model import materials
+from petroll.model import motion
+from petroll.model.bodies import BODY_KEYS, Body, make_body
 from petroll.errors import MISSING, SceneError
-from petroll.grid import Grid
+from petroll.model.grid import Grid
+
+TAO_TYPES = ("tron", "pk", "gpcg", "bntr", "bncg", "blmvm", "bqnls", "bnls", "bntl")
+"""TAO's bound-constrained solvers that handle this QP (bqpip is left out: it needs finite upper bounds),
+and ``pk``, petroll's Polonsky-Keer conjugate gradient as a TAO Python type (petroll/solver/pk.py)."""
+
+DEFAULT_TAO_TYPE = "pk"
+"""Chosen by measurement: see docs/benchmarks.md."""
+
+DEFAULT_STEADY = 1e-3
+"""The [time] steady tolerance a sweep gives a scene that has none (docs/sweep.md)."""
 
 
 # -- key declarations -------------------------------------------------------------------------------------
@@ -144,7 +153,7 @@ def _positives(value: Any) -> tuple[float, ...]:
 
 
 def _program(vector: bool, positive: bool) -> Callable[[Any], Any]:
-    """A program in time (petroll.motion): a value, or {kind = "ramp" | "sinusoidal" | "tabulated", ...}."""
+    """A program in time (petroll.model.motion): a value, or {kind = "ramp" | "sinusoidal" | "tabulated", ...}."""
     what = "[x, y]" if vector else "a number"
     forms = (f"{what}, or an inline table {{kind = \"ramp\", start, end, duration}}, "
              f"{{kind = \"sinusoidal\", mean, amplitude, period, phase = 0}} or "
@@ -307,6 +316,17 @@ class Solver:
     history_cutoff: float = 1e-9  # relative; see petroll/wake.py
 
 
+TAO_TYPES = ("tron", "pk", "gpcg", "bntr", "bncg", "blmvm", "bqnls", "bnls", "bntl")
+"""TAO's bound-constrained solvers that handle this QP (bqpip is left out: it needs finite upper bounds),
+and ``pk``, petroll's Polonsky-Keer conjugate gradient as a TAO Python type (petroll/solver/pk.py)."""
+
+DEFAULT_TAO_TYPE = "pk"
+"""Chosen by measurement: see docs/benchmarks.md."""
+
+DEFAULT_STEADY = 1e-3
+"""The [time] steady tolerance a sweep gives a scene that has none (docs/sweep.md)."""
+
+
 @dataclass(frozen=True)
 class Time:
     """Time stepping; ``dt`` and ``steps_per_cell`` both None: a single step at t = 0."""
@@ -330,7 +350,7 @@ class Scene:
     material: materials.Prony | materials.Tabulated  # surface creep compliance J(t), 1/Pa
     body: Body
     position: tuple[float, float]
-    velocity: Any  # a vector program of petroll.motion, m/s
+    velocity: Any  # a vector program of petroll.model.motion, m/s
     penetration: Any  # a scalar program (m), or None under load control
     load: Any  # a scalar program (N), or None under displacement control
     time: Time
@@ -359,6 +379,13 @@ class Scene:
             else:
                 table[name] = new
         return parse_scene(raw, source=self.source, base_dir=self.base_dir, text=None)
+
+
+def shipped_scene(name: str) -> pathlib.Path:
+    """The path of a scene shipped in runs/ (installed as the package data ``petroll.scenes``)."""
+    from importlib.resources import files
+
+    return pathlib.Path(str(files("petroll.scenes").joinpath(name)))
 
 
 def load_scene(path: str | pathlib.Path) -> Scene:
@@ -422,7 +449,7 @@ def parse_scene(raw: dict, source: str = "<python>", base_dir: str | pathlib.Pat
                   output_dir=output_dir, every=values["output"]["every"], base_dir=base_dir,
                   checkpoint_every=values["output"]["checkpoint_every"], keep=values["output"]["keep"])
     _check_contact_inside(scene)
-    from petroll.limits import check_scene  # slopes beyond the linear theory: refused or warned
+    from petroll.model.limits import check_scene  # slopes beyond the linear theory: refused or warned
 
     check_scene(scene)
     return scene

@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-from petroll.bodies import BODY_KEYS
+from petroll.model.bodies import BODY_KEYS
 from petroll.errors import MISSING
-from petroll.scene import SCHEMA
+from petroll.model.scene import SCHEMA
 
 _INTRO = """# Scene reference
 

@@ -24,7 +24,7 @@ import h5py
 import numpy as np
 
 from petroll import __version__
-from petroll.errors import PetrollError
+from petroll.errors import PetrollError, reason
 
 FORMAT_VERSION = 1
 
@@ -183,7 +183,7 @@ def write_results(path: pathlib.Path, series: dict[str, np.ndarray], pressure: n
         text = xdmf_text(path.name, nx, ny, list(np.asarray(field_steps, dtype=int)), list(times))
         atomic_write(path.with_suffix(".xdmf"), lambda tmp: tmp.write_text(text, encoding="utf-8"))
     except OSError as exc:
-        raise OutputError(f"{path}: cannot write the results ({_reason(exc)}); the previous results file, if "
+        raise OutputError(f"{path}: cannot write the results ({reason(exc)}); the previous results file, if "
                           "any, is unchanged") from None
 
 
@@ -220,12 +220,6 @@ def sync_directory(directory: pathlib.Path) -> None:
         pass
     finally:
         os.close(fd)
-
-
-def _reason(exc: BaseException) -> str:
-    """An exception's message on one line."""
-    text = exc.strerror if isinstance(exc, OSError) and exc.strerror and not exc.filename else str(exc)
-    return " ".join(str(text or type(exc).__name__).split())
 
 
 def cell_corners(x: np.ndarray, y: np.ndarray) -> np.ndarray:

@@ -1,4 +1,4 @@
-"""The material-frame grid of uniformly loaded rectangles and how its rows are split over MPI ranks.
+"""How the grid's rows are split over MPI ranks, and how distributed fields move between ranks.
 
 Fields on the grid are numpy arrays of shape (nx, ny), axis 0 along X; a flattened field has index
 ix * ny + iy. Under MPI every field is split by rows: a rank owns the contiguous X-rows of its
@@ -32,40 +32,6 @@ class RowPartition:
 
     def range(self, rank: int) -> tuple[int, int]:
         return int(self.starts[rank]), int(self.starts[rank + 1])
-
-
-@dataclass(frozen=True)
-class Grid:
-    """nx x ny cells covering [x0, x1] x [y0, y1] in the material frame (lengths in scene units, e.g. m)."""
-
-    nx: int
-    ny: int
-    x0: float
-    x1: float
-    y0: float
-    y1: float
-
-    @property
-    def dx(self) -> float:
-        return (self.x1 - self.x0) / self.nx
-
-    @property
-    def dy(self) -> float:
-        return (self.y1 - self.y0) / self.ny
-
-    @property
-    def cell_area(self) -> float:
-        return self.dx * self.dy
-
-    @property
-    def x(self) -> np.ndarray:
-        """Cell-centre X coordinates, shape (nx,)."""
-        return self.x0 + (np.arange(self.nx) + 0.5) * self.dx
-
-    @property
-    def y(self) -> np.ndarray:
-        """Cell-centre Y coordinates, shape (ny,)."""
-        return self.y0 + (np.arange(self.ny) + 0.5) * self.dy
 
 
 def move_rows(local: np.ndarray, src: list[tuple[int, int]], dst: list[tuple[int, int]], comm) -> np.ndarray:
@@ -115,3 +81,14 @@ def shift_field(local: np.ndarray, di: int, dj: int, rows: RowPartition, comm) -
     if c1 > c0 and b > a:
         out[start : start + (b - a), c0:c1] = got[:, c0 - dj : c1 - dj]
     return out
+
+
+def gather_field(local: np.ndarray, nx: int, comm) -> np.ndarray | None:
+    """The whole (nx, ny) field on rank 0 (None elsewhere), from each rank's rows. For output only."""
+    counts = comm.gather(local.size, root=0)
+    if comm.rank != 0:
+        comm.Gatherv(np.ascontiguousarray(local), None, root=0)
+        return None
+    whole = np.empty(sum(counts))
+    comm.Gatherv(np.ascontiguousarray(local), [whole, counts], root=0)
+    return whole.reshape(nx, -1)

@@ -53,12 +53,13 @@ import time
 import numpy as np
 from mpi4py import MPI
 
-from petroll.bench import _figure, _report, _save
+from petroll.studies.bench import _figure, _report, _save
 from petroll.errors import PetrollError
-from petroll.scene import Scene, load_scene
-from petroll.simulation import Simulation, run
+from petroll.model.scene import Scene, load_scene, shipped_scene
+from petroll.driver import run
+from petroll.solver.simulation import Simulation
 
-SPHERE = pathlib.Path(__file__).resolve().parents[1] / "runs" / "sphere.toml"
+SPHERE = shipped_scene("sphere.toml")
 INTEGRATORS = ("paper", "exponential", "relaxation")
 MARGIN = 3  # cells between the rigid interference region and the grid edge (growth scenes)
 
@@ -322,7 +323,7 @@ def track_steps_interleaved(scene: Scene, steps: int, comm: MPI.Comm, skip: int,
 
 
 class _Timed:
-    """A :class:`petroll.influence.Convolution` whose applications add their wall time (s) to clock[0]."""
+    """A :class:`petroll.solver.influence.Convolution` whose applications add their wall time (s) to clock[0]."""
 
     def __init__(self, conv, clock: list[float]):
         self.conv, self.clock = conv, clock
@@ -442,7 +443,7 @@ def skips(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, track_cells: int =
           repeats: int = 20) -> list[dict]:
     """Each saving of docs/design.md measured on and off side by side: time with and without it (s), and
     how much it changes the answer. Writes ``out/skips.csv``."""
-    from petroll.influence import Convolution, InfluenceOperator
+    from petroll.solver.influence import Convolution, InfluenceOperator
 
     scene = sphere_scene()
     g = scene.grid
@@ -573,7 +574,7 @@ def _mpirun_steps(k: int, windows: tuple[int, ...], steps: int, skip: int) -> li
     env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
                OMPI_MCA_btl_vader_single_copy_mechanism="none")
     command = ["mpirun", "-n", str(k), *(["--oversubscribe"] if k > (os.cpu_count() or 1) else []),
-               sys.executable, "-m", "petroll.bench_rolling", ",".join(map(str, windows)), str(steps),
+               sys.executable, "-m", "petroll.studies.bench_rolling", ",".join(map(str, windows)), str(steps),
                str(skip)]
     done = subprocess.run(command, env=env, capture_output=True, text=True)
     if done.returncode != 0:

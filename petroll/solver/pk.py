@@ -7,7 +7,7 @@ steepest-descent step (which restarts the conjugacy). The gap g = H p + b comes 
 H t from TAO's Hessian matrix, so the type works for any such QP set up on a TAO object.
 
 Preconditioned when the Hessian is petroll's shell matrix with an inverse circulant
-(:class:`petroll.influence.ShellInfluence`): the search direction is built from z = M g on the contact
+(:class:`petroll.solver.influence.ShellInfluence`): the search direction is built from z = M g on the contact
 cells, M the inverse of H's circulant approximation on the window (an unpadded FFT pair, about a quarter
 of an application's FFT work), so the iteration count hardly grows with the grid (Hertz, load control:
 29 against 123 iterations at 512^2 cells; docs/benchmarks.md).

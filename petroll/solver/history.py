@@ -1,9 +1,8 @@
-"""Viscoelastic materials (surface creep compliance J(t)) and their time integrators (formulation §1, §4).
+"""Time integrators of the hereditary law (formulation §4): each turns step n+1 into an elastic-like problem.
 
-J(t) is the surface compliance (1 - nu^2) D(t) in 1/Pa, D the uniaxial creep compliance, nu constant.
-Every integrator turns step n+1 into an elastic-like problem w = J_eff A p + A v: ``J_eff`` (1/Pa) and the
-*preceding displacement* u = A v, with v a field in pressure space (Pa * 1/Pa = dimensionless times A's
-length): one convolution per step, whatever the number of Prony terms.
+Every integrator turns step n+1 into w = J_eff A p + A v: ``J_eff`` (1/Pa) and the *preceding
+displacement* u = A v, with v a field in pressure space (Pa * 1/Pa = dimensionless times A's length): one
+convolution per step, whatever the number of Prony terms.
 
 Integrators (``[solver] integrator``):
 
@@ -31,184 +30,54 @@ relaxed and instantaneous moduli by more than 1 % of their difference (unstable 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 
 from petroll.errors import SolverError
+from petroll.model.materials import Prony, relaxation_series
 
 GUARD_VIOLATION = 0.01
 """The largest excursion of a held cell's pressure outside [1/Jinf, 1/J0], as a fraction of that range,
 that a guarded history accepts (:func:`holding_violation`)."""
 
 
-@dataclass(frozen=True)
-class Prony:
-    """J(t) = Jinf - sum_r dJ[r] exp(-t / tau[r]) (1/Pa, s); no terms is an elastic material."""
 
-    Jinf: float
-    dJ: tuple[float, ...] = ()
-    tau: tuple[float, ...] = ()
+class History:
+    """What every integrator shares: the guard against step lengths at which it cannot hold a penetration.
 
-    @property
-    def J0(self) -> float:
-        return self.Jinf - sum(self.dJ)
-
-    def __call__(self, t):
-        t = np.asarray(t, dtype=float)
-        return self.Jinf - sum(d * np.exp(-t / tau) for d, tau in zip(self.dJ, self.tau))
-
-    @property
-    def longest_time(self) -> float:
-        return max(self.tau, default=0.0)
-
-
-def elastic(E: float, nu: float) -> Prony:
-    return Prony((1 - nu**2) / E)
-
-
-def sls(E0: float, Einf: float, nu: float, tau_creep: float | None = None,
-        tau_relax: float | None = None) -> Prony:
-    """Standard linear solid from its instantaneous and relaxed moduli and one of its two times.
-
-    Creep: J(t) = Jinf - (Jinf - J0) exp(-t / tau_creep); the modulus relaxes with tau_relax =
-    tau_creep J0 / Jinf = tau_creep Einf / E0.
-    """
-    if tau_creep is None:
-        tau_creep = tau_relax * E0 / Einf
-    J0, Jinf = (1 - nu**2) / E0, (1 - nu**2) / Einf
-    return Prony(Jinf, (Jinf - J0,), (tau_creep,)) if E0 != Einf else Prony(Jinf)
-
-
-def kelvin(Einf: float, nu: float, compliances, times) -> Prony:
-    """Generalized Kelvin creep series D(t) = 1/Einf - sum_r compliances[r] exp(-t / times[r])."""
-    c = 1 - nu**2
-    return Prony(c / Einf, tuple(c * d for d in compliances), tuple(times))
-
-
-def maxwell(Einf: float, nu: float, moduli, times) -> Prony:
-    """Generalized Maxwell relaxation series E(t) = Einf + sum_r moduli[r] exp(-t / times[r]), converted
-    exactly to its creep (Kelvin) series.
-
-    With g(s) = s E~(s) = Einf + sum_r E_r s / (s + 1/T_r), the creep compliance is the inverse Laplace
-    transform of 1 / (s g(s)): D(t) = 1/Einf + sum_k exp(z_k t) / (z_k g'(z_k)) over the zeros z_k of g,
-    one between each pair of consecutive poles -1/T_r (found by bisection to round-off).
-    """
-    E = np.asarray(moduli, dtype=float)
-    rates = 1.0 / np.asarray(times, dtype=float)
-    order = np.argsort(rates)
-    E, rates = E[order], rates[order]
-
-    def g(s):
-        return Einf + np.sum(E * s / (s + rates))
-
-    def dg(s):
-        return np.sum(E * rates / (s + rates) ** 2)
-
-    # g increases on each interval between poles: from -inf (just right of -rates[k]) ... to +inf (left of
-    # -rates[k-1]); the last interval (-rates[0], 0) ends at g(0) = Einf > 0.
-    zeros = []
-    for k in range(len(rates)):
-        lo = -rates[k]
-        hi = -rates[k - 1] if k > 0 else 0.0
-        zeros.append(_bisect(g, lo + 1e-15 * abs(lo), hi - 1e-15 * abs(hi) if hi else 0.0, rising=True))
-    dD = [-1.0 / (z * dg(z)) for z in zeros]
-    return kelvin(Einf, nu, dD, [-1.0 / z for z in zeros])
-
-
-def _bisect(f, a: float, b: float, rising: bool) -> float:
-    """The zero of a monotone f in (a, b) (rising: f < 0 near a and > 0 near b), by bisection to round-off."""
-    for _ in range(400):
-        mid = 0.5 * (a + b)
-        if (f(mid) > 0) == rising:
-            b = mid
-        else:
-            a = mid
-        if abs(b - a) <= 4e-16 * abs(mid):
-            break
-    return 0.5 * (a + b)
-
-
-def relaxation_series(material: Prony) -> tuple[float, tuple[float, ...], tuple[float, ...]]:
-    """The surface relaxation modulus G(t) = Ginf + sum_k dG[k] exp(-t / theta[k]) (Pa, s) of a Prony
-    creep compliance J: the convolution inverse, int_0^t G(t - s) dJ(s) = 1.
-
-    With h(s) = s J~(s) = J0 + sum_r dJ_r a_r / (s + a_r) (a_r = 1 / tau_r), s G~(s) = 1 / h(s): G has the
-    poles 0 (residue 1 / Jinf) and the zeros z_k of h, one in each gap between consecutive -a_r and one
-    below the fastest, -a_max - sum_r dJ_r a_r / J0 < z < -a_max (found by bisection to round-off);
-    dG_k = 1 / (z_k h'(z_k)) > 0, theta_k = -1 / z_k.
-    """
-    if not material.dJ:
-        return 1.0 / material.Jinf, (), ()
-    dJ = np.asarray(material.dJ, dtype=float)
-    rates = 1.0 / np.asarray(material.tau, dtype=float)
-    order = np.argsort(rates)
-    dJ, rates = dJ[order], rates[order]
-    J0 = material.J0
-
-    def h(s):
-        return J0 + np.sum(dJ * rates / (s + rates))
-
-    def dh(s):
-        return -np.sum(dJ * rates / (s + rates) ** 2)
-
-    # h decreases on each bracket from > 0 at its left end (+inf just right of a pole) to -inf (left of -a)
-    brackets = [(-rates[k + 1] * (1 - 1e-15), -rates[k] * (1 + 1e-15)) for k in range(len(rates) - 1)]
-    brackets.append((-rates[-1] - float(np.sum(dJ * rates)) / J0, -rates[-1] * (1 + 1e-15)))
-    zeros = []
-    for a, b in brackets:
-        zeros.append(_bisect(h, a, b, rising=False))
-    dG = tuple(float(1.0 / (z * dh(z))) for z in zeros)
-    theta = tuple(float(-1.0 / z) for z in zeros)
-    return 1.0 / material.Jinf, dG, theta
-
-
-@dataclass(frozen=True)
-class Tabulated:
-    """J(t) (1/Pa) interpolated linearly in a table, constant past its last time; t[0] must be 0."""
-
-    t: tuple[float, ...]
-    J: tuple[float, ...]
-
-    @property
-    def J0(self) -> float:
-        return self.J[0]
-
-    @property
-    def Jinf(self) -> float:
-        return self.J[-1]
-
-    def __call__(self, t):
-        return np.interp(t, self.t, self.J)
-
-    @property
-    def longest_time(self) -> float:
-        return self.t[-1]
-
-
-# -- integrators ------------------------------------------------------------------------------------------
-class PronyHistory:
-    """Pressure-space state of a Prony material: p^n and q_r^n = sum_m exp(-(t_n - t_m)/tau_r) dp_m-ish.
-
-    ``beta_one=True`` gives the paper's scheme (J frozen at J0 over the newest step), otherwise the
-    exponential integrator. ``dt = 0`` is a jump (the sudden first step).
+    Subclasses keep ``pressure`` (p^n, Pa, this rank's rows) and provide ``compliance(dt)`` (J_eff, 1/Pa),
+    ``preceding(dt)`` (v with u = A v, or None) and ``advance(pressure, dt)``; ``dt = 0`` is a jump (the
+    sudden first step).
     """
 
-    guard = False  # True (make_history): refuse step lengths at which the scheme cannot hold a penetration
-    _safe: set | None = None
+    name = ""
 
-    def __init__(self, material: Prony, local_shape: tuple[int, int], beta_one: bool = False):
-        self.material, self.beta_one = material, beta_one
-        self.pressure = np.zeros(local_shape)
-        self.q = [np.zeros(local_shape) for _ in material.dJ]
-
-    @property
-    def name(self) -> str:
-        return "paper" if self.beta_one else "exponential"
+    def __init__(self, material) -> None:
+        self.material = material
+        self.guard = False  # True (make_history): refuse step lengths at which the scheme cannot hold
+        self._safe: set[float] = set()
 
     def guard_step(self, dt: float) -> None:
         """Raise SolverError if this integrator cannot hold a penetration at steps of dt (guarded only)."""
-        _guard(self, dt)
+        if not self.guard or dt <= 0 or dt in self._safe:
+            return
+        _refuse_unsafe(self.material, self.name, dt)
+        self._safe.add(dt)
+
+
+class PronyHistory(History):
+    """Creep-form state of a Prony material: p^n and one field q_r per term (formulation §4b).
+
+    ``beta_one=True`` gives the paper's scheme (J frozen at J0 over the newest step), otherwise the
+    exponential integrator.
+    """
+
+    def __init__(self, material: Prony, local_shape: tuple[int, int], beta_one: bool = False):
+        super().__init__(material)
+        self.beta_one = beta_one
+        self.name = "paper" if beta_one else "exponential"
+        self.pressure = np.zeros(local_shape)
+        self.q = [np.zeros(local_shape) for _ in material.dJ]
 
     def _coefficients(self, dt: float):
         for d, tau in zip(self.material.dJ, self.material.tau):
@@ -237,8 +106,12 @@ class PronyHistory:
             q += beta * (pressure - self.pressure)
         self.pressure = pressure.copy()
 
+    def restore(self, pressure: np.ndarray, q: list[np.ndarray]) -> None:
+        """Set the state (a restart): p^n and the fields q_r."""
+        self.pressure, self.q = pressure, q
 
-class RelaxationHistory(PronyHistory):
+
+class RelaxationHistory(History):
     """The relaxation form for a Prony material: p = G * dW with G(t) = Ginf + sum_k dG_k exp(-t/theta_k)
     (:func:`relaxation_series`) and W the displacement in pressure space (w = A W), W linear in time within
     a step (exact exponential integration: second order, and exact for a held displacement).
@@ -249,44 +122,18 @@ class RelaxationHistory(PronyHistory):
         p^{n+1} = G_eff W^{n+1} + sum_k dG_k (e_k s_k^n - gamma_k W^n),   G_eff = Ginf + sum_k dG_k gamma_k
 
     so W^{n+1} = J_eff p^{n+1} + v with J_eff = 1/G_eff and v = -sum_k dG_k (e_k s_k^n - gamma_k W^n)/G_eff:
-    the same step problem as the creep form. ``pressure`` is p^n; ``q`` holds the fields s_k (what a
-    checkpoint stores); W^n is kept and rebuilt from them (W = (p - sum dG_k s_k)/Ginf) when they are set.
+    the same step problem as the creep form. State: ``pressure`` (p^n), ``q`` (the fields s_k) and
+    ``displacement`` (W^n).
     """
 
+    name = "relaxation"
+
     def __init__(self, material: Prony, local_shape: tuple[int, int]):
-        self.material, self.beta_one = material, False
+        super().__init__(material)
         self.Ginf, self.dG, self.theta = relaxation_series(material)
-        self._pressure = np.zeros(local_shape)
-        self._q = [np.zeros(local_shape) for _ in self.dG]
-        self._W = np.zeros(local_shape)
-
-    @property
-    def name(self) -> str:
-        return "relaxation"
-
-    # setting the state from outside (a restart) rebuilds W from it
-    @property
-    def pressure(self) -> np.ndarray:
-        return self._pressure
-
-    @pressure.setter
-    def pressure(self, value: np.ndarray) -> None:
-        self._pressure, self._W = value, None
-
-    @property
-    def q(self) -> list[np.ndarray]:
-        return self._q
-
-    @q.setter
-    def q(self, value: list[np.ndarray]) -> None:
-        self._q, self._W = value, None
-
-    @property
-    def displacement(self) -> np.ndarray:
-        """W^n, the displacement in pressure space (w = A W, dimensionless)."""
-        if self._W is None:
-            self._W = (self._pressure - sum((d * s for d, s in zip(self.dG, self._q)), 0.0)) / self.Ginf
-        return self._W
+        self.pressure = np.zeros(local_shape)
+        self.q = [np.zeros(local_shape) for _ in self.dG]
+        self.displacement = np.zeros(local_shape)
 
     def _coefficients(self, dt: float):
         for d, theta in zip(self.dG, self.theta):
@@ -295,52 +142,58 @@ class RelaxationHistory(PronyHistory):
             yield d, decay, gamma
 
     def compliance(self, dt: float) -> float:
+        """J_eff = 1/G_eff of the next step, of length dt (s)."""
         self.guard_step(dt)
         return 1.0 / (self.Ginf + sum(d * gamma for d, _, gamma in self._coefficients(dt)))
 
     def preceding(self, dt: float) -> np.ndarray | None:
-        if not self._q:
+        """v with W^{n+1} = J_eff p^{n+1} + v (None: an elastic material)."""
+        if not self.q:
             return None
-        W = self.displacement
-        c = np.zeros_like(self._pressure)
-        for (d, decay, gamma), s in zip(self._coefficients(dt), self._q):
-            c += d * (decay * s - gamma * W)
+        c = np.zeros_like(self.pressure)
+        for (d, decay, gamma), s in zip(self._coefficients(dt), self.q):
+            c += d * (decay * s - gamma * self.displacement)
         return -c * self.compliance(dt)
 
     def advance(self, pressure: np.ndarray, dt: float) -> None:
+        """Take the solved pressure of the step of length dt into the state."""
         v = self.preceding(dt)
-        W0 = self.displacement
         W1 = self.compliance(dt) * pressure + (v if v is not None else 0.0)
-        for (_, decay, gamma), s in zip(self._coefficients(dt), self._q):
+        for (_, decay, gamma), s in zip(self._coefficients(dt), self.q):
             s *= decay
-            s += gamma * (W1 - W0)
-        self._pressure, self._W = pressure.copy(), W1
+            s += gamma * (W1 - self.displacement)
+        self.pressure, self.displacement = pressure.copy(), W1
+
+    def restore(self, pressure: np.ndarray, q: list[np.ndarray], displacement: np.ndarray | None = None) -> None:
+        """Set the state (a restart). Without ``displacement``, W is rebuilt from p and s_k
+        (W = (p - sum dG_k s_k)/Ginf, equal to the computed W only to round-off)."""
+        self.pressure, self.q = pressure, q
+        if displacement is None:
+            displacement = (pressure - sum((d * s for d, s in zip(self.dG, q)), 0.0)) / self.Ginf
+        self.displacement = displacement
 
 
-class HereditaryHistory:
+class HereditaryHistory(History):
     """The paper's scheme for any J(t): the full hereditary sum over all past pressure increments.
 
     w_n = sum_m J(t_n - t_m) A (p_m - p_{m-1}); cost and memory grow with the step count.
     """
 
-    guard = False
-    _safe: set | None = None
     name = "paper"
 
     def __init__(self, material, local_shape: tuple[int, int]):
-        self.material = material
+        super().__init__(material)
         self.pressure = np.zeros(local_shape)
         self.times: list[float] = []
         self.increments: list[np.ndarray] = []
 
-    def guard_step(self, dt: float) -> None:
-        _guard(self, dt)
-
     def compliance(self, dt: float) -> float:
+        """J_eff = J(0) (the paper's freeze over the newest step)."""
         self.guard_step(dt)
         return float(self.material(0.0))
 
     def preceding(self, dt: float) -> np.ndarray | None:
+        """v with u = A v for the next step (None before the first step)."""
         if not self.times:
             return None
         now = self.times[-1] + dt
@@ -350,6 +203,7 @@ class HereditaryHistory:
         return v
 
     def advance(self, pressure: np.ndarray, dt: float) -> None:
+        """Take the solved pressure of the step of length dt into the state."""
         self.times.append(self.times[-1] + dt if self.times else 0.0)
         self.increments.append(pressure - self.pressure)
         self.pressure = pressure.copy()
@@ -357,7 +211,7 @@ class HereditaryHistory:
 
 def make_history(material, integrator: str, local_shape: tuple[int, int], guard: bool = True):
     """The integrator ``integrator`` ("relaxation", "exponential" or "paper") for ``material`` on this
-    rank's rows; ``guard``: refuse step lengths at which it cannot hold a penetration (:func:`_guard`)."""
+    rank's rows; ``guard``: refuse step lengths at which it cannot hold a penetration."""
     if isinstance(material, Prony) and integrator == "relaxation":
         history = RelaxationHistory(material, local_shape)
     elif isinstance(material, Prony):
@@ -410,17 +264,10 @@ def largest_safe_step(material, integrator: str, dt: float) -> float:
     return math.exp(lo)
 
 
-def _guard(history, dt: float) -> None:
-    if not history.guard or dt <= 0:
-        return
-    if history._safe is None:
-        history._safe = set()
-    if dt in history._safe:
-        return
-    material, name = history.material, history.name
+def _refuse_unsafe(material, name: str, dt: float) -> None:
+    """SolverError (naming the largest safe step) if integrator ``name`` cannot hold a penetration at dt."""
     violation = holding_violation(material, name, dt)
     if violation <= GUARD_VIOLATION:
-        history._safe.add(dt)
         return
     safe = largest_safe_step(material, name, dt)
     p = holding_response(material, name, dt)

@@ -35,11 +35,12 @@ import time
 import numpy as np
 from mpi4py import MPI
 
-from petroll.bodies import Sphere
-from petroll.contact import TAO_TYPES, ContactSolver
+from petroll.model.bodies import Sphere
+from petroll.model.scene import TAO_TYPES
+from petroll.solver.contact import ContactSolver
 from petroll.errors import PetrollError
-from petroll.grid import Grid
-from petroll.warm import DEPTH, WarmStart
+from petroll.model.grid import Grid
+from petroll.solver.warm import DEPTH, WarmStart
 
 _R, _J, _DELTA = 0.01, 7.5e-8, 1e-5  # m, 1/Pa, m: a steel ball on rubber (E = 10 MPa, nu = 0.5)
 
@@ -86,10 +87,10 @@ def tao_types_rolling(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD,
     """Every TAO type on the default rolling scene (runs/sphere.toml, to steady state or ``distance`` m):
     TAO iterations, operator applications and wall time per step (means over the steps after the first),
     and the last step's force; writes ``out/tao_rolling.csv``."""
-    from petroll.scene import load_scene
-    from petroll.simulation import Simulation
+    from petroll.model.scene import load_scene, shipped_scene
+    from petroll.solver.simulation import Simulation
 
-    scene = load_scene(pathlib.Path(__file__).parents[1] / "runs" / "sphere.toml").replace("output.every", 0)
+    scene = load_scene(shipped_scene("sphere.toml")).replace("output.every", 0)
     if distance is not None:
         scene = scene.replace("time.distance", distance)
     rows = []
@@ -137,10 +138,10 @@ WARM_STARTS = {"cold": 0, "carried": 1, "extrapolated": DEPTH}  # name: solution
 def warm_starts(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, cells_per_radius: float = 16.0,
                 repeats: int = 3) -> list[dict]:
     """Applications and time per rolling step for each first guess; writes ``out/warm.csv`` and warm.png."""
-    from petroll.scene import load_scene
-    from petroll.simulation import Simulation
+    from petroll.model.scene import load_scene, shipped_scene
+    from petroll.solver.simulation import Simulation
 
-    base = load_scene(pathlib.Path(__file__).parents[1] / "runs" / "sphere.toml")
+    base = load_scene(shipped_scene("sphere.toml"))
     cell = math.sqrt(base.body.radius_hint * base.penetration(0.0)) / cells_per_radius
     (x0, x1), (y0, y1) = (base.grid.x0, base.grid.x1), (base.grid.y0, base.grid.y1)
     ny = 2 * round((y1 - y0) / (2 * cell))

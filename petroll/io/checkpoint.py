@@ -19,7 +19,7 @@ step N exactly as if it had never stopped (format version 1, readable with plain
     /state/times         (n,)          times of all past steps, s        (history "hereditary")
     /state/increments    (n, nx, ny)   all past pressure increments, Pa  (history "hereditary")
     /state/direction     (2,)          the last direction of motion (for the diagnostics)
-    /state/recent        (k, nx, ny)   the last k <= 12 solutions, Pa (3 per lag, petroll.warm), and
+    /state/recent        (k, nx, ny)   the last k <= 12 solutions, Pa (3 per lag, petroll.solver.warm), and
                                        /state/recent_position (k, 2) the body's positions, m: the first
                                        guess of the next step
     /series/<name>       (N + 1,)      the per-step series so far (as in results.h5)
@@ -53,10 +53,10 @@ import numpy as np
 from mpi4py import MPI
 
 from petroll import __version__
-from petroll.errors import MISSING, PetrollError, SceneError
-from petroll.grid import RowPartition
-from petroll.material import PronyHistory
-from petroll.results import _reason, sync_directory
+from petroll.errors import MISSING, PetrollError, SceneError, reason
+from petroll.solver.partition import RowPartition
+from petroll.solver.history import HereditaryHistory, RelaxationHistory
+from petroll.io.results import sync_directory
 
 FORMAT = "petroll-checkpoint"
 FORMAT_VERSION = 1
@@ -187,14 +187,15 @@ def write_checkpoint(directory: str | pathlib.Path, sim, t: float, next_dt: floa
     all but the newest ``keep`` checkpoints of earlier steps. Collective over ``sim.comm``; returns the
     path. CheckpointError if the file cannot be written (every earlier checkpoint stays as it was).
     """
-    from petroll.simulation import StepRecord, gather_field
+    from petroll.solver.partition import gather_field
+    from petroll.solver.simulation import StepRecord
 
     comm, scene = sim.comm, sim.scene
     g, history = scene.grid, sim.history
     step = len(sim.records) - 1
     path = checkpoint_path(pathlib.Path(directory), step)
     sink = _Sink(path, comm)
-    prony = isinstance(history, PronyHistory)
+    prony = not isinstance(history, HereditaryHistory)
     sink.array("state/pressure", lambda: gather_field(history.pressure, g.nx, comm))
     sink.array("state/direction", lambda: np.asarray(sim.direction, dtype=float))
     recent = sim.warm.recent
@@ -202,7 +203,7 @@ def write_checkpoint(directory: str | pathlib.Path, sim, t: float, next_dt: floa
     sink.array("state/recent_position", lambda: np.array([r[1:] for r in recent], dtype=float).reshape(-1, 2))
     if prony:
         sink.stack("state/q", (len(history.q), g.nx, g.ny), lambda r: gather_field(history.q[r], g.nx, comm))
-        if _has_displacement(history):
+        if isinstance(history, RelaxationHistory):
             sink.array("state/displacement", lambda: gather_field(history.displacement, g.nx, comm))
     else:
         sink.array("state/times", lambda: np.asarray(history.times, dtype=float))
@@ -224,12 +225,6 @@ def write_checkpoint(directory: str | pathlib.Path, sim, t: float, next_dt: floa
     }
     sink.finish(attrs, keep)
     return path
-
-
-def _has_displacement(history) -> bool:
-    """Whether the history keeps W, the displacement in pressure space, besides p and its fields (the
-    relaxation form: W is rebuilt from p and s_k when they are set, equal only to round-off)."""
-    return isinstance(getattr(type(history), "displacement", None), property)
 
 
 def _write_dataset(f: h5py.File, name: str, data: np.ndarray) -> str:
@@ -308,7 +303,7 @@ class _Sink:
             self._discard()
         message = None
         if self.comm.rank == 0 and self.error is not None:
-            message = (f"{self.path}: cannot write the checkpoint ({_reason(self.error)}); the earlier "
+            message = (f"{self.path}: cannot write the checkpoint ({reason(self.error)}); the earlier "
                        f"checkpoints in {self.path.parent} are unchanged")
         message = self.comm.bcast(message, root=0)
         if message is not None:
@@ -407,32 +402,34 @@ class Checkpoint:
     def restore(self, sim) -> tuple[float, list, list[int]]:
         """Put the state into ``sim`` (a fresh Simulation of a compatible scene, any rank count) and return
         (t, fields, field_steps) for the time loop. Collective."""
-        from petroll.simulation import StepRecord
+        from petroll.solver.simulation import StepRecord
 
         comm, g, history = sim.comm, sim.scene.grid, sim.history
         nx, ny = int(self.attrs["nx"]), int(self.attrs["ny"])
-        kind = "prony" if isinstance(history, PronyHistory) else "hereditary"
+        kind = "hereditary" if isinstance(history, HereditaryHistory) else "prony"
         if (nx, ny) != (g.nx, g.ny) or kind != self.attrs["history"]:
             raise CheckpointError(f"{self.path}: holds a {nx} x {ny} grid with a {self.attrs['history']} "
                                   f"history, the scene a {g.nx} x {g.ny} grid with a {kind} history")
         root = comm.rank == 0
         pressure = scatter_rows(self.state["pressure"] if root else None, nx, ny, comm)
-        history.pressure = pressure
         sim.pressure = pressure.copy()
         if kind == "prony":
             count = comm.bcast(len(self.state["q"]) if root else None, root=0)
             if count != len(history.q):
                 raise CheckpointError(f"{self.path}: holds {count} Prony state fields, the scene's material "
                                       f"has {len(history.q)} terms")
-            history.q = [scatter_rows(self.state["q"][r] if root else None, nx, ny, comm)
-                         for r in range(count)]
+            q = [scatter_rows(self.state["q"][r] if root else None, nx, ny, comm) for r in range(count)]
             stored = comm.bcast("displacement" in self.state if root else None, root=0)
-            if stored != _has_displacement(history):
+            if stored != isinstance(history, RelaxationHistory):
                 raise CheckpointError(f"{self.path}: written for another integrator than the scene's "
                                       f"({sim.scene.solver.integrator})")
-            if stored:  # as computed, not rebuilt from p and s_k (which differs in the last bits)
-                history._W = scatter_rows(self.state["displacement"] if root else None, nx, ny, comm)
+            if stored:  # W as computed, not rebuilt from p and s_k (which differs in the last bits)
+                history.restore(pressure, q, scatter_rows(self.state["displacement"] if root else None, nx, ny,
+                                                          comm))
+            else:
+                history.restore(pressure, q)
         else:
+            history.pressure = pressure
             history.times = [float(v) for v in self.times]
             history.increments = [scatter_rows(self.state["increments"][m] if root else None, nx, ny, comm)
                                   for m in range(len(self.times))]
@@ -488,7 +485,7 @@ def read_checkpoint(path: str | pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD) -
 
 
 def _load(path: pathlib.Path) -> dict:
-    from petroll.simulation import StepRecord
+    from petroll.solver.simulation import StepRecord
 
     if not path.exists():
         raise CheckpointError(f"{path}: no such checkpoint file")
@@ -497,7 +494,7 @@ def _load(path: pathlib.Path) -> dict:
     try:
         is_hdf5 = h5py.is_hdf5(str(path))
     except Exception as exc:  # noqa: BLE001 - any failure to read is the file's problem
-        raise CheckpointError(f"{path}: cannot be read ({_reason(exc)})") from None
+        raise CheckpointError(f"{path}: cannot be read ({reason(exc)})") from None
     if not is_hdf5:
         what = ("empty" if path.stat().st_size == 0
                 else "not an HDF5 file (corrupted, or another kind of file)")
@@ -532,9 +529,9 @@ def _load(path: pathlib.Path) -> dict:
     except CheckpointError:
         raise
     except Exception as exc:  # noqa: BLE001 - h5py reports damage as OSError, KeyError, RuntimeError, ...
-        reason = _reason(exc)
-        what = "truncated" if "truncated" in reason.lower() else "corrupted"
-        raise CheckpointError(f"{path}: {what}, cannot be read as a checkpoint ({reason})") from None
+        why = reason(exc)
+        what = "truncated" if "truncated" in why.lower() else "corrupted"
+        raise CheckpointError(f"{path}: {what}, cannot be read as a checkpoint ({why})") from None
     for name, value in sorted(data.items()):
         if _digest_of(name, np.asarray(value)) != digests[name]:
             raise CheckpointError(f"{path}: corrupted (the data of {name} do not match their checksum)")
@@ -568,7 +565,7 @@ def restart_scene(checkpoint: Checkpoint, new_scene: str | pathlib.Path | None =
     """The scene to continue ``checkpoint`` with: its own, or ``new_scene`` (a TOML file) if that differs
     only in SAFE_KEYS. SceneError naming the first other key that differs; CheckpointError if the
     material's or body's files changed since the checkpoint was written."""
-    from petroll.scene import load_scene, parse_scene
+    from petroll.model.scene import load_scene, parse_scene
 
     stored = checkpoint.scene_text
     try:
@@ -602,7 +599,7 @@ def restart_scene(checkpoint: Checkpoint, new_scene: str | pathlib.Path | None =
 def _changes(old: dict, new: dict):
     """(key, old value, new value) of every scene key outside SAFE_KEYS whose value differs (a key left
     out counts as its schema default)."""
-    from petroll.scene import SCHEMA
+    from petroll.model.scene import SCHEMA
 
     for section in sorted(set(old) | set(new) | set(SCHEMA)):
         a, b = old.get(section, {}), new.get(section, {})

@@ -140,7 +140,7 @@ class Checker:
     grid against the material's own state (all collective)."""
 
     def __init__(self, sim, reference: bool):
-        from petroll.material import PronyHistory, RelaxationHistory
+        from petroll.solver.history import PronyHistory, RelaxationHistory
 
         self.sim, self.comm = sim, sim.comm
         scene, solver = sim.scene, sim.solver
@@ -166,7 +166,7 @@ class Checker:
         # same-grid elastic references (unit compliance) at each step's position and penetration
         self.reference = None
         if reference:
-            from petroll.contact import ContactSolver
+            from petroll.solver.contact import ContactSolver
 
             self.reference = ContactSolver(g, self.comm, tol=self.tol)
             self.unit: list[tuple[float, float, float]] = []  # force, force_x, force_y with J = 1
@@ -242,10 +242,10 @@ def _run(case: Case, comm: MPI.Comm, integrator: str | None = None, guard: bool 
     """(row, records, scene) of one case; records and scene are None where it did not run."""
     import warnings
 
-    from petroll.limits import PetrollWarning
-    from petroll.material import Prony
-    from petroll.scene import parse_scene
-    from petroll.simulation import Simulation
+    from petroll.model.limits import PetrollWarning
+    from petroll.model.materials import Prony
+    from petroll.model.scene import parse_scene
+    from petroll.solver.simulation import Simulation
 
     row = Row(case.axis, case.name)
     start = clock.perf_counter()
@@ -360,7 +360,7 @@ def check_series(case: Case, scene, checker: Checker, records, row: Row) -> None
             row.failures.append(f"force below the relaxed elastic force: {force[k]:.6g} < {finf[k]:.6g} N at "
                                 f"step {k}")
         if n > 1:
-            from petroll.material import relaxation_series
+            from petroll.model.materials import relaxation_series
 
             theta = min(relaxation_series(m)[2], default=math.inf)
             dt = np.diff(s["t"])
@@ -647,7 +647,7 @@ def refinement(comm: MPI.Comm = MPI.COMM_WORLD, fast: bool = False) -> list[Row]
     out.append(_study_row("refine", f"dx: elastic sphere against Hertz's force, a/dx = {cells[0]} .. "
                           f"{cells[-1]}", runs, errors, "relative errors", True))
     # dx: a held penetration relaxing (Lee-Radok: F(t) = Hertz with the modulus G(t)) at t = T
-    from petroll.material import relaxation_series, sls as make_sls
+    from petroll.model.materials import relaxation_series, sls as make_sls
 
     Ginf, dG, theta = relaxation_series(make_sls(E0, E0 / 5, NU, tau_creep=T))
     exact = hertz_force(DELTA, 1.0 / (Ginf + sum(d * math.exp(-T / th) for d, th in zip(dG, theta))))

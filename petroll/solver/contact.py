@@ -25,17 +25,11 @@ import numpy as np
 from mpi4py import MPI
 
 from petroll.errors import SolverError
-from petroll.grid import Grid, RowPartition, move_rows
-from petroll.influence import InfluenceOperator, shell_matrix
-from petroll.pk import PolonskyKeer
-
-TAO_TYPES = ("tron", "pk", "gpcg", "bntr", "bncg", "blmvm", "bqnls", "bnls", "bntl")
-"""TAO's bound-constrained solvers that handle this QP (bqpip is left out: it needs finite upper bounds),
-and ``pk``, petroll's Polonsky-Keer conjugate gradient as a TAO Python type (petroll/pk.py)."""
-
-DEFAULT_TAO_TYPE = "pk"
-"""Chosen by measurement: see docs/benchmarks.md."""
-
+from petroll.model.grid import Grid
+from petroll.model.scene import DEFAULT_TAO_TYPE, TAO_TYPES
+from petroll.solver.partition import RowPartition, move_rows
+from petroll.solver.influence import InfluenceOperator, shell_matrix
+from petroll.solver.pk import PolonskyKeer
 
 @dataclass
 class StepSolution:
@@ -69,18 +63,18 @@ class ContactSolver:
     @staticmethod
     def _resolve_type(tao_type: str, prefix: str) -> str:
         """The scene's type unless -<prefix>tao_type overrides it. ``pk`` on the command line is spelt for
-        TAO as its Python type: -<prefix>tao_type python -<prefix>tao_python_type petroll.pk.PolonskyKeer."""
+        TAO as its Python type: -<prefix>tao_type python -<prefix>tao_python_type petroll.solver.pk.PolonskyKeer."""
         from petsc4py import PETSc
 
         options = PETSc.Options(prefix)
         chosen = options.getString("tao_type", tao_type)
-        if chosen == "python" and options.getString("tao_python_type", "") == "petroll.pk.PolonskyKeer":
+        if chosen == "python" and options.getString("tao_python_type", "") == "petroll.solver.pk.PolonskyKeer":
             chosen = "pk"
         if chosen not in TAO_TYPES:
             raise SolverError(f"-{prefix}tao_type {chosen}: unknown; allowed: {', '.join(TAO_TYPES)}")
         if chosen == "pk" and options.hasName("tao_type"):
             options.setValue("tao_type", "python")
-            options.setValue("tao_python_type", "petroll.pk.PolonskyKeer")
+            options.setValue("tao_python_type", "petroll.solver.pk.PolonskyKeer")
         return chosen
 
     @property

@@ -30,7 +30,7 @@ A point whose complete results.h5 holds the same scene is not run again, so an i
 one extended by more values) resumes where it stopped; a point interrupted by SIGTERM/SIGINT continues
 from its checkpoint.
 
-Reuse: every point builds its own contact solver (influence kernels), since petroll.simulation.run
+Reuse: every point builds its own contact solver (influence kernels), since petroll.driver.run
 does not take one; measured, kernels cost about 1-3 % of a point's run (docs/sweep.md).
 
 All functions here are collective over ``comm`` (every rank calls them with the same arguments) and
@@ -51,13 +51,12 @@ import numpy as np
 from mpi4py import MPI
 
 from petroll import __version__
-from petroll import motion as motions
-from petroll.errors import PetrollError
-from petroll.material import Prony
-from petroll.results import Results, _reason, atomic_write
-from petroll.scene import SCHEMA, Scene
+from petroll.model import motion as motions
+from petroll.errors import PetrollError, reason
+from petroll.model.materials import Prony
+from petroll.io.results import Results, atomic_write
+from petroll.model.scene import DEFAULT_STEADY, SCHEMA, Scene
 
-DEFAULT_STEADY = 1e-3
 """[time] steady given to every point of a sweep whose scene has a [time] table without one."""
 
 FORMS = "KEY=V1,V2,... or KEY=START..STOP:log:N or KEY=START..STOP:lin:N (docs/sweep.md)"
@@ -184,7 +183,7 @@ def key_unit(scene: Scene, key: str) -> str:
     spec = SCHEMA.get(section, {}).get(name)
     if spec is not None:
         return spec.unit
-    from petroll.bodies import BODY_KEYS
+    from petroll.model.bodies import BODY_KEYS
 
     doc = BODY_KEYS.get(str(scene.raw.get("body", {}).get("shape")), {}).get(name, "")
     return "m" if re.search(r", m\b", doc) else "-"
@@ -270,13 +269,13 @@ def sweep(scene: Scene, vary: Vary | str, out: str | pathlib.Path | None = None,
     the scene's output directory + ``-sweep``). Points already finished there are read, not run again.
 
     Collective. ``progress``: each run's status line on rank 0's stderr; ``stop``: a
-    :class:`petroll.checkpoint.StopRequest` (SIGTERM/SIGINT): the sweep then raises
+    :class:`petroll.io.checkpoint.StopRequest` (SIGTERM/SIGINT): the sweep then raises
     :class:`SweepInterrupted` after the running point's checkpoint; ``log(line)``: called on rank 0 after
     each point. Every point's scene is built and validated before the first run.
     """
-    from petroll.checkpoint import RunInterrupted
-    from petroll.limits import PetrollWarning
-    from petroll.simulation import prepare_output
+    from petroll.io.checkpoint import RunInterrupted
+    from petroll.model.limits import PetrollWarning
+    from petroll.driver import prepare_output
 
     if isinstance(vary, str):
         vary = parse_vary(vary)
@@ -344,8 +343,8 @@ def _finished(directory: pathlib.Path, scene: Scene, comm: MPI.Comm) -> Results 
 
 def _run_point(scene: Scene, directory: pathlib.Path, comm: MPI.Comm, progress: bool, stop) -> Results:
     """Run one point, continuing from its newest checkpoint if that holds this scene."""
-    from petroll.checkpoint import CheckpointError, list_checkpoints, read_checkpoint, restart_scene
-    from petroll.simulation import run
+    from petroll.io.checkpoint import CheckpointError, list_checkpoints, read_checkpoint, restart_scene
+    from petroll.driver import run
 
     found = list_checkpoints(directory / "checkpoints") if comm.rank == 0 else None
     found = comm.bcast([str(p) for p in found] if found is not None else None, root=0)
@@ -361,7 +360,7 @@ def _run_point(scene: Scene, directory: pathlib.Path, comm: MPI.Comm, progress: 
 
 def table_row(scene: Scene, results: Results, value: float) -> dict[str, float]:
     """One row of the table (COLUMNS) for a point's scene and results."""
-    from petroll.bodies import Sphere
+    from petroll.model.bodies import Sphere
 
     s, st = results.series, results.steady
     row: dict[str, float] = {
@@ -427,7 +426,7 @@ def write_table(table: SweepTable) -> None:
 
 
 def _plot(table: SweepTable) -> None:
-    from petroll.limits import PetrollWarning
+    from petroll.model.limits import PetrollWarning
 
     try:
         import matplotlib  # noqa: F401
@@ -447,7 +446,7 @@ def _on_rank0(comm: MPI.Comm, action: Callable[[], None]) -> None:
         try:
             action()
         except OSError as exc:
-            message = f"{getattr(exc, 'filename', None) or 'sweep output'}: cannot write ({_reason(exc)})"
+            message = f"{getattr(exc, 'filename', None) or 'sweep output'}: cannot write ({reason(exc)})"
         except PetrollError as exc:
             message = str(exc)
     message = comm.bcast(message, root=0)
@@ -460,8 +459,8 @@ def command(scene_path: str, vary_text: Sequence[str], out: str | None, quiet: b
     import sys
     import time
 
-    from petroll.checkpoint import StopRequest
-    from petroll.scene import load_scene
+    from petroll.io.checkpoint import StopRequest
+    from petroll.model.scene import load_scene
 
     if len(vary_text) != 1:
         raise SweepError(f"--vary given {len(vary_text)} times; a sweep varies exactly one key "

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from petroll.grid import shift_field
+from petroll.solver.partition import shift_field
 
 DEPTH = 3
 """Solutions per lag that the extrapolation uses."""

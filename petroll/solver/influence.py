@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 from mpi4py import MPI
 
-from petroll.grid import RowPartition
+from petroll.solver.partition import RowPartition
 
 
 def love_coefficients(nx: int, ny: int, dx: float, dy: float) -> np.ndarray:

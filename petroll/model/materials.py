@@ -1,0 +1,156 @@
+"""Viscoelastic material laws: the surface creep compliance J(t) (formulation §1).
+
+J(t) is the surface compliance (1 - nu^2) D(t) in 1/Pa, D the uniaxial creep compliance, nu constant.
+Laws: elastic, standard linear solid, Prony series (Kelvin creep or Maxwell relaxation form, converted
+exactly to the creep series), tabulated J(t). Their time integrators live in :mod:`petroll.solver.history`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+@dataclass(frozen=True)
+class Prony:
+    """J(t) = Jinf - sum_r dJ[r] exp(-t / tau[r]) (1/Pa, s); no terms is an elastic material."""
+
+    Jinf: float
+    dJ: tuple[float, ...] = ()
+    tau: tuple[float, ...] = ()
+
+    @property
+    def J0(self) -> float:
+        return self.Jinf - sum(self.dJ)
+
+    def __call__(self, t):
+        t = np.asarray(t, dtype=float)
+        return self.Jinf - sum(d * np.exp(-t / tau) for d, tau in zip(self.dJ, self.tau))
+
+    @property
+    def longest_time(self) -> float:
+        return max(self.tau, default=0.0)
+
+
+def elastic(E: float, nu: float) -> Prony:
+    return Prony((1 - nu**2) / E)
+
+
+def sls(E0: float, Einf: float, nu: float, tau_creep: float | None = None,
+        tau_relax: float | None = None) -> Prony:
+    """Standard linear solid from its instantaneous and relaxed moduli and one of its two times.
+
+    Creep: J(t) = Jinf - (Jinf - J0) exp(-t / tau_creep); the modulus relaxes with tau_relax =
+    tau_creep J0 / Jinf = tau_creep Einf / E0.
+    """
+    if tau_creep is None:
+        tau_creep = tau_relax * E0 / Einf
+    J0, Jinf = (1 - nu**2) / E0, (1 - nu**2) / Einf
+    return Prony(Jinf, (Jinf - J0,), (tau_creep,)) if E0 != Einf else Prony(Jinf)
+
+
+def kelvin(Einf: float, nu: float, compliances, times) -> Prony:
+    """Generalized Kelvin creep series D(t) = 1/Einf - sum_r compliances[r] exp(-t / times[r])."""
+    c = 1 - nu**2
+    return Prony(c / Einf, tuple(c * d for d in compliances), tuple(times))
+
+
+def maxwell(Einf: float, nu: float, moduli, times) -> Prony:
+    """Generalized Maxwell relaxation series E(t) = Einf + sum_r moduli[r] exp(-t / times[r]), converted
+    exactly to its creep (Kelvin) series.
+
+    With g(s) = s E~(s) = Einf + sum_r E_r s / (s + 1/T_r), the creep compliance is the inverse Laplace
+    transform of 1 / (s g(s)): D(t) = 1/Einf + sum_k exp(z_k t) / (z_k g'(z_k)) over the zeros z_k of g,
+    one between each pair of consecutive poles -1/T_r (found by bisection to round-off).
+    """
+    E = np.asarray(moduli, dtype=float)
+    rates = 1.0 / np.asarray(times, dtype=float)
+    order = np.argsort(rates)
+    E, rates = E[order], rates[order]
+
+    def g(s):
+        return Einf + np.sum(E * s / (s + rates))
+
+    def dg(s):
+        return np.sum(E * rates / (s + rates) ** 2)
+
+    # g increases on each interval between poles: from -inf (just right of -rates[k]) ... to +inf (left of
+    # -rates[k-1]); the last interval (-rates[0], 0) ends at g(0) = Einf > 0.
+    zeros = []
+    for k in range(len(rates)):
+        lo = -rates[k]
+        hi = -rates[k - 1] if k > 0 else 0.0
+        zeros.append(_bisect(g, lo + 1e-15 * abs(lo), hi - 1e-15 * abs(hi) if hi else 0.0, rising=True))
+    dD = [-1.0 / (z * dg(z)) for z in zeros]
+    return kelvin(Einf, nu, dD, [-1.0 / z for z in zeros])
+
+
+def _bisect(f, a: float, b: float, rising: bool) -> float:
+    """The zero of a monotone f in (a, b) (rising: f < 0 near a and > 0 near b), by bisection to round-off."""
+    for _ in range(400):
+        mid = 0.5 * (a + b)
+        if (f(mid) > 0) == rising:
+            b = mid
+        else:
+            a = mid
+        if abs(b - a) <= 4e-16 * abs(mid):
+            break
+    return 0.5 * (a + b)
+
+
+def relaxation_series(material: Prony) -> tuple[float, tuple[float, ...], tuple[float, ...]]:
+    """The surface relaxation modulus G(t) = Ginf + sum_k dG[k] exp(-t / theta[k]) (Pa, s) of a Prony
+    creep compliance J: the convolution inverse, int_0^t G(t - s) dJ(s) = 1.
+
+    With h(s) = s J~(s) = J0 + sum_r dJ_r a_r / (s + a_r) (a_r = 1 / tau_r), s G~(s) = 1 / h(s): G has the
+    poles 0 (residue 1 / Jinf) and the zeros z_k of h, one in each gap between consecutive -a_r and one
+    below the fastest, -a_max - sum_r dJ_r a_r / J0 < z < -a_max (found by bisection to round-off);
+    dG_k = 1 / (z_k h'(z_k)) > 0, theta_k = -1 / z_k.
+    """
+    if not material.dJ:
+        return 1.0 / material.Jinf, (), ()
+    dJ = np.asarray(material.dJ, dtype=float)
+    rates = 1.0 / np.asarray(material.tau, dtype=float)
+    order = np.argsort(rates)
+    dJ, rates = dJ[order], rates[order]
+    J0 = material.J0
+
+    def h(s):
+        return J0 + np.sum(dJ * rates / (s + rates))
+
+    def dh(s):
+        return -np.sum(dJ * rates / (s + rates) ** 2)
+
+    # h decreases on each bracket from > 0 at its left end (+inf just right of a pole) to -inf (left of -a)
+    brackets = [(-rates[k + 1] * (1 - 1e-15), -rates[k] * (1 + 1e-15)) for k in range(len(rates) - 1)]
+    brackets.append((-rates[-1] - float(np.sum(dJ * rates)) / J0, -rates[-1] * (1 + 1e-15)))
+    zeros = []
+    for a, b in brackets:
+        zeros.append(_bisect(h, a, b, rising=False))
+    dG = tuple(float(1.0 / (z * dh(z))) for z in zeros)
+    theta = tuple(float(-1.0 / z) for z in zeros)
+    return 1.0 / material.Jinf, dG, theta
+
+
+@dataclass(frozen=True)
+class Tabulated:
+    """J(t) (1/Pa) interpolated linearly in a table, constant past its last time; t[0] must be 0."""
+
+    t: tuple[float, ...]
+    J: tuple[float, ...]
+
+    @property
+    def J0(self) -> float:
+        return self.J[0]
+
+    @property
+    def Jinf(self) -> float:
+        return self.J[-1]
+
+    def __call__(self, t):
+        return np.interp(t, self.t, self.J)
+
+    @property
+    def longest_time(self) -> float:
+        return self.t[-1]
