@@ -10,7 +10,9 @@
 # Then .venv is created with --system-site-packages and petroll is installed into it in editable mode.
 #
 # Every failing step prints one line "[setup] failed: STEP: REASON; WHAT TO DO" and exits non-zero.
-# PETROLL_SETUP_NO_APT=1 skips the apt route (to exercise the PyPI route on a machine that has apt).
+# PETROLL_SETUP_NO_APT=1 skips the apt route (to exercise the PyPI route on a machine that has apt);
+# PETROLL_SETUP_PYTHONS lists the Pythons probed for petsc4py after $PETROLL_PYTHON (default
+# "python3 /usr/bin/python3": the first on PATH, then the one Debian's packages are built for).
 set -uo pipefail
 cd "$(dirname "$0")/.." || { echo "[setup] failed: cannot enter the project folder" >&2; exit 1; }
 root=$(pwd)
@@ -41,7 +43,7 @@ debian_petsc_path() {
 
 find_python() {
   local candidate extra
-  for candidate in "${PETROLL_PYTHON:-}" python3 /usr/bin/python3; do
+  for candidate in "${PETROLL_PYTHON:-}" ${PETROLL_SETUP_PYTHONS:-python3 /usr/bin/python3}; do
     [ -n "$candidate" ] && command -v "$candidate" >/dev/null 2>&1 || continue
     if has_petsc "$candidate"; then command -v "$candidate"; return 0; fi
     extra=$(debian_petsc_path)
@@ -89,7 +91,8 @@ site=$("$venv/bin/python" -c "import sysconfig; print(sysconfig.get_paths()['pur
   || fail "the new .venv's python does not start; remove .venv and try again"
 extra=$(debian_petsc_path)
 if [ -n "$extra" ] && ! has_petsc "$venv/bin/python"; then
-  echo "$extra" > "$site/petroll-debian-petsc.pth"
+  echo "$extra" > "$site/petroll-debian-petsc.pth" 2>"$log" \
+    || fail "cannot write $site/petroll-debian-petsc.pth: $(last_line "$log"); remove .venv and try again"
 fi
 if ! has_petsc "$venv/bin/python"; then
   say "building PETSc and petsc4py from PyPI: this takes about 20 minutes"
