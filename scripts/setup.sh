@@ -96,6 +96,10 @@ if [ -n "$extra" ] && ! has_petsc "$venv/bin/python"; then
 fi
 if ! has_petsc "$venv/bin/python"; then
   say "building PETSc and petsc4py from PyPI: this takes about 20 minutes"
+  # An optimised build; without a Fortran compiler PETSc's configure must be told so.
+  default_options="--with-debugging=0"
+  command -v gfortran >/dev/null 2>&1 || default_options="$default_options --with-fc=0"
+  export PETSC_CONFIGURE_OPTIONS="${PETSC_CONFIGURE_OPTIONS:-$default_options}"
   "$venv/bin/python" -m pip install -q "petsc" "petsc4py" "mpi4py" "h5py" >"$log" 2>&1 \
     || fail "pip could not build petsc/petsc4py/mpi4py/h5py: $(last_line "$log"); install a C compiler, MPI (headers and mpicc) and BLAS/LAPACK, or set PETROLL_PYTHON to a Python that imports petsc4py"
 fi
