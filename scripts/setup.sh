@@ -41,18 +41,24 @@ debian_petsc_path() {
   return 0
 }
 
+usable() {
+  # $1 imports petsc4py, mpi4py and h5py, as it is or with Debian's petsc4py folder on its path.
+  local extra
+  has_petsc "$1" && return 0
+  extra=$(debian_petsc_path)
+  [ -n "$extra" ] && PYTHONPATH="$extra" has_petsc "$1"
+}
+
 find_python() {
-  local candidate extra
+  local candidate
   for candidate in "${PETROLL_PYTHON:-}" ${PETROLL_SETUP_PYTHONS:-python3 /usr/bin/python3}; do
     [ -n "$candidate" ] && command -v "$candidate" >/dev/null 2>&1 || continue
-    if has_petsc "$candidate"; then command -v "$candidate"; return 0; fi
-    extra=$(debian_petsc_path)
-    if [ -n "$extra" ] && PYTHONPATH="$extra" has_petsc "$candidate"; then command -v "$candidate"; return 0; fi
+    if usable "$candidate"; then command -v "$candidate"; return 0; fi
   done
   return 0
 }
 
-if [ -n "${PETROLL_PYTHON:-}" ] && ! has_petsc "$PETROLL_PYTHON"; then
+if [ -n "${PETROLL_PYTHON:-}" ] && ! usable "$PETROLL_PYTHON"; then
   fail "PETROLL_PYTHON=$PETROLL_PYTHON does not import petsc4py, mpi4py and h5py; point it at a Python that does, or unset it"
 fi
 python=$(find_python)
