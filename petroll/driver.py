@@ -114,7 +114,7 @@ def _write_results(out: pathlib.Path, sim: Simulation, fields: list, field_steps
                   for name in StepRecord.__annotations__}
         try:
             write_results(path, series, np.array(fields).reshape(-1, g.nx, g.ny), np.array(field_steps), g.x,
-                          g.y, sim.scene.text, complete=complete)
+                          g.y, sim.scene.text, complete=complete, line=g.line)
         except OutputError as exc:
             message = str(exc)
     message = comm.bcast(message, root=0)

@@ -1,6 +1,7 @@
 """PNG figures of a run's results.h5 (``petroll plot DIR``): pressure maps, patch outlines, series.
 
-Lengths are drawn in mm, pressures in MPa, kPa or Pa (whichever suits the peak), forces in N.
+Lengths are drawn in mm, pressures in MPa, kPa or Pa (whichever suits the peak), forces in N (line
+contact: N/m, and pressure profiles along X instead of maps and outlines).
 matplotlib is imported only here, with the Agg canvas, so the solver does not depend on it.
 """
 
@@ -46,8 +47,10 @@ def plot_results(results_dir: str | pathlib.Path, out_dir: str | pathlib.Path | 
     out.mkdir(parents=True, exist_ok=True)
     label = results_dir.resolve().name
     written = []
-    for name, figure in (("pressure.png", _pressure_figure(results, select_fields(results, times), label)),
-                         ("patches.png", _patches_figure(results, label)),
+    pressure, patches = (_line_pressure_figure, _line_patches_figure) if results.line else (
+        _pressure_figure, _patches_figure)
+    for name, figure in (("pressure.png", pressure(results, select_fields(results, times), label)),
+                         ("patches.png", patches(results, label)),
                          ("series.png", _series_figure(results, label))):
         target = out / name
         figure.savefig(target, dpi=120)
@@ -147,6 +150,57 @@ def _pressure_figure(results: Results, picks: list[int], label: str):
     return figure
 
 
+def _line_pressure_figure(results: Results, picks: list[int], label: str):
+    """Line contact: the pressure profiles p(X) of the picked fields, with the body's position."""
+    unit, scale = _pressure_unit(float(results.pressure[picks].max(initial=0.0)))
+    figure = _figure(7.5, 4.5)
+    ax = figure.subplots()
+    loaded = np.flatnonzero(results.pressure[picks].max(axis=(0, 2)) > 0)
+    for k in picks:
+        row = _row(results, results.field_steps[k])
+        t, sx = float(results.series["t"][row]), float(results.series["sx"][row])
+        line, = ax.plot(results.x * MM, results.pressure[k, :, 0] / scale,
+                        label=f"step {int(results.field_steps[k])}, t = {t:.4g} s")
+        ax.axvline(sx * MM, color=line.get_color(), linestyle=":", linewidth=0.8)
+    if loaded.size:
+        pad = max(3, (loaded[-1] - loaded[0]) // 8)
+        lo, hi = max(loaded[0] - pad, 0), min(loaded[-1] + pad, len(results.x) - 1)
+        ax.set_xlim(results.x[lo] * MM, results.x[hi] * MM)
+    ax.set_xlabel("X (mm)")
+    ax.set_ylabel(f"contact pressure ({unit})")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8, title="dotted: body centre", title_fontsize=8)
+    ax.set_title(f"{label}: contact pressure (line contact, material frame)", fontsize=10)
+    return figure
+
+
+def _line_patches_figure(results: Results, label: str):
+    """Line contact: the pressure profile of every saved field in the body's frame, coloured by time."""
+    import matplotlib
+
+    t_fields = field_times(results)
+    norm = matplotlib.colors.Normalize(vmin=t_fields.min(), vmax=max(t_fields.max(), t_fields.min() + 1e-300))
+    cmap = matplotlib.colormaps["viridis"]
+    unit, scale = _pressure_unit(float(results.pressure.max(initial=0.0)))
+    figure = _figure(6.4, 4.5)
+    ax = figure.subplots()
+    for k, t in enumerate(t_fields):
+        sx = float(results.series["sx"][_row(results, results.field_steps[k])])
+        ax.plot((results.x - sx) * MM, results.pressure[k, :, 0] / scale, color=cmap(norm(t)), linewidth=1.0)
+    loaded = np.flatnonzero(results.pressure.max(axis=(0, 2)) > 0)
+    reach = float(np.nanmax(np.abs(np.concatenate([results.series["lead"], results.series["trail"]]))))
+    if loaded.size and np.isfinite(reach):
+        ax.set_xlim(-1.3 * reach * MM, 1.3 * reach * MM)
+    ax.axvline(0.0, color="black", linewidth=0.6)
+    ax.set_xlabel("X - sx (mm)")
+    ax.set_ylabel(f"contact pressure ({unit})")
+    ax.grid(alpha=0.3)
+    ax.set_title(f"{label}: pressure profiles in the body frame,\n{len(t_fields)} saved fields coloured by "
+                 "time", fontsize=10)
+    figure.colorbar(matplotlib.cm.ScalarMappable(norm=norm, cmap=cmap), ax=ax, label="time t (s)")
+    return figure
+
+
 def _patches_figure(results: Results, label: str):
     import matplotlib
 
@@ -208,14 +262,15 @@ def _series_figure(results: Results, label: str):
     force_ax, mu_ax, edge_ax = figure.subplots(3, 1, sharex=True)
 
     force_ax.plot(abscissa, s["force"], color="tab:blue", **style)
-    force_ax.set_ylabel("normal force (N)", color="tab:blue")
+    force_ax.set_ylabel("normal force (N/m)" if results.line else "normal force (N)", color="tab:blue")
     force_ax.tick_params(axis="y", labelcolor="tab:blue")
     delta_ax = force_ax.twinx()
     delta_ax.plot(abscissa, s["delta"] * 1e6, color="tab:orange", linestyle="--",
                   **({**style, "marker": "s", "fillstyle": "none"} if style else {}))
     _widen_flat(force_ax, s["force"], 0.0)
     _widen_flat(delta_ax, s["delta"] * 1e6, 0.0)
-    delta_ax.set_ylabel("penetration (µm)", color="tab:orange")
+    delta_ax.set_ylabel("penetration (µm, to the datum)" if results.line else "penetration (µm)",
+                        color="tab:orange")
     delta_ax.tick_params(axis="y", labelcolor="tab:orange")
     force_ax.set_title(f"{label}: normal force and penetration", fontsize=10)
 
@@ -246,7 +301,7 @@ def _along_motion(s: dict[str, np.ndarray]) -> np.ndarray:
     norm = np.hypot(dx, dy)
     with np.errstate(invalid="ignore", divide="ignore"):
         ux, uy = np.where(norm > 0, dx / norm, np.nan), np.where(norm > 0, dy / norm, np.nan)
-    return s["cop_x"] * ux + s["cop_y"] * uy
+    return s["cop_x"] * ux + s.get("cop_y", 0.0) * uy  # line contact: no cop_y
 
 
 def _motion_direction(s: dict[str, np.ndarray]) -> np.ndarray | None:

@@ -6,7 +6,9 @@
     /fields/x, /fields/y  cell-centre coordinates in m (material frame)
     /mesh/xy              ((nx + 1) (ny + 1), 2) cell-corner coordinates in m, for the XDMF file
     attributes            scene (the scene's TOML text), petroll_version, format_version, complete
-                          (False while the run goes on: written at a checkpoint), last_step
+                          (False while the run goes on: written at a checkpoint), last_step,
+                          line_contact (True: a plane-strain run; fields (n_saved, nx, 1) on strips of
+                          unit length, y = [0]; series per unit length, force_y and cop_y absent)
 
 The file is written by rank 0 to a temporary name and renamed into place, so a reader never sees a
 half-written file, and a run killed at any moment leaves the previous complete file. Next to it,
@@ -39,6 +41,13 @@ SERIES_UNITS = {
     "solve_time": "s",
 }
 """The series every run writes, with their units (attribute ``units`` of each dataset)."""
+
+LINE_ABSENT = ("force_y", "cop_y")
+"""Series a line-contact run does not write (nothing varies along Y)."""
+
+LINE_SERIES_UNITS = {**{k: v for k, v in SERIES_UNITS.items() if k not in LINE_ABSENT},
+                     "force": "N/m", "force_x": "N/m", "area": "m", "dissipation": "W/m"}
+"""The series of a line-contact (plane-strain) run: per unit length; area is the contact width."""
 
 
 @dataclass(frozen=True)
@@ -127,6 +136,7 @@ class Results:
     y: np.ndarray  # (ny,) cell centres, m
     scene_text: str
     complete: bool = True  # False: written at a checkpoint of a run that goes on (or was interrupted)
+    line: bool = False  # a line-contact (plane-strain) run: series per unit length, pressure (n, nx, 1)
 
     @classmethod
     def open(cls, path: str | pathlib.Path) -> "Results":
@@ -136,7 +146,8 @@ class Results:
             series = {name: f["series"][name][()] for name in f["series"]}
             fields = f["fields"]
             return cls(path, series, fields["pressure"][()], fields["step"][()], fields["x"][()],
-                       fields["y"][()], str(f.attrs["scene"]), bool(f.attrs.get("complete", True)))
+                       fields["y"][()], str(f.attrs["scene"]), bool(f.attrs.get("complete", True)),
+                       bool(f.attrs.get("line_contact", False)))
 
     @property
     def steady(self) -> SteadyState:
@@ -147,9 +158,11 @@ class Results:
 
 def write_results(path: pathlib.Path, series: dict[str, np.ndarray], pressure: np.ndarray,
                   field_steps: np.ndarray, x: np.ndarray, y: np.ndarray, scene_text: str,
-                  complete: bool = True) -> None:
+                  complete: bool = True, line: bool = False) -> None:
     """Write a complete results file and its ``.xdmf`` companion atomically (temporary file, fsync,
-    rename). Call on one rank. Raises :class:`OutputError` (the previous files are left as they were)."""
+    rename). Call on one rank. Raises :class:`OutputError` (the previous files are left as they were).
+    ``line``: a line-contact run (the series of LINE_SERIES_UNITS only, with their units)."""
+    units = LINE_SERIES_UNITS if line else SERIES_UNITS
     path = pathlib.Path(path)
     nx, ny = len(x), len(y)
     try:
@@ -162,10 +175,13 @@ def write_results(path: pathlib.Path, series: dict[str, np.ndarray], pressure: n
             f.attrs["complete"] = bool(complete)
             steps = np.asarray(series.get("step", []))
             f.attrs["last_step"] = int(steps[-1]) if steps.size else -1
+            f.attrs["line_contact"] = bool(line)
             group = f.create_group("series")
             for name, values in series.items():
+                if line and name in LINE_ABSENT:
+                    continue
                 dataset = group.create_dataset(name, data=np.asarray(values))
-                dataset.attrs["units"] = SERIES_UNITS.get(name, "-")
+                dataset.attrs["units"] = units.get(name, "-")
             fields = f.create_group("fields")
             data = np.asarray(pressure, dtype=float).reshape(-1, nx, ny)
             packed = {}

@@ -32,6 +32,8 @@ __all__ = [
     "Ellipsoid",
     "Cylinder",
     "HeightMap",
+    "CylinderSection",
+    "HeightProfile",
     "mesh_height_map",
     "make_body",
     "BODY_KEYS",
@@ -136,12 +138,8 @@ class Body(abc.ABC):
 
 
 @dataclass(frozen=True)
-class Sphere(Body):
-    """Exact sphere of ``radius`` m: Z = R - sqrt(R^2 - r^2) for r < R, and R + (r - R) for r >= R.
-
-    The continuation past r = R (unit slope) keeps Z finite and continuous; a valid scene never touches
-    there.
-    """
+class _Round(Body):
+    """A body described by one ``radius`` (m), which is also its radius hint."""
 
     radius: float
     _: KW_ONLY
@@ -149,6 +147,19 @@ class Sphere(Body):
 
     def __post_init__(self, source: str) -> None:
         object.__setattr__(self, "radius", _positive(source, "[body] radius", self.radius))
+
+    @property
+    def radius_hint(self) -> float:
+        return self.radius
+
+
+@dataclass(frozen=True)
+class Sphere(_Round):
+    """Exact sphere of ``radius`` m: Z = R - sqrt(R^2 - r^2) for r < R, and R + (r - R) for r >= R.
+
+    The continuation past r = R (unit slope) keeps Z finite and continuous; a valid scene never touches
+    there.
+    """
 
     def height(self, x, y):
         x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
@@ -162,10 +173,6 @@ class Sphere(Body):
         denom = np.where(inside, np.sqrt(np.where(inside, self.radius - r, 1.0))
                          * np.sqrt(np.where(inside, self.radius + r, 1.0)), r)
         return x / denom, y / denom
-
-    @property
-    def radius_hint(self) -> float:
-        return self.radius
 
 
 @dataclass(frozen=True)
@@ -382,19 +389,7 @@ class HeightMap(Body):
         source: str = PYTHON_SOURCE,
     ) -> "HeightMap":
         """Load ``heights`` from a NumPy ``.npy`` file (axis 0 along x, axis 1 along y, values in m)."""
-        try:
-            loaded = np.load(path, allow_pickle=False)
-        except Exception as exc:  # noqa: BLE001 - any read failure is the user's file
-            raise SceneError(
-                source, "[body] file", str(path),
-                f"cannot read a .npy height map: {exc}",
-            ) from None
-        if not isinstance(loaded, np.ndarray):
-            raise SceneError(
-                source, "[body] file", str(path),
-                "must be a .npy file holding one 2-D array (not .npz)",
-            )
-        heights = _check_heights(source, str(path), loaded)
+        heights = _check_heights(source, str(path), _read_npy(path, source, "a 2-D array (not .npz)"))
         return cls(heights, cell, center, source=source)
 
     # -- geometry ------------------------------------------------------------------------------------------
@@ -457,6 +452,63 @@ class HeightMap(Body):
         """sqrt(Rx Ry) from discrete curvatures (second differences over up to 1/8 of the map) at the
         lowest sample (the one radius if only one is positive); half the larger extent if neither is."""
         return self._radius_hint
+
+
+# ----------------------------------------------------------------------------------------------------------
+# line contact (plane strain): profiles Z(x), the same for every y
+
+
+@dataclass(frozen=True)
+class CylinderSection(_Round):
+    """A cylinder of ``radius`` R (m) in line contact (plane strain; axis along Y, infinitely long):
+    Z = R - sqrt(R^2 - x^2) for |x| < R, continued as R + (|x| - R) beyond; independent of y."""
+
+    def height(self, x, y):
+        x, y = np.broadcast_arrays(np.asarray(x, dtype=float), np.asarray(y, dtype=float))
+        return _arc(x, self.radius)
+
+    def slope(self, x, y):
+        x, y = np.broadcast_arrays(np.asarray(x, dtype=float), np.asarray(y, dtype=float))
+        return _arc_slope(x, self.radius), np.zeros(x.shape)
+
+
+@dataclass(frozen=True, eq=False)
+class HeightProfile(Body):
+    """A line-contact body given by sampled heights ``heights[i]`` (m) at spacing ``cell`` (m) along x,
+    linearly interpolated, independent of y; Z = heights - min(heights), +inf outside the samples (and in
+    a sample interval with a +inf end). The middle of the samples sits at the body's reference point."""
+
+    heights: np.ndarray
+    cell: float
+    _: KW_ONLY
+    source: InitVar[str] = PYTHON_SOURCE
+    _map: HeightMap = field(init=False, repr=False)
+
+    def __post_init__(self, source: str) -> None:
+        label = f"<profile of shape {np.shape(self.heights)}>"
+        line = np.asarray(self.heights, dtype=float) if np.ndim(self.heights) == 1 else None
+        if line is None:
+            raise SceneError(source, "[body] file", label, "line contact: the profile must be a 1-D array "
+                             "of heights (m) along x")
+        cell = _positive(source, "[body] cell", self.cell, "the profile's spacing in m")
+        # the profile as a two-column height map (equal columns, any spacing along y): its x interpolation
+        # is the profile's; y is always taken at the first column
+        set_ = object.__setattr__
+        set_(self, "_map", HeightMap(np.stack([line, line], axis=1), (cell, 1.0), source=source))
+        set_(self, "heights", self._map.heights[:, 0])
+        set_(self, "cell", cell)
+
+    def height(self, x, y):
+        x, y = np.broadcast_arrays(np.asarray(x, dtype=float), np.asarray(y, dtype=float))
+        return self._map.height(x, np.full(x.shape, -0.5))
+
+    def slope(self, x, y):
+        x, y = np.broadcast_arrays(np.asarray(x, dtype=float), np.asarray(y, dtype=float))
+        return self._map.slope(x, np.full(x.shape, -0.5))[0], np.zeros(x.shape)
+
+    @property
+    def radius_hint(self) -> float:
+        return self._map.radius_hint
 
 
 # ----------------------------------------------------------------------------------------------------------
@@ -635,8 +687,38 @@ BODY_KEYS: dict[str, dict[str, str]] = {
     },
 }
 
+LINE_BODY_KEYS: dict[str, dict[str, str]] = {
+    "cylinder": {"radius": "radius of the cylinder, m (required; line contact: no width, edge_radius, axis)"},
+    "heightmap": {
+        "file": "line contact: .npy file of a 1-D profile of lower-surface heights in m along x, "
+        "relative to the scene file (required)",
+        "cell": "line contact: spacing of the profile along x, m (required)",
+    },
+}
+"""The shapes and keys of a line-contact (plane-strain) scene's [body]."""
+
 _DEFAULTS: dict[str, dict[str, object]] = {"cylinder": {"edge_radius": 0.0, "axis": "y"}}
 _COMMON_KEYS = ("shape", "position")  # position is read by the scene reader, not here
+
+
+def _profile_from_npy(path: pathlib.Path, cell: object, source: str) -> HeightProfile:
+    """A :class:`HeightProfile` from a .npy file holding a 1-D array (SceneError naming [body] file)."""
+    loaded = _read_npy(path, source, "a 1-D array of heights (m) along x")
+    if loaded.ndim != 1:
+        raise SceneError(source, "[body] file", str(path), "line contact: must be a .npy file holding one "
+                         f"1-D array of heights (m) along x, got shape {getattr(loaded, 'shape', None)}")
+    return HeightProfile(loaded, cell, source=source)
+
+
+def _read_npy(path: str | os.PathLike, source: str, what: str) -> np.ndarray:
+    """The array of a .npy file, or SceneError on "[body] file" (``what``: the array it must hold)."""
+    try:
+        loaded = np.load(path, allow_pickle=False)
+    except Exception as exc:  # noqa: BLE001 - any read failure is the user's file
+        raise SceneError(source, "[body] file", str(path), f"cannot read a .npy file: {exc}") from None
+    if not isinstance(loaded, np.ndarray):
+        raise SceneError(source, "[body] file", str(path), f"must be a .npy file holding {what}")
+    return loaded
 
 
 def _resolve_file(source: str, value: object, base_dir: pathlib.Path) -> pathlib.Path:
@@ -648,25 +730,30 @@ def _resolve_file(source: str, value: object, base_dir: pathlib.Path) -> pathlib
     return path
 
 
-def make_body(table: dict, base_dir: pathlib.Path, source: str) -> Body:
+def make_body(table: dict, base_dir: pathlib.Path, source: str, line: bool = False) -> Body:
     """Build the body of a scene's ``[body]`` table (``shape`` plus that shape's keys, see BODY_KEYS).
+
+    ``line``: a line-contact (plane-strain) scene: only the shapes of LINE_BODY_KEYS, as profiles Z(x).
 
     ``position`` may be present and is ignored here.  Relative file paths are resolved against
     ``base_dir``.  Raises SceneError for an unknown shape or key, a missing key, a wrong type or a bad value.
     """
-    shapes = ", ".join(BODY_KEYS)
+    catalogue = LINE_BODY_KEYS if line else BODY_KEYS
+    shapes = ", ".join(catalogue)
     if "shape" not in table:
         raise SceneError(source, "[body] shape", MISSING, f"required, one of: {shapes}")
     shape = table["shape"]
-    if not isinstance(shape, str) or shape not in BODY_KEYS:
-        raise SceneError(source, "[body] shape", shape, f"must be one of: {shapes}")
-    keys = BODY_KEYS[shape]
+    if not isinstance(shape, str) or shape not in catalogue:
+        where = " for line contact ([grid] without ny and y)" if line else ""
+        raise SceneError(source, "[body] shape", shape, f"must be one of{where}: {shapes}")
+    keys = catalogue[shape]
     for key in table:
         if key not in keys and key not in _COMMON_KEYS:
             allowed = ", ".join([*_COMMON_KEYS, *keys])
+            where = " in line contact" if line else ""
             raise SceneError(
                 source, f"[body] {key}", table[key],
-                f"unknown key for shape {shape!r}; allowed keys: {allowed}",
+                f"unknown key for shape {shape!r}{where}; allowed keys: {allowed}",
             )
     defaults = _DEFAULTS.get(shape, {})
     values = {}
@@ -678,6 +765,10 @@ def make_body(table: dict, base_dir: pathlib.Path, source: str) -> Body:
         else:
             raise SceneError(source, f"[body] {key}", MISSING, f"required for shape {shape!r}: {keys[key]}")
 
+    if line and shape == "cylinder":
+        return CylinderSection(values["radius"], source=source)
+    if line:
+        return _profile_from_npy(_resolve_file(source, values["file"], base_dir), values["cell"], source)
     if shape == "sphere":
         return Sphere(values["radius"], source=source)
     if shape == "ellipsoid":

@@ -3,6 +3,11 @@
 
 Fields on the grid are numpy arrays of shape (nx, ny), axis 0 along X; a flattened field has index
 ix * ny + iy.
+
+A *line-contact* grid (plane strain; a scene whose [grid] has nx and x only) is the same object with
+``line = True``, ny = 1 and Y from -1/2 to 1/2: its cells are strips of unit length along Y, so that
+``cell_area`` = dx and every force summed over the cells is a force per unit length (N/m), every area a
+contact width (m). Its influence operator is the plane-strain strip kernel (petroll.solver.influence).
 """
 
 from __future__ import annotations
@@ -22,6 +27,7 @@ class Grid:
     x1: float
     y0: float
     y1: float
+    line: bool = False  # plane strain: ny = 1 strip of unit length (use :func:`line_grid`)
 
     @property
     def dx(self) -> float:
@@ -36,6 +42,18 @@ class Grid:
         return self.dx * self.dy
 
     @property
+    def cell(self) -> float:
+        """The smallest cell side that motion can cross (dx for a line-contact grid), m."""
+        return self.dx if self.line else min(self.dx, self.dy)
+
+    @property
+    def datum(self) -> float | None:
+        """Line contact: the datum distance L = x1 - x0 (m) of the plane-strain displacements, which are
+        measured relative to surface points at distance L from each load (petroll.solver.influence);
+        None for a 3-D grid."""
+        return self.x1 - self.x0 if self.line else None
+
+    @property
     def x(self) -> np.ndarray:
         """Cell-centre X coordinates, shape (nx,)."""
         return self.x0 + (np.arange(self.nx) + 0.5) * self.dx
@@ -44,3 +62,8 @@ class Grid:
     def y(self) -> np.ndarray:
         """Cell-centre Y coordinates, shape (ny,)."""
         return self.y0 + (np.arange(self.ny) + 0.5) * self.dy
+
+
+def line_grid(nx: int, x0: float, x1: float) -> Grid:
+    """A line-contact (plane-strain) grid of nx strips covering [x0, x1] (m), unit length along Y."""
+    return Grid(nx, 1, x0, x1, -0.5, 0.5, line=True)

@@ -55,13 +55,17 @@ def contact_slope(scene, delta: float, points: int = 401) -> float:
 
 def largest_penetration(scene) -> tuple[float, bool]:
     """(delta, exact): the largest penetration the scene prescribes, or under load control an estimate
-    (relaxed Hertz for the peak load and the body's equivalent radius)."""
+    (relaxed Hertz for the peak load and the body's equivalent radius). Line contact (load per length P):
+    a^2/R with a = sqrt(4 P R Jinf/pi) the relaxed Hertz half-width, the approach at which a parabola's
+    Z <= delta/2 spans the same width (the penetration itself depends on a datum there)."""
     if scene.penetration is not None:
         return float(scene.penetration.peak()), True
     load = float(scene.load.peak())
     radius = float(scene.body.radius_hint)
     if not (load > 0 and radius > 0 and math.isfinite(radius)):
         return 0.0, False
+    if scene.grid.line:
+        return 4 * load * float(scene.material.Jinf) / math.pi, False
     return (3 * float(scene.material.Jinf) * load / (4 * math.sqrt(radius))) ** (2 / 3), False
 
 

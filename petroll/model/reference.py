@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from petroll.model.bodies import BODY_KEYS
+from petroll.model.bodies import BODY_KEYS, LINE_BODY_KEYS
 from petroll.errors import MISSING
 from petroll.model.scene import SCHEMA
 
@@ -30,6 +30,11 @@ def scene_reference() -> str:
         if section == "body":
             for shape, shape_keys in BODY_KEYS.items():
                 lines += [f"### shape = \"{shape}\"", "", "| key | meaning |", "|---|---|"]
+                lines += [f"| `{name}` | {doc} |" for name, doc in shape_keys.items()]
+                lines.append("")
+            for shape, shape_keys in LINE_BODY_KEYS.items():
+                lines += [f"### line contact ([grid] without ny and y): shape = \"{shape}\"", "",
+                          "| key | meaning |", "|---|---|"]
                 lines += [f"| `{name}` | {doc} |" for name, doc in shape_keys.items()]
                 lines.append("")
     return "\n".join(lines)

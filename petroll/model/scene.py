@@ -21,7 +21,7 @@ from petroll.model import materials
 from petroll.model import motion
 from petroll.model.bodies import BODY_KEYS, Body, make_body
 from petroll.errors import MISSING, SceneError
-from petroll.model.grid import Grid
+from petroll.model.grid import Grid, line_grid
 
 TAO_TYPES = ("tron", "pk", "gpcg", "bntr", "bncg", "blmvm", "bqnls", "bnls", "bntl")
 """TAO's bound-constrained solvers that handle this QP (bqpip is left out: it needs finite upper bounds),
@@ -217,9 +217,11 @@ MODEL_KEYS: dict[str, tuple[set[str], set[str]]] = {
 SCHEMA: dict[str, dict[str, Key]] = {
     "grid": {
         "nx": Key("integer", "number of cells along X, 1 ... 2^24 (nx ny at most 2^31 - 1)", _cells),
-        "ny": Key("integer", "number of cells along Y, 1 ... 2^24 (nx ny at most 2^31 - 1)", _cells),
+        "ny": Key("integer", "number of cells along Y, 1 ... 2^24 (nx ny at most 2^31 - 1); omit ny and y "
+                  "for line contact (plane strain, docs/line-contact.md)", _cells, default=None),
         "x": Key("[min, max]", "extent of the grid along X in the material frame", _interval, unit="m"),
-        "y": Key("[min, max]", "extent of the grid along Y in the material frame", _interval, unit="m"),
+        "y": Key("[min, max]", "extent of the grid along Y in the material frame (omitted: line contact)",
+                 _interval, default=None, unit="m"),
     },
     "material": {
         "model": Key("string", 'constitutive model: "elastic", "sls", "prony" or "tabulated"',
@@ -257,13 +259,15 @@ SCHEMA: dict[str, dict[str, Key]] = {
     },
     "motion": {
         "velocity": Key("[vx, vy] or program", "velocity of the body over the half-space (its path s(t) "
-                        "starts at [body] position)", _program(vector=True, positive=False),
+                        "starts at [body] position); line contact: along X only, a number, a program of "
+                        "numbers, or [vx, 0]", _program(vector=True, positive=False),
                         default=motion.Constant(np.zeros(2)), unit="m/s"),
         "penetration": Key("number or program", "penetration delta of the body's lowest point below the "
-                           "undeformed surface (displacement control; exactly one of penetration, load)",
+                           "undeformed surface (displacement control; exactly one of penetration, load; not in line "
+                           "contact)",
                            _program(vector=False, positive=False), default=None, unit="m"),
         "load": Key("number > 0 or program", "total normal force F (load control; exactly one of "
-                    "penetration, load)", _program(vector=False, positive=True), default=None, unit="N"),
+                    "penetration, load); line contact: force per unit length, N/m", _program(vector=False, positive=True), default=None, unit="N"),
     },
     "time": {
         "dt": Key("number > 0", "time step (or steps_per_cell); without [time]: one step at t = 0",
@@ -417,16 +421,23 @@ def parse_scene(raw: dict, source: str = "<python>", base_dir: str | pathlib.Pat
                              "unknown section; allowed: " + ", ".join(f"[{s}]" for s in SCHEMA))
         if not isinstance(raw[section], dict):
             raise SceneError(source, f"[{section}]", raw[section], "must be a table of keys")
-    values = {name: _read_section(raw, name, source) for name in SCHEMA}
+    line = _line_contact(raw.get("grid", {}), source)
+    checked = _velocity_along_x(raw) if line else raw
+    values = {name: _read_section(checked, name, source) for name in SCHEMA}
 
     g = values["grid"]
-    if g["nx"] * g["ny"] > MAX_CELLS:
-        raise SceneError(source, "[grid] nx / ny", [g["nx"], g["ny"]], f"at most {MAX_CELLS} cells in all "
-                         "(nx ny; PETSc's 32-bit indices)")
-    grid = Grid(g["nx"], g["ny"], *g["x"], *g["y"])
+    if line:
+        grid = line_grid(g["nx"], *g["x"])
+    else:
+        if g["nx"] * g["ny"] > MAX_CELLS:
+            raise SceneError(source, "[grid] nx / ny", [g["nx"], g["ny"]], f"at most {MAX_CELLS} cells in "
+                             "all (nx ny; PETSc's 32-bit indices)")
+        grid = Grid(g["nx"], g["ny"], *g["x"], *g["y"])
     material = _material(values["material"], raw.get("material", {}), base_dir, source)
-    body = make_body(raw.get("body", {}), base_dir, source)
+    body = make_body(raw.get("body", {}), base_dir, source, line=line)
     m = values["motion"]
+    if line:
+        _check_line_motion(m, raw.get("motion", {}), source)
     if (m["penetration"] is None) == (m["load"] is None):
         given = {k: v for k, v in raw.get("motion", {}).items() if k in ("penetration", "load")}
         raise SceneError(source, "[motion] penetration / load", given or MISSING,
@@ -453,6 +464,52 @@ def parse_scene(raw: dict, source: str = "<python>", base_dir: str | pathlib.Pat
 
     check_scene(scene)
     return scene
+
+
+def _line_contact(grid: dict, source: str) -> bool:
+    """A [grid] without ny and y is a line-contact (plane-strain) scene; one of them alone is an error."""
+    given = [key for key in ("ny", "y") if key in grid]
+    if len(given) == 1:
+        missing = "y" if given[0] == "ny" else "ny"
+        raise SceneError(source, f"[grid] {missing}", MISSING, f"required with [grid] {given[0]}: give both ny "
+                         "and y (3-D contact) or neither (line contact, plane strain)")
+    return not given
+
+
+def _velocity_along_x(raw: dict) -> dict:
+    """A copy of ``raw`` whose [motion] velocity, if given as numbers (a number, or a program of numbers:
+    line contact's motion along X), is written as [vx, 0] vectors; anything else is left to the checks."""
+    velocity = raw.get("motion", {}).get("velocity")
+
+    def vector(v: Any) -> Any:
+        return [v, 0.0] if isinstance(v, (int, float)) and not isinstance(v, bool) else v
+
+    if isinstance(velocity, dict):
+        velocity = {k: ([vector(v) for v in value] if k == "value" and isinstance(value, list) else
+                        value if k in ("kind", "t", "duration", "period", "phase") else vector(value))
+                    for k, value in velocity.items()}
+    elif velocity is not None:
+        velocity = vector(velocity)
+    else:
+        return raw
+    out = copy.deepcopy(raw)
+    out["motion"]["velocity"] = velocity
+    return out
+
+
+def _check_line_motion(m: dict, table: dict, source: str) -> None:
+    """Line contact: load control only, motion along X only."""
+    if m["penetration"] is not None:
+        raise SceneError(source, "[motion] penetration", table["penetration"], "not allowed in line contact "
+                         "([grid] without ny and y): in plane strain the displacement of a half-space is "
+                         "logarithmic and has no zero far away, so a penetration is defined only relative "
+                         "to an arbitrary datum; give [motion] load in N/m instead")
+    program = m["velocity"]
+    across = [np.asarray(v)[..., 1] for v in vars(program).values()
+              if isinstance(v, np.ndarray) and v.shape and v.shape[-1] == 2]
+    if any(np.any(v != 0) for v in across):
+        raise SceneError(source, "[motion] velocity", table.get("velocity"), "line contact moves along X "
+                         "only: a number, a program of numbers, or [vx, 0] (m/s)")
 
 
 def _read_section(raw: dict, name: str, source: str) -> dict:

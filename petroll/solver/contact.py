@@ -13,7 +13,8 @@ diagonal and the scaled gap is O(1) whatever the units: ``tol`` is a relative to
 conditions, max |min(p_hat, gap / w_ref)| <= tol, checked after every solve.
 
 Load control (a total force F instead of delta) finds delta by a safeguarded secant iteration on
-(F(delta) / F)^(2/3) - 1, which is linear in delta for a Hertzian contact.
+(F(delta) / F)^(2/3) - 1, which is linear in delta for a Hertzian contact (on F(delta) / F - 1 for line
+contact, where delta = (2 J F/pi) (ln(2 L/a) + 1/2) is nearly linear in F; L the grid's datum).
 """
 
 from __future__ import annotations
@@ -28,7 +29,7 @@ from petroll.errors import SolverError
 from petroll.model.grid import Grid
 from petroll.model.scene import DEFAULT_TAO_TYPE, TAO_TYPES
 from petroll.solver.partition import RowPartition, move_rows
-from petroll.solver.influence import InfluenceOperator, shell_matrix
+from petroll.solver.influence import influence_operator, shell_matrix
 from petroll.solver.pk import PolonskyKeer
 
 @dataclass
@@ -55,7 +56,7 @@ class ContactSolver:
                  prefix: str = "petroll_", max_iterations: int = 10000):
         self.grid, self.comm, self.tol, self.prefix = grid, comm, tol, prefix
         self.tao_type, self.max_iterations = self._resolve_type(tao_type, prefix), max_iterations
-        self.influence = InfluenceOperator(grid.dx, grid.dy, comm)
+        self.influence = influence_operator(grid, comm)
         self.rows = RowPartition(grid.nx, comm.size)
         self.r0, self.r1 = self.rows.range(comm.rank)
         self.work = [0, 0]  # TAO iterations and operator applications of every QP solved so far
@@ -94,8 +95,8 @@ class ContactSolver:
                    delta_guess: float | None = None, warm: np.ndarray | None = None) -> StepSolution:
         """Pressure and penetration for a total normal force ``load`` (N) > 0.
 
-        The first guess is ``delta_guess`` or, without one, Hertz's penetration for a sphere of radius
-        ``radius_hint`` above the lowest height.
+        The first guess is ``delta_guess`` or, without one, Hertz's penetration for a sphere (line contact:
+        a cylinder) of radius ``radius_hint`` above the lowest height. Line contact: ``load`` in N/m.
         """
         base = self.comm.allreduce(float(np.min(height, initial=np.inf)), op=MPI.MIN)
         if not load > 0:  # no load: no contact, the body just touches (a pulling load needs adhesion)
@@ -104,7 +105,8 @@ class ContactSolver:
                                   "which petroll does not model)")
             return StepSolution(np.zeros(self.local_shape), base, 0.0, 0, 0, 0.0, (0, 0, 0, 0))
         if delta_guess is None or delta_guess <= base:
-            delta_guess = base + (3 * compliance * load / (4 * math.sqrt(radius_hint))) ** (2 / 3)
+            delta_guess = base + hertz_penetration(self.grid, compliance, load, radius_hint)
+        power = 1.0 if self.grid.line else 2 / 3
         rtol = 10 * self.tol
         iterations = applications = 0
         lo = hi = None  # bracketing (delta, phi) pairs with phi < 0 and phi > 0
@@ -118,7 +120,7 @@ class ContactSolver:
             if abs(step.force / load - 1) <= rtol:
                 return step
             warm = step.pressure
-            phi = (step.force / load) ** (2 / 3) - 1
+            phi = (step.force / load) ** power - 1
             if phi < 0:
                 lo = (delta, phi)
             else:
@@ -126,7 +128,7 @@ class ContactSolver:
             if step.force == 0:
                 candidate = base + 2 * (delta - base)
             elif previous is None or previous[1] == phi:
-                candidate = base + (delta - base) / (1 + phi)  # Hertz scaling F ~ (delta - base)^1.5
+                candidate = base + (delta - base) / (1 + phi)  # Hertz scaling F ~ (delta - base)^(1/power)
             else:
                 candidate = delta - phi * (delta - previous[0]) / (phi - previous[1])
             if lo is not None and hi is not None and not (lo[0] < candidate < hi[0]):
@@ -257,14 +259,29 @@ class ContactSolver:
         if hi[0] < 0:
             return None
         i0, j0, i1, j1 = int(lo[0]), int(lo[1]), int(hi[0]) + 1, int(hi[1]) + 1
-        if i0 == 0 or j0 == 0 or i1 == self.grid.nx or j1 == self.grid.ny:
-            g = self.grid
+        g = self.grid
+        if g.line and (i0 == 0 or i1 == g.nx):  # strips: only the ends along X are edges
+            raise SolverError(f"[grid]: the contact region (strips where the body interferes with the surface, "
+                              f"X in [{g.x0 + i0 * g.dx:g}, {g.x0 + i1 * g.dx:g}]) reaches the grid edge; "
+                              "enlarge [grid] x or reduce the load")
+        if not g.line and (i0 == 0 or j0 == 0 or i1 == g.nx or j1 == g.ny):
             raise SolverError(
                 f"[grid]: the contact region (cells where the body interferes with the surface, X in "
                 f"[{g.x0 + i0 * g.dx:g}, {g.x0 + i1 * g.dx:g}], Y in [{g.y0 + j0 * g.dy:g}, "
                 f"{g.y0 + j1 * g.dy:g}]) reaches the grid edge; enlarge [grid] x and y or reduce the "
                 f"penetration or load")
         return i0, i1, j0, j1
+
+
+def hertz_penetration(grid: Grid, compliance: float, load: float, radius: float) -> float:
+    """Hertz's penetration (m) of a sphere of ``radius`` (m) under ``load`` (N), or on a line-contact grid of
+    a cylinder under ``load`` per length (N/m) relative to the grid's datum L:
+    (2 J P/pi) (ln(2 L/a) + 1/2) with a = sqrt(4 P R J/pi) (the Hertz pressure's displacement at the
+    centre with the strip kernel's constant, petroll.solver.influence.strip_coefficients)."""
+    if grid.line:
+        a = math.sqrt(4 * load * radius * compliance / math.pi)
+        return 2 * compliance * load / math.pi * (math.log(2 * grid.datum / a) + 0.5)
+    return (3 * compliance * load / (4 * math.sqrt(radius))) ** (2 / 3)
 
 
 def _clip(rows: tuple[int, int], i0: int, i1: int) -> tuple[int, int]:

@@ -86,7 +86,7 @@ class Simulation:
             if scale == 0:
                 raise SceneError(self.scene.source, "[time] steps_per_cell", tm.steps_per_cell,
                                  "needs a moving body: give [time] dt for a body at rest")
-            cell = min(self.scene.grid.dx, self.scene.grid.dy)
+            cell = self.scene.grid.cell
             dt = cell / (tm.steps_per_cell * max(speed, 0.1 * scale))
         if tm.end is not None:
             dt = min(dt, tm.end - t)

@@ -360,7 +360,8 @@ def _run_point(scene: Scene, directory: pathlib.Path, comm: MPI.Comm, progress: 
 
 def table_row(scene: Scene, results: Results, value: float) -> dict[str, float]:
     """One row of the table (COLUMNS) for a point's scene and results."""
-    from petroll.model.bodies import Sphere
+    from petroll.model.bodies import CylinderSection, Sphere
+    from petroll.solver.contact import hertz_penetration
 
     s, st = results.series, results.steady
     row: dict[str, float] = {
@@ -376,8 +377,11 @@ def table_row(scene: Scene, results: Results, value: float) -> dict[str, float]:
     viscous = isinstance(material, Prony) and len(material.tau) > 0
     tau = material.longest_time if viscous else math.nan
     sphere = isinstance(scene.body, Sphere)
+    line = scene.grid.line  # plane strain: force per length, area a width, delta relative to the datum
     delta0 = float(s["delta"][0])
-    if sphere and delta0 > 0:
+    if line:
+        a = float(s["area"][0]) / 2
+    elif sphere and delta0 > 0:
         a = math.sqrt(scene.body.radius * delta0)
     else:
         a = math.sqrt(float(s["area"][0]) / math.pi)
@@ -385,12 +389,16 @@ def table_row(scene: Scene, results: Results, value: float) -> dict[str, float]:
                v_tau_a=speed * tau / a if a > 0 and speed > 0 else math.nan)
     nan = math.nan
     row.update(mu_r_slow=nan, force_J0=nan, force_Jinf=nan, delta_J0=nan, delta_Jinf=nan)
-    if sphere and isinstance(material, Prony):
+    if (sphere or isinstance(scene.body, CylinderSection)) and isinstance(material, Prony):
         radius = scene.body.radius
-        if viscous and math.isfinite(speed):
+        if viscous and math.isfinite(speed):  # mu_r -> e/R in 3-D and in plane strain (docs/line-contact.md)
             creep = sum(d * t for d, t in zip(material.dJ, material.tau))
             row["mu_r_slow"] = speed * creep / (material.Jinf * radius)
         for name, J in (("J0", material.J0), ("Jinf", material.Jinf)):
+            if line:
+                if st.force > 0:
+                    row[f"delta_{name}"] = hertz_penetration(scene.grid, J, st.force, radius)
+                continue
             if st.delta > 0:
                 row[f"force_{name}"] = 4 * math.sqrt(radius) * st.delta**1.5 / (3 * J)
             if st.force > 0:
