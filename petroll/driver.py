@@ -15,7 +15,6 @@ import time as clock
 import numpy as np
 from mpi4py import MPI
 
-from petroll.errors import SceneError
 from petroll.io.checkpoint import RunInterrupted, checkpoint_dir, write_checkpoint
 from petroll.io.results import OutputError, Results, write_results
 from petroll.model.scene import Scene
@@ -47,19 +46,13 @@ def run(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, out: str | pathlib.Path |
         t, fields, field_steps = restart.restore(sim)
     else:
         t, fields, field_steps = 0.0, [], []
-    resumed = restart is not None  # the first pass of the loop takes the restored step, without solving
-    dt, wall = 0.0, clock.perf_counter()
-    while True:
-        record = sim.records[-1] if resumed else sim.step(t, dt)
-        next_dt = sim.next_dt(t, record.distance)
-        stop_now = next_dt is None or sim.steady()
-        if not resumed:
-            if record.step > scene.time.max_steps:
-                raise SceneError(scene.source, "[time] max_steps", scene.time.max_steps,
-                                 "the run needs more steps: raise max_steps or the time step")
-            if stop_now or record.step == 0 or (scene.every and record.step % scene.every == 0):
-                fields.append(gather_field(sim.pressure, g.nx, comm))
-                field_steps.append(record.step)
+    resumed = restart is not None  # the first record is the restored step's, not solved again
+    wall = clock.perf_counter()
+    for record in sim.steps(t):
+        stop_now = sim.dt_next is None
+        if not resumed and (stop_now or record.step == 0 or (scene.every and record.step % scene.every == 0)):
+            fields.append(gather_field(sim.pressure, g.nx, comm))
+            field_steps.append(record.step)
         if on_step is not None:
             on_step(record)
         signum = stop.agreed(comm) if stop is not None else 0
@@ -69,7 +62,8 @@ def run(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, out: str | pathlib.Path |
         if progress and comm.rank == 0:
             _show_progress(scene, record, clock.perf_counter() - wall)
         if due or interrupted:
-            path = write_checkpoint(checkpoint_dir(out), sim, t, next_dt, fields, field_steps, scene.keep)
+            path = write_checkpoint(checkpoint_dir(out), sim, sim.t, sim.dt_next, fields, field_steps,
+                                    scene.keep)
             if not stop_now:
                 _write_results(out, sim, fields, field_steps, complete=False)
             if interrupted:
@@ -77,10 +71,6 @@ def run(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, out: str | pathlib.Path |
                     print(file=sys.stderr)
                 raise RunInterrupted(signum, record.step, record.t, path)
         resumed = False
-        if stop_now:
-            break
-        dt = next_dt
-        t += dt
     if progress and comm.rank == 0:
         print(file=sys.stderr)
     return Results.open(_write_results(out, sim, fields, field_steps, complete=True))

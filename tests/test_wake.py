@@ -68,11 +68,7 @@ def test_a_long_track_rolls_the_same_with_the_wake_cut_off(comm):
         sim = petroll.solver.simulation.Simulation(scene, comm)
         if cutoff is None:
             sim.wake.displacement = lambda v, profile, reach: sim.solver.influence.window(400, 54)(v)
-        t, dt, records = 0.0, 0.0, []
-        while dt is not None:
-            records.append(sim.step(t, dt))
-            dt = sim.next_dt(t, records[-1].distance)
-            t += dt or 0.0
+        records = list(sim.steps())
         runs[name] = np.array([[r.force, r.mu_r * r.force] for r in records])
         if cutoff is not None:
             assert sim.wake.boxes == len(records) - 1  # every step after the first used a box
@@ -96,11 +92,7 @@ def test_load_control_needing_a_much_deeper_penetration_redoes_u_on_every_cell(c
         sim = petroll.solver.simulation.Simulation(base, comm)
         if full:
             sim.wake.displacement = lambda v, profile, reach, s=sim: s.solver.influence.window(64, 64)(v)
-        t, dt, records = 0.0, 0.0, []
-        while dt is not None:
-            records.append(sim.step(t, dt))
-            dt = sim.next_dt(t, records[-1].distance)
-            t += dt or 0.0
+        records = list(sim.steps())
         runs.append(records)
     boxed, full = runs
     assert len(boxed) == 3 and boxed[-1].delta > 1.5 * boxed[-2].delta  # the fallback was needed

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 import time as clock
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -53,7 +54,11 @@ class StepRecord:
 
 
 class Simulation:
-    """A scene being run on ``comm``: owns the contact solver, the history and the step clock."""
+    """A scene being run on ``comm``: owns the contact solver, the history and the step clock.
+
+    ``steps()`` runs it to its end, one step per iteration; ``t`` is the time of the newest step (s) and
+    ``dt_next`` the length of the step after it (None: the run is over).
+    """
 
     def __init__(self, scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD):
         self.scene, self.comm = scene, comm
@@ -67,6 +72,39 @@ class Simulation:
         self.pressure = np.zeros(self.solver.local_shape)
         self.warm = WarmStart(scene.grid, self.solver.rows, comm)
         self.wake = Wake(self.solver, scene.solver.history_cutoff)
+        self.t, self.dt_next = 0.0, None
+
+    # -- the run ----------------------------------------------------------------------------------------
+    def steps(self, t: float = 0.0, dts: Iterable[float] | None = None) -> Iterator[StepRecord]:
+        """Solve the run's steps one per iteration, yielding each StepRecord, until the clock ends
+        ([time] end or distance; a scene without [time] is one step) or the run is steady ([time] steady).
+
+        A fresh simulation starts with the sudden start at t = 0. One restored from a checkpoint
+        (``Checkpoint.restore``, which returns ``t``, the time of its last step) first yields that last
+        record again, unsolved, then the steps after it. While a record is out, ``self.t`` is its time and
+        ``self.dt_next`` the length of the next step (None: it is the last). ``dts``: the step lengths
+        after the sudden start (s), instead of the scene's clock and steady stop. A step numbered beyond
+        [time] max_steps raises SceneError.
+        """
+        lengths = iter(dts) if dts is not None else None
+        resumed, dt = bool(self.records), 0.0
+        while True:
+            record = self.records[-1] if resumed else self.step(t, dt)
+            if lengths is not None:
+                dt = next(lengths, None)
+            else:
+                dt = self.next_dt(t, record.distance)
+                if dt is not None and self.steady():
+                    dt = None
+            if not resumed and record.step > self.scene.time.max_steps:
+                raise SceneError(self.scene.source, "[time] max_steps", self.scene.time.max_steps,
+                                 "the run needs more steps: raise max_steps or the time step")
+            self.t, self.dt_next = t, dt
+            yield record
+            resumed = False
+            if dt is None:
+                return
+            t += dt
 
     # -- the clock --------------------------------------------------------------------------------------
     def next_dt(self, t: float, distance: float) -> float | None:

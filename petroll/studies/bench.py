@@ -96,12 +96,12 @@ def tao_types_rolling(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD,
     rows = []
     for kind in TAO_TYPES:
         sim = Simulation(scene.replace("solver.tao_type", kind), comm)
-        records = []
         try:
-            _roll_to_steady(sim, records)
+            records = list(sim.steps())
         except PetrollError as exc:
-            rows.append(dict(tao_type=kind, steps=len(records), iterations="-", applications="-",
-                             ms_per_step="-", force=f"failed at step {len(records)}: {exc}"))
+            done = len(sim.records)
+            rows.append(dict(tao_type=kind, steps=done, iterations="-", applications="-",
+                             ms_per_step="-", force=f"failed at step {done}: {exc}"))
             continue
         warm = records[1:]
         rows.append(dict(tao_type=kind, steps=len(records),
@@ -152,8 +152,7 @@ def warm_starts(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, cells_per_ra
         for name, depth in WARM_STARTS.items():
             sim = Simulation(scene, comm)
             sim.warm = WarmStart(scene.grid, sim.solver.rows, comm, depth)
-            records = []
-            _roll_to_steady(sim, records)
+            records = list(sim.steps())
             per_step[name].append([r.solve_time for r in records[1:]])
             last[name] = records
     for name in WARM_STARTS:
@@ -169,15 +168,6 @@ def warm_starts(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, cells_per_ra
         _plot_lines(series, out / "warm.png", "step", "operator applications",
                     f"rolling sphere, a/dx = {cells_per_radius:g}, one cell per step")
     return rows
-
-
-def _roll_to_steady(sim, records: list) -> None:
-    """Step ``sim`` to its end or its steady state, appending each StepRecord to ``records``."""
-    t, dt = 0.0, 0.0
-    while dt is not None:
-        records.append(sim.step(t, dt))
-        dt = None if sim.steady() else sim.next_dt(t, records[-1].distance)
-        t += dt or 0.0
 
 
 def _median_total(runs: list[list[float]]) -> float:

@@ -295,14 +295,14 @@ def roll(scene: Scene, comm: MPI.Comm) -> dict:
 
 
 def stepping(sim: Simulation):
-    """Run ``sim`` to its end one step per iteration, yielding each step's StepRecord and wall time (s)."""
-    t, dt = 0.0, 0.0
-    while dt is not None:
+    """``sim.steps()`` with each step's wall time (s): (StepRecord, seconds) pairs."""
+    steps = sim.steps()
+    while True:
         start = time.perf_counter()
-        record = sim.step(t, dt)
+        record = next(steps, None)
+        if record is None:
+            return
         yield record, time.perf_counter() - start
-        dt = sim.next_dt(t, record.distance)
-        t += dt or 0.0
 
 
 def track_steps_interleaved(scene: Scene, steps: int, comm: MPI.Comm, skip: int,

@@ -265,18 +265,11 @@ def _run(case: Case, comm: MPI.Comm, integrator: str | None = None, guard: bool 
         sim.history.guard = guard
         reference = scene.penetration is not None and isinstance(scene.material, Prony)
         checker = Checker(sim, reference)
-        t, dt = 0.0, 0.0
-        dts = iter(case.dts) if case.dts is not None else None
-        while True:
-            record = sim.step(t, dt)
+        for record in sim.steps(dts=case.dts):
             records.append(record)
             checker.after_step(record)
-            dt = next(dts, None) if dts is not None else sim.next_dt(t, record.distance)
-            if dt is None:
-                break
-            if len(records) >= case.max_steps:
+            if sim.dt_next is not None and len(records) >= case.max_steps:
                 raise RuntimeError(f"more than {case.max_steps} steps: too long a case for the suite")
-            t += dt
     except PetrollError as exc:
         message = " ".join(str(exc).split())
         row.steps, row.note = len(records), message
