@@ -15,7 +15,6 @@ from scipy.integrate import quad
 from petroll.driver import run
 from petroll.errors import SceneError
 from petroll.io.checkpoint import read_checkpoint
-from petroll.io.results import Results
 from petroll.model.grid import line_grid
 from petroll.model.scene import parse_scene
 from petroll.solver.influence import Convolution, dense_influence, influence_operator, strip_coefficients

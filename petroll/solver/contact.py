@@ -118,6 +118,8 @@ class ContactSolver:
             applications += step.applications
             step.iterations, step.applications = iterations, applications
             if abs(step.force / load - 1) <= rtol:
+                if self.grid.line:
+                    self._check_inside(step.pressure)
                 return step
             warm = step.pressure
             phi = (step.force / load) ** power - 1
@@ -247,6 +249,19 @@ class ContactSolver:
                               f"-{self.prefix}tao_max_it")
         return its
 
+    def _check_inside(self, pressure: np.ndarray) -> None:
+        """Line contact: SolverError if the contact (p > 0) reaches an end strip of the grid.
+
+        In plane strain the rigid interference delta - Z - u exceeds J A p > 0 wherever A p is, and A p
+        (logarithmic) spreads over the whole grid, so the interference region is wider than the contact
+        (by about sqrt(ln(2 L/a) + 1/2) for Hertz, L the datum): the contact itself is what must fit."""
+        g = self.grid
+        ends = [i - self.r0 for i in (0, g.nx - 1) if self.r0 <= i < self.r1]
+        touching = self.comm.allreduce(bool(np.any(pressure[ends] > 0)), op=MPI.LOR)
+        if touching:
+            raise SolverError(f"[grid]: the contact reaches an end of the grid (X = {g.x0:g} or {g.x1:g}); "
+                              "enlarge [grid] x or reduce the load")
+
     def _window(self, candidates: np.ndarray) -> tuple[int, int, int, int] | None:
         """Bounding box [i0, i1) x [j0, j1) of the candidate cells over all ranks; None when there are none."""
         rows = np.flatnonzero(candidates.any(axis=1)) + self.r0
@@ -260,11 +275,9 @@ class ContactSolver:
             return None
         i0, j0, i1, j1 = int(lo[0]), int(lo[1]), int(hi[0]) + 1, int(hi[1]) + 1
         g = self.grid
-        if g.line and (i0 == 0 or i1 == g.nx):  # strips: only the ends along X are edges
-            raise SolverError(f"[grid]: the contact region (strips where the body interferes with the surface, "
-                              f"X in [{g.x0 + i0 * g.dx:g}, {g.x0 + i1 * g.dx:g}]) reaches the grid edge; "
-                              "enlarge [grid] x or reduce the load")
-        if not g.line and (i0 == 0 or j0 == 0 or i1 == g.nx or j1 == g.ny):
+        if g.line:  # the window may span the grid: only the solved contact must stay inside (solve_load)
+            return i0, i1, j0, j1
+        if i0 == 0 or j0 == 0 or i1 == g.nx or j1 == g.ny:
             raise SolverError(
                 f"[grid]: the contact region (cells where the body interferes with the surface, X in "
                 f"[{g.x0 + i0 * g.dx:g}, {g.x0 + i1 * g.dx:g}], Y in [{g.y0 + j0 * g.dy:g}, "
