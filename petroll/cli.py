@@ -131,7 +131,9 @@ def main(argv: list[str] | None = None) -> int:
 
     import petsc4py
 
-    petsc4py.init([sys.argv[0], *petsc_args])
+    from petroll.solver.pk import command_line
+
+    petsc4py.init([sys.argv[0], *command_line(petsc_args)])
     from mpi4py import MPI
 
     from petroll.errors import PetrollError

@@ -38,3 +38,21 @@ def test_unprefixed_tao_options_do_not_leak_into_petroll(tmp_path):
                    cwd=tmp_path)
     assert done.returncode == 0, done.stderr
     assert "Python: petroll.solver.pk.PolonskyKeer" in done.stdout  # the default, untouched by -tao_type
+
+
+@pytest.mark.serial
+def test_pk_on_the_command_line_and_its_view(tmp_path):
+    """-petroll_tao_type pk reaches TAO as pk's Python type; its view shows its own settings, the
+    preconditioner on by default and off with -petroll_pc_circulant 0, and the monitor the true objective."""
+    scene = str(ROOT / "runs" / "hertz.toml")
+    done = petroll("run", scene, "--out", "on", "-petroll_tao_type", "pk", "-petroll_tao_view",
+                   "-petroll_tao_monitor", cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
+    assert "Polonsky-Keer" in done.stdout and "type: preonly" in done.stdout
+    assert "petroll.solver.precondition.CirculantInverse" in done.stdout and "gmres" not in done.stdout
+    values = [float(line.split("Function value:")[1].split(",")[0]) for line in done.stdout.splitlines()
+              if "Function value:" in line]
+    assert values[0] == 0 and min(values) < 0  # the objective from p = 0 down: real values, not 0.
+    off = petroll("run", scene, "--out", "off", "-petroll_pc_circulant", "0", "-petroll_tao_view", cwd=tmp_path)
+    assert off.returncode == 0, off.stderr
+    assert "preconditioner: none" in off.stdout and "CirculantInverse" not in off.stdout

@@ -5,6 +5,8 @@ import pytest
 from mpi4py import MPI
 
 import petroll
+import petroll.solver.simulation
+from petroll.errors import SolverError
 from petroll.model.bodies import Sphere
 from petroll.solver.contact import ContactSolver
 from petroll.model.grid import Grid
@@ -101,3 +103,23 @@ def test_load_control_needing_a_much_deeper_penetration_redoes_u_on_every_cell(c
     assert boxed[-1].applications > full[-1].applications // 2
     for a, b in zip(boxed, full):
         assert abs(a.force / b.force - 1) < 1e-7 and abs(a.delta / b.delta - 1) < 1e-7
+
+
+def test_a_failing_boxed_attempt_is_not_retried(comm):
+    """Only a load beyond the box's reach redoes the step: a solver failure in the boxed attempt is the
+    step's failure, raised at once (it used to trigger a second full solve)."""
+    base = petroll.load_scene("runs/sphere.toml").replace(
+        {"motion.penetration": None, "motion.load": 0.02, "time.distance": None, "time.end": 0.02,
+         "time.steps_per_cell": None, "time.dt": 0.01, "time.steady": None})
+    sim = petroll.solver.simulation.Simulation(base, comm)
+    sim.step(0.0, 0.0)
+    calls = []
+
+    def failing(*args, **kwargs):
+        calls.append(kwargs.get("reach"))
+        raise SolverError("TAO (pk) did not converge")
+
+    sim.solver.solve_load = failing
+    with pytest.raises(SolverError, match="did not converge"):
+        sim.step(0.01, 0.01)
+    assert len(calls) == 1 and calls[0] is not None and calls[0] < np.inf  # the boxed attempt only

@@ -19,7 +19,9 @@ contact, where delta = (2 J F/pi) (ln(2 L/a) + 1/2) is nearly linear in F; L the
 
 from __future__ import annotations
 
+import atexit
 import math
+import weakref
 from dataclasses import dataclass
 
 import numpy as np
@@ -30,7 +32,8 @@ from petroll.model.grid import Grid
 from petroll.model.scene import DEFAULT_TAO_TYPE, TAO_TYPES
 from petroll.solver.partition import RowPartition, move_rows
 from petroll.solver.influence import influence_operator, shell_matrix
-from petroll.solver.pk import PolonskyKeer
+from petroll.solver.pk import PK_PYTHON_TYPE, PolonskyKeer
+from petroll.solver.precondition import CirculantInverse
 
 @dataclass
 class StepSolution:
@@ -45,6 +48,11 @@ class StepSolution:
     window: tuple[int, int, int, int]  # cells [i0, i1) x [j0, j1) on which the QP was posed
 
 
+class BeyondReach(Exception):
+    """Load control needs a penetration beyond the ``reach`` its heights were computed for (not an error:
+    the caller recomputes the heights for any penetration and solves again)."""
+
+
 class ContactSolver:
     """Solves contact steps on ``grid`` (rows split over ``comm``) with TAO, options prefix ``prefix``.
 
@@ -53,29 +61,35 @@ class ContactSolver:
     """
 
     def __init__(self, grid: Grid, comm: MPI.Comm, tao_type: str = DEFAULT_TAO_TYPE, tol: float = 1e-8,
-                 prefix: str = "petroll_", max_iterations: int = 10000):
+                 prefix: str = "petroll_", max_iterations: int = 10000, precondition: bool = True):
+        from petsc4py import PETSc
+
         self.grid, self.comm, self.tol, self.prefix = grid, comm, tol, prefix
-        self.tao_type, self.max_iterations = self._resolve_type(tao_type, prefix), max_iterations
+        options = PETSc.Options(prefix)  # read once here and when a window shape's TAO is built
+        self.tao_type, self.max_iterations = self._resolve_type(tao_type, prefix, options), max_iterations
+        self.precondition = options.getBool("pc_circulant", precondition)
         self.influence = influence_operator(grid, comm)
         self.rows = RowPartition(grid.nx, comm.size)
         self.r0, self.r1 = self.rows.range(comm.rank)
         self.work = [0, 0]  # TAO iterations and operator applications of every QP solved so far
+        self._qps: dict[tuple[int, int], WindowQP] = {}
+
+    kept = 6
+    """Window shapes whose TAO, shell matrix and vectors are kept (the most recently used)."""
 
     @staticmethod
-    def _resolve_type(tao_type: str, prefix: str) -> str:
-        """The scene's type unless -<prefix>tao_type overrides it. ``pk`` on the command line is spelt for
-        TAO as its Python type: -<prefix>tao_type python -<prefix>tao_python_type petroll.solver.pk.PolonskyKeer."""
-        from petsc4py import PETSc
-
-        options = PETSc.Options(prefix)
+    def _resolve_type(tao_type: str, prefix: str, options) -> str:
+        """The scene's type unless -<prefix>tao_type overrides it. ``pk`` is spelt for TAO as its Python
+        type, -<prefix>tao_type python -<prefix>tao_python_type petroll.solver.pk.PolonskyKeer (the
+        ``petroll`` command translates -<prefix>tao_type pk on its command line: petroll.solver.pk.command_line)."""
         chosen = options.getString("tao_type", tao_type)
-        if chosen == "python" and options.getString("tao_python_type", "") == "petroll.solver.pk.PolonskyKeer":
+        if chosen == "python" and options.getString("tao_python_type", "") == PK_PYTHON_TYPE:
             chosen = "pk"
+        elif chosen == "pk" and options.hasName("tao_type"):
+            raise SolverError(f"-{prefix}tao_type pk: TAO reads this option itself and knows pk only as "
+                              f"-{prefix}tao_type python -{prefix}tao_python_type {PK_PYTHON_TYPE}")
         if chosen not in TAO_TYPES:
             raise SolverError(f"-{prefix}tao_type {chosen}: unknown; allowed: {', '.join(TAO_TYPES)}")
-        if chosen == "pk" and options.hasName("tao_type"):
-            options.setValue("tao_type", "python")
-            options.setValue("tao_python_type", "petroll.solver.pk.PolonskyKeer")
         return chosen
 
     @property
@@ -92,11 +106,15 @@ class ContactSolver:
 
     # -- load control -----------------------------------------------------------------------------------
     def solve_load(self, height: np.ndarray, compliance: float, load: float, radius_hint: float,
-                   delta_guess: float | None = None, warm: np.ndarray | None = None) -> StepSolution:
+                   delta_guess: float | None = None, warm: np.ndarray | None = None,
+                   reach: float = math.inf) -> StepSolution:
         """Pressure and penetration for a total normal force ``load`` (N) > 0.
 
         The first guess is ``delta_guess`` or, without one, Hertz's penetration for a sphere (line contact:
         a cylinder) of radius ``radius_hint`` above the lowest height. Line contact: ``load`` in N/m.
+        ``height`` need only be right for penetrations up to ``reach`` (m): no penetration beyond it is
+        tried, and :class:`BeyondReach` is raised when the force at ``reach`` is still below the load (the
+        force grows with the penetration).
         """
         base = self.comm.allreduce(float(np.min(height, initial=np.inf)), op=MPI.MIN)
         if not load > 0:  # no load: no contact, the body just touches (a pulling load needs adhesion)
@@ -111,7 +129,7 @@ class ContactSolver:
         iterations = applications = 0
         lo = hi = None  # bracketing (delta, phi) pairs with phi < 0 and phi > 0
         previous = None
-        delta = delta_guess
+        delta = min(delta_guess, reach)
         for _ in range(60):
             step = self.solve_penetration(height, compliance, delta, warm)
             iterations += step.iterations
@@ -135,6 +153,10 @@ class ContactSolver:
                 candidate = delta - phi * (delta - previous[0]) / (phi - previous[1])
             if lo is not None and hi is not None and not (lo[0] < candidate < hi[0]):
                 candidate = 0.5 * (lo[0] + hi[0])
+            if candidate > reach:
+                if delta >= reach:
+                    raise BeyondReach(f"the load {load:g} N needs a penetration beyond {reach:g} m")
+                candidate = reach
             previous = (delta, phi)
             delta = candidate
         raise SolverError(f"load control did not reach the load {load:g} N within 60 penetrations "
@@ -154,28 +176,14 @@ class ContactSolver:
         diagonal = self.influence.diagonal
         to_pressure = w_ref / (compliance * diagonal)  # p = to_pressure * p_hat
 
-        conv = self.influence.window(i1 - i0, j1 - j0)
-        inverse = self.influence.window(i1 - i0, j1 - j0, inverse=True) if self.tao_type == "pk" else None
-        hessian = shell_matrix(conv, 1.0 / diagonal, inverse)
-        x, rhs = hessian.createVecs()
-        gap = rhs.duplicate()
-        try:
-            rhs.setArray(-target.ravel() / w_ref)
-            if warm is not None:
-                start = move_rows(warm[:, j0:j1], grid_ranges, window_ranges, comm)
-                x.setArray(np.maximum(start.ravel() / to_pressure, 0.0))
-            else:
-                x.set(0.0)
-            its = self._run_tao(hessian, rhs, x)
-            hessian.mult(x, gap)
-            gap.axpy(1.0, rhs)
-            natural = np.minimum(x.array_r, gap.array_r)
-            residual = comm.allreduce(float(np.abs(natural).max(initial=0.0)), op=MPI.MAX)
-            p_window = np.maximum(x.array_r, 0.0).reshape(-1, j1 - j0) * to_pressure
-            applications = hessian.getPythonContext().applications
-        finally:
-            for obj in (hessian, x, rhs, gap):
-                obj.destroy()
+        qp = self.window_qp(i1 - i0, j1 - j0)
+        start = None
+        if warm is not None:
+            start = move_rows(warm[:, j0:j1], grid_ranges, window_ranges, comm).ravel() / to_pressure
+        x, gap, its, applications = qp.solve(-target.ravel() / w_ref, start)
+        natural = np.minimum(x, gap)
+        residual = comm.allreduce(float(np.abs(natural).max(initial=0.0)), op=MPI.MAX)
+        p_window = np.maximum(x, 0.0).reshape(-1, j1 - j0) * to_pressure
         self.work[0] += its
         self.work[1] += applications
         if not residual <= self.tol:
@@ -209,45 +217,13 @@ class ContactSolver:
         a, b = dst[self.comm.rank]
         out[a - self.r0 : b - self.r0, j0:j1] = move_rows(values, window_ranges, dst, self.comm)
 
-    def _run_tao(self, hessian, rhs, x) -> int:
-        from petsc4py import PETSc
-
-        def objective_gradient(tao, p, grad):
-            hessian.mult(p, grad)
-            grad.axpy(1.0, rhs)
-            return 0.5 * (p.dot(grad) + p.dot(rhs))
-
-        options = PETSc.Options(self.prefix)
-        if not options.hasName("pc_type"):  # Hessian-based types: no preconditioner fits a shell matrix
-            options.setValue("pc_type", "none")
-        tao = PETSc.TAO().create(self.comm)
-        lower, upper, grad = x.duplicate(), x.duplicate(), x.duplicate()
-        try:
-            tao.setOptionsPrefix(self.prefix)
-            if self.tao_type == "pk":
-                tao.setType("python")
-                tao.setPythonContext(PolonskyKeer())
-            else:
-                tao.setType(self.tao_type)
-            tao.setObjectiveGradient(objective_gradient, grad)
-            tao.setHessian(lambda tao, p, H, P: None, hessian, hessian)
-            lower.set(0.0)
-            upper.set(PETSc.INFINITY)
-            tao.setVariableBounds((lower, upper))
-            tao.setTolerances(gatol=self.tol, grtol=0.0, gttol=0.0)
-            tao.setMaximumIterations(self.max_iterations)
-            tao.setMaximumFunctionEvaluations(10 * self.max_iterations)
-            tao.setFromOptions()
-            tao.solve(x)
-            reason, its, kind = tao.getConvergedReason(), tao.getIterationNumber(), tao.getType()
-        finally:
-            for obj in (tao, lower, upper, grad):
-                obj.destroy()
-        if reason < 0:
-            raise SolverError(f"TAO ({kind}) did not converge (reason {_reason_name(reason)} after {its} "
-                              f"iterations); try another -{self.prefix}tao_type, a larger [solver] tol or "
-                              f"-{self.prefix}tao_max_it")
-        return its
+    def window_qp(self, nx: int, ny: int) -> WindowQP:
+        """The kept TAO objects of an nx x ny window, built on first use (the newest last)."""
+        qp = self._qps.pop((nx, ny), None) or WindowQP(self, nx, ny)
+        self._qps[(nx, ny)] = qp
+        while len(self._qps) > self.kept:
+            self._qps.pop(next(iter(self._qps))).destroy()
+        return qp
 
     def _check_inside(self, pressure: np.ndarray) -> None:
         """Line contact: SolverError if the contact (p > 0) reaches an end strip of the grid.
@@ -295,6 +271,106 @@ def hertz_penetration(grid: Grid, compliance: float, load: float, radius: float)
         a = math.sqrt(4 * load * radius * compliance / math.pi)
         return 2 * compliance * load / math.pi * (math.log(2 * grid.datum / a) + 0.5)
     return (3 * compliance * load / (4 * math.sqrt(radius))) ** (2 / 3)
+
+
+KRYLOV_TYPES = ("pk", "tron", "gpcg", "bnls", "bntr", "bntl")
+"""The TAO types whose KSP works on the Hessian (pk only applies its PC): these get the preconditioner.
+bqnls's KSP works on its quasi-Newton matrix instead; bncg and blmvm run none."""
+
+
+class WindowQP:
+    """The contact QP's PETSc objects on one window shape, built once and reused for every QP posed on it:
+    the shell Hessian A / A_00, the right-hand side, solution, gradient and bound (p_hat >= 0) vectors,
+    and the TAO, configured from the options database (prefix ``solver.prefix``) once, when built.
+
+    Types that run a KSP (pk, tron, gpcg, bnls, bntr, bntl) get the inverse-circulant PC
+    (petroll.solver.precondition) unless ``solver.precondition`` is false (-<prefix>pc_circulant 0: PC
+    ``none``) or the options name the KSP's PC (-<KSP prefix>pc_type ...).
+    """
+
+    def __init__(self, solver: ContactSolver, nx: int, ny: int):
+        from petsc4py import PETSc
+
+        influence = solver.influence
+        self.hessian = shell_matrix(influence.window(nx, ny), 1.0 / influence.diagonal)
+        self.x, self.rhs = self.hessian.createVecs()
+        self.grad, self.gap, lower, upper = (self.x.duplicate() for _ in range(4))
+        self.pk = solver.tao_type == "pk"
+        lower.set(0.0)
+        upper.set(PETSc.INFINITY)
+        tao = self.tao = PETSc.TAO().create(solver.comm)
+        tao.setOptionsPrefix(solver.prefix)
+        if self.pk:
+            tao.setType("python")
+            tao.setPythonContext(PolonskyKeer())
+        else:
+            tao.setType(solver.tao_type)
+        tao.setObjectiveGradient(self._objective_gradient, self.grad)
+        tao.setHessian(lambda tao, p, H, P: None, self.hessian, self.hessian)
+        tao.setVariableBounds((lower, upper))
+        tao.setTolerances(gatol=solver.tol, grtol=0.0, gttol=0.0)
+        tao.setMaximumIterations(solver.max_iterations)
+        tao.setMaximumFunctionEvaluations(10 * solver.max_iterations)
+        tao.setFromOptions()
+        tao.setSolution(self.x)
+        tao.setUp()
+        self.kind, self.prefix = tao.getType(), solver.prefix
+        ksp = tao.getKSP()
+        if solver.tao_type in KRYLOV_TYPES and not PETSc.Options(ksp.getOptionsPrefix()).hasName("pc_type"):
+            if solver.precondition:
+                self.hessian.getPythonContext().inverse = influence.window(nx, ny, inverse=True)
+                ksp.getPC().setType("python")
+                ksp.getPC().setPythonContext(CirculantInverse())
+            else:
+                ksp.getPC().setType("none")
+        self._vecs = (lower, upper)
+        if not _LIVE:  # registered after PETSc started: runs before its finalisation
+            atexit.register(_destroy_live)
+        _LIVE.add(self)
+
+    def _objective_gradient(self, tao, p, grad) -> float:
+        """1/2 p^T H p + rhs^T p and its gradient H p + rhs (the scaled gap)."""
+        self.hessian.mult(p, grad)
+        grad.axpy(1.0, self.rhs)
+        return 0.5 * (p.dot(grad) + p.dot(self.rhs))
+
+    def solve(self, rhs: np.ndarray, start: np.ndarray | None):
+        """Solve from ``start`` (p_hat, this rank's window entries; None: 0). Returns p_hat, the gap
+        H p_hat + rhs (local arrays), TAO's iterations and the operator applications."""
+        context = self.hessian.getPythonContext()
+        before = context.applications
+        self.rhs.setArray(rhs)
+        if start is None:
+            self.x.set(0.0)
+        else:
+            self.x.setArray(np.maximum(start, 0.0))
+        self.tao.solve(self.x)
+        reason, its = self.tao.getConvergedReason(), self.tao.getIterationNumber()
+        if reason < 0:
+            why = getattr(self.tao.getPythonContext(), "breakdown", "") if self.pk else ""
+            raise SolverError(f"TAO ({self.kind}) did not converge (reason {_reason_name(reason)} after {its} "
+                              f"iterations{'; ' + why if why else ''}); try another -{self.prefix}tao_type, "
+                              f"a larger [solver] tol or -{self.prefix}tao_max_it")
+        if self.pk:  # pk ends on a freshly computed gradient, left in TAO's gradient vector
+            self.tao.getGradient()[0].copy(self.gap)
+        else:  # other types may keep a projected gradient there
+            self.hessian.mult(self.x, self.gap)
+            self.gap.axpy(1.0, self.rhs)
+        return self.x.array_r.copy(), self.gap.array_r.copy(), its, context.applications - before
+
+    def destroy(self) -> None:
+        for obj in (self.tao, self.hessian, self.x, self.rhs, self.grad, self.gap, *self._vecs):
+            obj.destroy()
+        _LIVE.discard(self)
+
+
+_LIVE: weakref.WeakSet[WindowQP] = weakref.WeakSet()
+"""WindowQPs not yet destroyed: destroyed at exit, while PETSc still runs (later, their callbacks crash it)."""
+
+
+def _destroy_live() -> None:
+    for qp in list(_LIVE):
+        qp.destroy()
 
 
 def _clip(rows: tuple[int, int], i0: int, i1: int) -> tuple[int, int]:

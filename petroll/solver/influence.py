@@ -98,7 +98,7 @@ class Convolution:
     (400 random shapes with dx/dy from 1e-3 to 1e3, all windows up to 8 x 8 and 8 x 256: smallest
     eigenvalue >= 0.08 A_00; this is measured, not proven for a truncated wrap), and is floored at 1e-12
     of its largest value. C^-1 is the preconditioner of the contact QP's conjugate gradients
-    (petroll/pk.py): it undoes A's 1/|k| smoothing, whose spread of scales makes plain conjugate
+    (petroll/solver/precondition.py): it undoes A's 1/|k| smoothing, whose spread of scales makes plain conjugate
     gradients need more iterations as the grid is refined.
     """
 
@@ -260,7 +260,9 @@ class ShellInfluence:
     Vectors hold the window's local rows flattened (index ix * ny + iy). The matrix is symmetric positive
     definite; ``applications`` counts the mults (the operator applications of a solve). With ``inverse``
     (the window's inverse circulant, :class:`Convolution` with inverse=True), ``precondition`` applies an
-    approximate inverse of the matrix (used by petroll/pk.py).
+    approximate inverse of the matrix (the PC of petroll/solver/precondition.py). Principal submatrices
+    (``MatCreateSubMatrix``, as TAO's active-set types take) are
+    :class:`petroll.solver.precondition.RestrictedShell` views of it.
     """
 
     def __init__(self, conv: Convolution, scale: float = 1.0, inverse: Convolution | None = None):
@@ -282,6 +284,11 @@ class ShellInfluence:
 
     def getDiagonal(self, mat, d) -> None:
         d.set(self.conv.diagonal * self.scale)
+
+    def createSubMatrix(self, mat, isrow, iscol, submat):
+        from petroll.solver.precondition import restricted_shell
+
+        return restricted_shell(mat, isrow, iscol, submat)
 
 
 def shell_matrix(conv: Convolution, scale: float = 1.0, inverse: Convolution | None = None):

@@ -1,114 +1,195 @@
 """A Polonsky-Keer constrained conjugate gradient as a TAO Python type (scene/CLI name: ``pk``).
 
-Solves min 1/2 p^T H p + b^T p subject to p >= 0 for a symmetric positive definite H (Polonsky & Keer,
-Wear 1999, displacement-controlled form): conjugate gradients on the cells in contact (p > 0), projection
-onto p >= 0 after each step, and cells with p = 0 and negative gap put back into contact with a
-steepest-descent step (which restarts the conjugacy). The gap g = H p + b comes from TAO's gradient,
-H t from TAO's Hessian matrix, so the type works for any such QP set up on a TAO object.
+Solves min f(x) = 1/2 x^T H x + b^T x + c subject to the variable bounds set on the TAO (lower <= x <=
+upper, any mix of finite and infinite values; none set: unconstrained) for a symmetric positive definite H
+(Polonsky & Keer, Wear 1999, displacement-controlled form, here for two-sided bounds): conjugate gradients
+on the free variables (strictly between their bounds), projection onto the bounds after each step, and
+variables at a bound whose gradient points into the box put back with a steepest-descent step (which,
+like any change of the free set, restarts the conjugacy). f and its gradient come from TAO's
+objective-gradient routine, H t from TAO's Hessian matrix: the type works for any such QP set up on a TAO.
+It ends with TAO's gradient vector holding the gradient at the solution, freshly computed.
 
-Preconditioned when the Hessian is petroll's shell matrix with an inverse circulant
-(:class:`petroll.solver.influence.ShellInfluence`): the search direction is built from z = M g on the contact
-cells, M the inverse of H's circulant approximation on the window (an unpadded FFT pair, about a quarter
-of an application's FFT work), so the iteration count hardly grows with the grid (Hertz, load control:
-29 against 123 iterations at 512^2 cells; docs/benchmarks.md).
+Preconditioned by the PC of the TAO's KSP (KSP type ``preonly``: one PC application per iteration,
+restricted to the free variables; PC type ``none`` by default, options prefix the TAO's). petroll's
+contact solver sets it to the inverse circulant of the window's kernel
+(:class:`petroll.solver.precondition.CirculantInverse`), so the iteration count hardly grows with the grid
+(Hertz, load control: 29 against 123 iterations at 512^2 cells; docs/benchmarks.md).
 
-Cost: one Hessian application per iteration plus one gradient evaluation; once the contact set stops
-changing (no cell clipped or put back) the gap is updated as g - tau H t instead, so late iterations cost
-one application. Stops when the natural residual max |min(p, g)| <= gatol (checked on a freshly computed
-gap), the same measure petroll checks after every solve.
+Cost: one Hessian application per iteration plus one objective-gradient evaluation; once the free set
+stops changing (no variable clipped or put back) the gradient and f are updated exactly for a quadratic
+(g - tau H d, f - tau g.d + tau^2 d.Hd / 2) instead, so late iterations cost one application; the
+gradient is recomputed at least every ``-tao_pk_refresh`` (25) iterations against round-off.
+
+Reports to TAO's monitors each iteration the true objective f and, as the residual, the projected
+gradient x - P(x - g) (P the projection onto the bounds) in the max norm; stops when it is <= gatol
+(checked on a freshly computed gradient): CONVERGED_GATOL. Other reasons: DIVERGED_MAXITS (the iteration
+limit), DIVERGED_MAXFCN (the objective-gradient evaluation limit), DIVERGED_NAN (a non-finite f or
+gradient), DIVERGED_USER (a search direction of zero or negative curvature, d^T H d <= 0: H is not
+positive definite; the context's ``breakdown`` says so in words).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+PK_PYTHON_TYPE = "petroll.solver.pk.PolonskyKeer"
+"""pk's name for TAO: -<prefix>tao_type python -<prefix>tao_python_type petroll.solver.pk.PolonskyKeer."""
+
+
+def command_line(args: list[str]) -> list[str]:
+    """PETSc command-line arguments with every ``-<prefix>tao_type pk`` spelt as TAO knows pk (above)."""
+    out = []
+    for arg in args:
+        if arg == "pk" and out and out[-1].endswith("tao_type") and out[-1].startswith("-"):
+            out += ["python", f"{out[-1][:-len('type')]}python_type", PK_PYTHON_TYPE]
+        else:
+            out.append(arg)
+    return out
+
 
 class PolonskyKeer:
-    """Context of a TAO of type ``python``: ``tao.setType("python"); tao.setPythonContext(PolonskyKeer())``."""
+    """Context of a TAO of type ``python``: ``tao.setType("python"); tao.setPythonContext(PolonskyKeer())``
+    (or ``-tao_type python -tao_python_type petroll.solver.pk.PolonskyKeer``)."""
 
-    refresh = 25  # recompute the gap from scratch at least this often (round-off of the cheap update)
+    def __init__(self):
+        self.refresh = 25  # recompute the gradient from scratch at least this often (-tao_pk_refresh)
+        self.breakdown = ""  # why the last solve stopped with DIVERGED_USER, in words
+
+    def setFromOptions(self, tao) -> None:
+        """-<prefix>tao_pk_refresh N; the KSP (prefix the TAO's) is ``preonly`` and its PC ``none`` unless
+        -<prefix>ksp_type / -<prefix>pc_type say otherwise."""
+        from petsc4py import PETSc
+
+        prefix = tao.getOptionsPrefix() or ""
+        self.refresh = PETSc.Options(prefix).getInt("tao_pk_refresh", self.refresh)
+        ksp = tao.getKSP()
+        ksp.setOptionsPrefix(prefix)
+        if ksp.getType() != "preonly" and not PETSc.Options(prefix).hasName("ksp_type"):
+            ksp.setType("preonly")
+        if not PETSc.Options(prefix).hasName("pc_type") and ksp.getPC().getType() is None:
+            ksp.getPC().setType("none")
+        ksp.setFromOptions()
+
+    def view(self, tao, viewer) -> None:
+        pc = tao.getKSP().getPC()
+        lines = ["Polonsky-Keer conjugate gradients projected onto the variable bounds",
+                 f"preconditioner: {pc.getType() or 'none'} (the KSP's PC below, applied once per iteration "
+                 "to the free variables' gradient)",
+                 "restart: conjugacy restarted whenever a variable reaches or leaves a bound; gradient "
+                 f"recomputed at least every {self.refresh} iterations (-tao_pk_refresh)",
+                 "step: exact minimiser along each direction, then projection (no line search: the "
+                 "TaoLineSearch below is petsc4py's default for Python types and unused)",
+                 "residual: max norm of the projected gradient x - P(x - g)"]
+        for line in lines:
+            viewer.printfASCII(f"  {line}\n")
 
     def solve(self, tao) -> None:
         from mpi4py import MPI
         from petsc4py import PETSc
 
-        p = tao.getSolution()
+        Reason = PETSc.TAO.Reason
+        x = tao.getSolution()
         hessian = tao.getHessian()[0]
-        comm = p.getComm().tompi4py()
+        comm = x.getComm().tompi4py()
         gatol = tao.getTolerances()[0]
-        max_it = tao.getMaximumIterations()
-        g, t, r = p.duplicate(), p.duplicate(), p.duplicate()
-        p.setArray(np.maximum(p.array_r, 0.0))
-        precondition = getattr(hessian.getPythonContext() if hessian.getType() == "python" else None,
-                               "precondition", lambda x: x)
+        max_it, max_fev = tao.getMaximumIterations(), tao.getMaximumFunctionEvaluations()
+        lo, hi = self._bounds(tao, x)
+        pc = tao.getKSP().getPC()
+        if pc.getType() not in (None, "none"):
+            pc.setOperators(hessian, hessian)
+            pc.setUp()
+        g = tao.getGradient()[0]  # left holding the gradient at the solution
+        own = [] if g.handle else [x.duplicate()]  # none given to TAO: a vector of its own
+        g = own[0] if own else g
+        d, hd, r, z = (x.duplicate() for _ in range(4))
+        x.setArray(np.clip(x.array_r, lo, hi))
+        self.breakdown = ""
 
-        def gap():
-            tao.computeGradient(p, g)
+        def total(value) -> float:
+            return comm.allreduce(float(value))
 
-        def residual() -> float:
-            local = np.abs(np.minimum(p.array_r, g.array_r)).max(initial=0.0)
-            return comm.allreduce(float(local), op=MPI.MAX)
+        evaluations = 0
 
-        gap()
-        fresh = True
-        previous_gz, conjugate, its = 1.0, False, 0
-        reason = PETSc.TAO.Reason.DIVERGED_MAXITS
+        def evaluate() -> float:
+            nonlocal evaluations
+            evaluations += 1
+            return tao.computeObjectiveGradient(x, g)
+
+        f = evaluate()
+        fresh, conjugate, previous_gz, its, step = True, False, 1.0, 0, 0.0
         while True:
-            res = residual()
+            xa, ga = x.array_r, g.array_r
+            projected = xa - np.clip(xa - ga, lo, hi)
+            res = comm.allreduce(float(np.abs(projected).max(initial=0.0)), op=MPI.MAX)
             if res <= gatol and not fresh:
-                gap()  # confirm on an exact gap
-                fresh, res = True, residual()
+                f, fresh = evaluate(), True  # confirm on an exact gradient
+                continue
             tao.setIterationNumber(its)
-            tao.monitor(its, 0.0, res, 0.0, 0.0)
-            if res <= gatol:
-                reason = PETSc.TAO.Reason.CONVERGED_GATOL
-                break
-            if its >= max_it:
+            tao.monitor(its, f, res, 0.0, step)
+            if not (np.isfinite(f) and np.isfinite(res)):
+                reason = Reason.DIVERGED_NAN
+            elif res <= gatol:
+                reason = Reason.CONVERGED_GATOL
+            elif its >= max_it:
+                reason = Reason.DIVERGED_MAXITS
+            elif 0 <= max_fev <= evaluations:  # a negative limit: none
+                reason = Reason.DIVERGED_MAXFCN
+            else:
+                reason = Reason.CONTINUE_ITERATING
+            if reason != Reason.CONTINUE_ITERATING:
                 break
             its += 1
-            pa, ga = p.array_r, g.array_r
-            contact = pa > 0
-            if not comm.allreduce(bool(contact.any()), op=MPI.LOR):
-                self._first_step(p, g, t, r, hessian)  # nothing in contact yet: steepest descent
-                gap()
-                fresh, conjugate = True, False
-                continue
-            gc = np.where(contact, ga, 0.0)
-            z = np.where(contact, precondition(gc), 0.0)  # the preconditioned gap on the contact cells
-            gz = comm.allreduce(float(np.dot(gc, z)))
-            beta = gz / previous_gz if conjugate else 0.0
-            t.setArray(np.where(contact, z + beta * t.array_r, 0.0))
-            previous_gz = gz
-            hessian.mult(t, r)
-            ta, ra = t.array_r, r.array_r
-            num = comm.allreduce(float(np.dot(ga[contact], ta[contact])))
-            den = comm.allreduce(float(np.dot(ra[contact], ta[contact])))
-            if den <= 0:
+            free = (xa > lo) & (xa < hi)
+            gf = np.where(free, ga, 0.0)
+            steepest = not total(np.dot(gf, gf)) > 0
+            if not steepest:  # conjugate gradients on the free variables
+                r.setArray(gf)
+                if pc.getType() in (None, "none"):
+                    r.copy(z)
+                else:
+                    pc.apply(r, z)
+                za = np.where(free, z.array_r, 0.0)
+                gz = total(np.dot(gf, za))
+                beta = gz / previous_gz if conjugate else 0.0
+                d.setArray(np.where(free, za + beta * d.array_r, 0.0))
+                previous_gz = gz
+            else:  # nothing free, or a stationary free part: projected steepest descent
+                d.setArray(projected)
+            hessian.mult(d, hd)
+            da, hda = d.array_r, hd.array_r
+            gd, dhd = total(np.dot(ga, da)), total(np.dot(da, hda))
+            if not dhd > 0:
+                reason = Reason.DIVERGED_NAN if not np.isfinite(dhd) else Reason.DIVERGED_USER
+                self.breakdown = (f"breakdown at iteration {its}: d^T H d = {dhd:.3g} along a search direction "
+                                  "(the Hessian is not positive definite)")
                 break
-            tau = num / den
-            new = pa - tau * ta
-            clipped = new < 0
-            new[clipped] = 0.0
-            reenter = (new == 0) & (ga < 0)
-            new[reenter] -= tau * ga[reenter]
+            step = gd / dhd
+            new = np.clip(xa - step * da, lo, hi)
+            clipped = (new != xa - step * da)
+            reenter = ((new <= lo) & (ga < 0)) | ((new >= hi) & (ga > 0))
+            new[reenter] = np.clip(new[reenter] - step * ga[reenter], lo[reenter], hi[reenter])
             changed = comm.allreduce(bool(clipped.any() or reenter.any()), op=MPI.LOR)
-            p.setArray(new)
-            conjugate = not changed
+            x.setArray(new)
+            conjugate = not (changed or steepest)
             if changed or its % self.refresh == 0:
-                gap()
-                fresh = True
-            else:
-                g.axpy(-tau, r)  # exact for an unchanged contact set, up to round-off
+                f, fresh = evaluate(), True
+            else:  # exact for a quadratic and an unchanged free set, up to round-off
+                f += -step * gd + 0.5 * step * step * dhd
+                g.axpy(-step, hd)
                 fresh = False
         tao.setIterationNumber(its)
         tao.setConvergedReason(reason)
-        for v in (g, t, r):
+        for v in (d, hd, r, z, *own):
             v.destroy()
 
     @staticmethod
-    def _first_step(p, g, d, hd, hessian) -> None:
-        """p = alpha max(-g, 0), alpha the exact minimiser along that direction."""
-        d.setArray(np.maximum(-g.array_r, 0.0))
-        hessian.mult(d, hd)
-        dd, dhd = d.dot(d), d.dot(hd)
-        p.setArray(d.array_r * (dd / dhd if dhd > 0 else 0.0))
+    def _bounds(tao, x) -> tuple[np.ndarray, np.ndarray]:
+        """This rank's lower and upper bounds (infinite where TAO has none)."""
+        n = x.getLocalSize()
+        lower, upper = tao.getVariableBounds()
+        lo = lower.array_r.copy() if lower is not None and lower.handle else np.full(n, -np.inf)
+        hi = upper.array_r.copy() if upper is not None and upper.handle else np.full(n, np.inf)
+        # PETSc's infinity (PETSC_INFINITY, PETSC_NINFINITY) is finite in floating point: make it infinite
+        lo[lo <= -1e300] = -np.inf
+        hi[hi >= 1e300] = np.inf
+        return lo, hi

@@ -18,8 +18,8 @@ from dataclasses import dataclass
 import numpy as np
 from mpi4py import MPI
 
-from petroll.solver.contact import ContactSolver
-from petroll.errors import SceneError, SolverError
+from petroll.solver.contact import BeyondReach, ContactSolver
+from petroll.errors import SceneError
 from petroll.solver.history import make_history
 from petroll.model.scene import Scene
 from petroll.solver.wake import Wake
@@ -167,18 +167,17 @@ class Simulation:
 
     def _solve_load(self, profile, v, compliance: float, load: float, warm):
         """The step under load control. With a history, u is first computed on the box for a penetration
-        up to 1.5 times the previous step's; if the load needs more (or a trial penetration beyond it
-        reaches cells where u was not computed), the step is solved again with u on every cell."""
+        up to 1.5 times the previous step's, and no penetration beyond that is tried; only if the load
+        needs more is the step solved again with u on every cell (the first attempt's work counted too).
+        Any other failure is the step's failure."""
         solver, radius = self.solver, self.scene.body.radius_hint
         previous = self.records[-1].delta if self.records else None
         if v is not None and previous and previous > 0:
             reach = 1.5 * previous
             height = profile + self.wake.displacement(v, profile, reach)
             try:
-                solution = solver.solve_load(height, compliance, load, radius, previous, warm)
-                if solution.delta <= reach:
-                    return solution
-            except SolverError:
+                return solver.solve_load(height, compliance, load, radius, previous, warm, reach=reach)
+            except BeyondReach:
                 pass
         height = profile if v is None else profile + self.wake.displacement(v, profile, np.inf)
         return solver.solve_load(height, compliance, load, radius, previous, warm)

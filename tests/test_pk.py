@@ -1,0 +1,158 @@
+"""pk as a TAO solver like any other: random SPD bound-constrained QPs (dense PETSc matrices) against a
+dense primal-dual active-set solver written here; what it reports to TAO's monitors; its stop reasons."""
+
+import numpy as np
+import pytest
+from petsc4py import PETSc
+
+from petroll.solver.pk import PolonskyKeer
+
+N = 60
+
+
+def random_qp(seed: int, bounds: str):
+    """H = Q Q^T / n + I/2 (SPD), b, and bounds of the given kind: 'finite' (l < u, some l = u),
+    'infinite' (none: -inf, +inf), 'mixed' (each variable's bounds drawn from -inf/finite/+inf), 'none'
+    (no bounds set on the TAO at all)."""
+    rng = np.random.default_rng(seed)
+    q = rng.standard_normal((N, N))
+    h = q @ q.T / N + 0.5 * np.eye(N)
+    b = 2 * rng.standard_normal(N)
+    lo, hi = np.full(N, -np.inf), np.full(N, np.inf)
+    if bounds == "finite":
+        lo = rng.uniform(-1.0, 0.0, N)
+        hi = lo + rng.uniform(0.0, 1.5, N)
+        hi[:3] = lo[:3]  # fixed variables
+    elif bounds == "mixed":
+        kind = rng.integers(0, 4, N)  # 0: free, 1: lower only, 2: upper only, 3: both
+        lo = np.where((kind == 1) | (kind == 3), rng.uniform(-0.5, 0.5, N), -np.inf)
+        hi = np.where((kind == 2) | (kind == 3), rng.uniform(-0.5, 0.5, N), np.inf)
+        hi = np.where(kind == 3, np.maximum(hi, lo + 0.1), hi)
+    return h, b, lo, hi
+
+
+def active_set_oracle(h, b, lo, hi):
+    """min 1/2 x.Hx + b.x on lo <= x <= hi by a primal-dual active-set (semismooth Newton) method: guess
+    which variables sit at which bound from x - (Hx + b), solve the free ones exactly, repeat until the
+    guess repeats. Dense, independent of pk; its KKT conditions are checked by the caller."""
+    x = np.clip(np.zeros(len(b)), lo, hi)
+    previous = None
+    for _ in range(200):
+        trial = x - (h @ x + b)
+        at_lo, at_hi = trial <= lo, trial >= hi
+        key = (at_lo.tobytes(), at_hi.tobytes())
+        if key == previous:
+            return x
+        previous = key
+        free = ~(at_lo | at_hi)
+        x = np.where(at_lo, lo, np.where(at_hi, hi, 0.0))
+        fixed = ~free
+        x[free] = np.linalg.solve(h[np.ix_(free, free)], -b[free] - h[np.ix_(free, fixed)] @ x[fixed])
+    raise AssertionError("the active-set oracle cycled")
+
+
+def natural_residual(h, b, x, lo, hi):
+    return np.abs(x - np.clip(x - (h @ x + b), lo, hi)).max()
+
+
+@pytest.fixture
+def taos():
+    """TAOs made by a test, destroyed after it (one still alive when PETSc finalises crashes it)."""
+    made = []
+    yield made
+    for tao in made:
+        tao.destroy()
+
+
+def dense_tao(comm, h, b, lo, hi, gatol=1e-13, max_it=10000, set_bounds=True, made=None):
+    """A pk TAO on the dense QP (rows split over comm) and its solution Vec; the TAO appended to made."""
+    mat = PETSc.Mat().createDense([(PETSc.DECIDE, N), (PETSc.DECIDE, N)], comm=comm)
+    mat.setUp()
+    r0, r1 = mat.getOwnershipRange()
+    mat.setValues(np.arange(r0, r1, dtype=PETSc.IntType), np.arange(N, dtype=PETSc.IntType), h[r0:r1])
+    mat.assemble()
+    x, rhs = mat.createVecs()
+    rhs.setArray(b[r0:r1])
+
+    def objective_gradient(tao, p, grad):
+        mat.mult(p, grad)
+        grad.axpy(1.0, rhs)
+        return 0.5 * (p.dot(grad) + p.dot(rhs))
+
+    tao = PETSc.TAO().create(comm)
+    tao.setOptionsPrefix("pktest_")
+    tao.setType("python")
+    tao.setPythonContext(PolonskyKeer())
+    tao.setObjectiveGradient(objective_gradient, x.duplicate())
+    tao.setHessian(lambda tao, p, H, P: None, mat, mat)
+    if set_bounds:
+        lower, upper = x.duplicate(), x.duplicate()
+        lower.setArray(np.where(np.isfinite(lo), lo, PETSc.NINFINITY)[r0:r1])
+        upper.setArray(np.where(np.isfinite(hi), hi, PETSc.INFINITY)[r0:r1])
+        tao.setVariableBounds((lower, upper))
+    tao.setTolerances(gatol=gatol, grtol=0.0, gttol=0.0)
+    tao.setMaximumIterations(max_it)
+    tao.setFromOptions()
+    x.set(0.0)
+    made.append(tao)
+    return tao, x, (r0, r1)
+
+
+@pytest.mark.parametrize("bounds", ["finite", "infinite", "mixed", "none"])
+@pytest.mark.parametrize("seed", [1, 2])
+def test_pk_agrees_with_a_dense_active_set_solver(comm, taos, bounds, seed):
+    h, b, lo, hi = random_qp(seed, bounds)
+    reference = active_set_oracle(h, b, lo, hi)
+    assert natural_residual(h, b, reference, lo, hi) <= 1e-12  # the oracle solved its KKT conditions
+    if bounds != "infinite" and bounds != "none":
+        assert np.count_nonzero((reference == lo) | (reference == hi)) >= 5  # bounds really are active
+    tao, x, _ = dense_tao(comm, h, b, lo, hi, set_bounds=bounds != "none", made=taos)
+    reported = []
+
+    def monitor(tao):
+        its, f, res = tao.getSolutionStatus()[:3]
+        full = np.concatenate(comm.allgather(tao.getSolution().array_r.copy()))
+        reported.append((its, f, res, 0.5 * full @ h @ full + b @ full, natural_residual(h, b, full, lo, hi)))
+
+    tao.setMonitor(monitor)
+    tao.solve(x)
+    assert tao.getConvergedReason() == PETSc.TAO.Reason.CONVERGED_GATOL
+    ours = np.concatenate(comm.allgather(x.array_r.copy()))
+    assert np.abs(ours - reference).max() <= 1e-10 * max(1.0, np.abs(reference).max())
+    # every monitor line: the true objective and projected-gradient (natural) residual at that iterate
+    assert [r[0] for r in reported] == list(range(len(reported))) and len(reported) >= 3
+    for its, f, res, true_f, true_res in reported:
+        assert f == pytest.approx(true_f, rel=1e-10, abs=1e-12)
+        assert res == pytest.approx(true_res, rel=1e-8, abs=1e-14)
+    assert reported[-1][1] < reported[0][1]
+    # it ends with TAO's gradient vector holding the exact gradient at the solution
+    gradient = np.concatenate(comm.allgather(tao.getGradient()[0].array_r.copy()))
+    assert np.abs(gradient - (h @ ours + b)).max() <= 1e-12 * np.abs(b).max()
+
+
+def test_pk_stop_reasons_mean_what_they_say(comm, taos):
+    h, b, lo, hi = random_qp(3, "mixed")
+    tao, x, _ = dense_tao(comm, h, b, lo, hi, max_it=2, made=taos)
+    tao.solve(x)
+    assert tao.getConvergedReason() == PETSc.TAO.Reason.DIVERGED_MAXITS and tao.getIterationNumber() == 2
+
+    tao, x, _ = dense_tao(comm, -np.eye(N), b, lo, hi, made=taos)  # negative definite: curvature d.Hd < 0
+    tao.solve(x)
+    assert tao.getConvergedReason() == PETSc.TAO.Reason.DIVERGED_USER
+    assert "not positive definite" in tao.getPythonContext().breakdown
+
+
+def test_pk_view_shows_its_own_settings(comm, taos, tmp_path):
+    h, b, lo, hi = random_qp(4, "finite")
+    tao, x, _ = dense_tao(comm, h, b, lo, hi, made=taos)
+    tao.solve(x)
+    path = comm.bcast(str(tmp_path / "view.txt"))
+    viewer = PETSc.Viewer().createASCII(path, comm=comm)
+    tao.view(viewer)
+    viewer.destroy()
+    if comm.rank == 0:
+        text = open(path).read()
+        assert "Polonsky-Keer" in text and "preconditioner: none" in text and "restart:" in text
+        assert "type: preonly" in text and "type: none" in text  # its KSP only applies its PC
+        assert "gmres" not in text and "ilu" not in text and "bjacobi" not in text
+        assert "converged" in text
