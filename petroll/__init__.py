@@ -32,6 +32,7 @@ _PUBLIC = {
     "load_scene": "petroll.model.scene",
     "parse_scene": "petroll.model.scene",
     "run": "petroll.driver",
+    "stress": "petroll.driver",
 }
 
 __all__ = [*_PUBLIC, "__version__"]

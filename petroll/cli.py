@@ -6,6 +6,8 @@
     petroll stability [--fast] [--out DIR]   the stability map (docs/stability.md): CSV and Markdown in DIR
     petroll plot DIR [--out PLOTS] [--times T1,T2,...]   PNG figures of DIR/results.h5 (needs matplotlib)
     petroll sweep SCENE.toml --vary KEY=SPEC [--out DIR]   one scene over values of a key (docs/sweep.md)
+    petroll stress DIR [--step N] [--depth z1,z2,... | --depths auto] [--nu NU]   stresses below a saved
+                            pressure field: DIR/stress.h5 and DIR/stress.png
 
 Options that argparse does not know are handed to PETSc's options database. A user mistake (bad scene,
 unreachable load, solver failure) prints one line ``petroll: error: ...`` and exits with status 2 (a bad
@@ -19,6 +21,7 @@ and exits with 128 + the signal number (143, 130); docs/checkpoints.md.
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import sys
 import time
@@ -79,7 +82,28 @@ def _parser() -> argparse.ArgumentParser:
     plot.add_argument("--out", help="directory for the PNG files (default: DIR/plots)")
     plot.add_argument("--times", type=_seconds, help="comma-separated times in s: draw the saved pressure "
                       "fields nearest to them (default: up to 4 spread over the run)")
+    stress = verbs.add_parser("stress", help="the stresses below a saved pressure field: DIR/stress.h5 and "
+                              "DIR/stress.png (docs/results.md)")
+    stress.add_argument("dir", help="a run's output directory (holding results.h5)")
+    stress.add_argument("--step", type=int, help="the step whose saved pressure field to use (default: the "
+                        "last saved)")
+    depth = stress.add_mutually_exclusive_group()
+    depth.add_argument("--depth", type=_depths, help="comma-separated depths below the surface in m, e.g. "
+                       "0,1e-4,2e-4")
+    depth.add_argument("--depths", choices=["auto"], help="auto (the default): 41 depths from 0 to twice "
+                       "the contact's smaller half-width")
+    stress.add_argument("--nu", type=float, help="Poisson's ratio (default: the scene's [material] nu)")
     return parser
+
+
+def _depths(text: str) -> list[float]:
+    try:
+        values = [float(item) for item in text.split(",") if item.strip()]
+    except ValueError:
+        values = []
+    if not values or not all(math.isfinite(v) and v >= 0 for v in values):
+        raise argparse.ArgumentTypeError(f"expected comma-separated depths >= 0 in m, got {text!r}")
+    return values
 
 
 def _ranks(text: str) -> tuple[int, ...]:
@@ -248,6 +272,8 @@ def _main(args: argparse.Namespace, comm) -> int:
         from petroll.studies.sweep import command
 
         return command(args.scene, args.vary, args.out, args.quiet, comm)
+    if args.verb == "stress":
+        return _stress(args, comm)
     if args.verb == "stability":
         from petroll.studies.stability import command
 
@@ -274,6 +300,31 @@ def _main(args: argparse.Namespace, comm) -> int:
         return exc.exit_code
     if comm.rank == 0:
         print(summary(scene, results, wall=time.perf_counter() - start))
+    return 0
+
+
+def _stress(args: argparse.Namespace, comm) -> int:
+    """``petroll stress``: every rank computes its rows; rank 0 draws stress.png and prints the maxima."""
+    from petroll.driver import stress
+    from petroll.errors import PetrollError
+
+    found = stress(args.dir, args.step, args.depth if args.depth is not None else args.depths, args.nu, comm)
+    if comm.rank == 0:
+        from petroll.plot import plot_stress
+
+        try:
+            drawn = f" and {plot_stress(found.path)}"
+        except PetrollError as exc:
+            drawn = f" (no figure: {exc})"
+        z = found.z
+        print(f"petroll: stresses below step {found.step} (t = {found.t:.4g} s, nu = {found.nu:g}, peak "
+              f"pressure {found.p_max:.6g} Pa) at {len(z)} depth{'s' * (len(z) != 1)} from {z[0]:.4g} to "
+              f"{z[-1]:.4g} m: "
+              f"max von Mises {found.von_mises_max:.6g} Pa at (x, y, z) = "
+              f"({', '.join(f'{v:.4g}' for v in found.von_mises_at)}) m, max shear (Tresca) "
+              f"{found.max_shear_max:.6g} Pa at ({', '.join(f'{v:.4g}' for v in found.max_shear_at)}) m. "
+              f"Wrote {found.path}{drawn}")
+    comm.Barrier()  # the others wait for the figure: a next collective call finds them in step
     return 0
 
 

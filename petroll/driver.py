@@ -1,5 +1,6 @@
 """Run a scene to its end with its files: the time loop of :mod:`petroll.solver` with the results and
-checkpoints of :mod:`petroll.io` (``petroll.run`` and ``petroll run``).
+checkpoints of :mod:`petroll.io` (``petroll.run`` and ``petroll run``); and the stresses below a saved
+pressure field (``petroll.stress`` and ``petroll stress``).
 
 All functions are collective over ``comm``: every rank calls them with the same scene.
 """
@@ -11,10 +12,12 @@ import os
 import pathlib
 import sys
 import time as clock
+from dataclasses import dataclass
 
 import numpy as np
 from mpi4py import MPI
 
+from petroll.errors import PetrollError
 from petroll.io.checkpoint import RunInterrupted, checkpoint_dir, write_checkpoint
 from petroll.io.results import OutputError, Results, write_results
 from petroll.model.scene import Scene
@@ -121,3 +124,120 @@ def _show_progress(scene: Scene, r: StepRecord, wall: float) -> None:
           f"mu_r {r.mu_r:+.4e}  left ~{left:.0f} s   ", end="", file=sys.stderr, flush=True)
 
 
+
+
+AUTO_DEPTHS = 41
+"""Depths of ``depths="auto"``: 0 to twice the contact's smaller half-width, evenly spaced (a/20 apart)."""
+
+
+@dataclass(frozen=True)
+class StressSummary:
+    """What ``petroll stress`` computed: stress.h5's path and the maxima over the depths computed.
+
+    Locations are (x, y, z) in m (x, y in the material frame, z the depth); stresses in Pa."""
+
+    path: pathlib.Path
+    step: int
+    t: float  # s
+    z: np.ndarray  # depths, m
+    nu: float
+    von_mises_max: float
+    von_mises_at: tuple[float, float, float]
+    max_shear_max: float  # Tresca: half the largest principal stress difference
+    max_shear_at: tuple[float, float, float]
+    p_max: float  # the surface pressure's peak, Pa
+
+
+def stress(run_dir: str | pathlib.Path, step: int | None = None, depths=None, nu: float | None = None,
+           comm: MPI.Comm = MPI.COMM_WORLD) -> StressSummary:
+    """The stresses below the pressure saved at ``step`` (None: the last saved field) of the run in
+    ``run_dir``, written to ``run_dir/stress.h5`` (layout: petroll/io/stress.py, docs/results.md).
+
+    ``depths``: the depths z >= 0 in m, or None / "auto" (0 to twice the contact's smaller half-width, 41
+    depths). ``nu``: Poisson's ratio, default the scene's [material] nu (a constant nu makes the stresses of a
+    viscoelastic half-space the elastic ones of the current pressure). Collective over ``comm`` (rows split);
+    returns the same summary on every rank.
+    """
+    import tomllib
+
+    from petroll.io.stress import read_saved_pressure, write_stress
+    from petroll.solver.stress import SubsurfaceStress, max_shear, von_mises
+
+    run_dir = pathlib.Path(run_dir)
+    path = run_dir / "results.h5"
+    if not path.is_file():
+        raise PetrollError(f"{path}: no results file (is {run_dir} the output directory of a run?)")
+    saved = read_saved_pressure(path, step, comm)
+    raw = tomllib.loads(saved["scene"])
+    nu = _poisson_ratio(raw, nu)
+    x, y, p = saved["x"], saved["y"], saved["pressure"]
+    g = raw["grid"]
+    dx, dy = (g["x"][1] - g["x"][0]) / g["nx"], (g["y"][1] - g["y"][0]) / g["ny"]
+    r0, r1 = saved["rows"]
+    z = _depths(depths, p, x[r0:r1], y, dx, dy, saved["step"], comm)
+    solver = SubsurfaceStress(len(x), len(y), dx, dy, nu, comm)
+    best = {"von_mises": (-1.0, (0.0, 0.0, 0.0)), "max_shear": (-1.0, (0.0, 0.0, 0.0))}
+
+    def fields():
+        for depth in z:
+            s = solver.at(p, float(depth))
+            out = np.concatenate([s, von_mises(s)[None], max_shear(s)[None]])
+            for name, field in (("von_mises", out[6]), ("max_shear", out[7])):
+                if field.size:
+                    i, j = np.unravel_index(int(np.argmax(field)), field.shape)
+                    if field[i, j] > best[name][0]:
+                        best[name] = (float(field[i, j]), (float(x[r0 + i]), float(y[j]), float(depth)))
+            yield out
+
+    d = np.array([saved["sx"][-1] - saved["sx"][0], saved["sy"][-1] - saved["sy"][0]])
+    attrs = {"step": saved["step"], "t": saved["t"], "nu": nu, "source": str(path),
+             "motion_axis": "y" if abs(d[1]) > abs(d[0]) else "x"}
+    target = run_dir / "stress.h5"
+
+    top = {}
+
+    def attributes() -> dict:  # collective: the maxima over all ranks (ties: the lowest rank's first)
+        for name, value in best.items():
+            top[name] = max(comm.allgather(value), key=lambda v: v[0])
+        return {**attrs, **{f"{name}_max": value for name, (value, _) in top.items()},
+                **{f"{name}_at": np.array(at) for name, (_, at) in top.items()}}
+
+    write_stress(target, z, x, y, fields(), attributes, comm)
+    p_max = comm.allreduce(float(p.max(initial=0.0)), op=MPI.MAX)
+    return StressSummary(target, saved["step"], saved["t"], z, nu, top["von_mises"][0], top["von_mises"][1],
+                         top["max_shear"][0], top["max_shear"][1], p_max)
+
+
+def _poisson_ratio(raw: dict, nu: float | None) -> float:
+    """Poisson's ratio for the stresses: ``nu`` if given, else the scene's [material] nu (checked)."""
+    if nu is None:
+        nu = raw.get("material", {}).get("nu")
+        if nu is None:
+            raise PetrollError("[material] nu: the run's scene gives no Poisson's ratio (a tabulated J); the "
+                               "stresses need one: give --nu (-1 < nu <= 0.5)")
+    if isinstance(nu, bool) or not isinstance(nu, (int, float)) or not -1 < nu <= 0.5:
+        raise PetrollError(f"--nu {nu!r}: Poisson's ratio must be a number with -1 < nu <= 0.5")
+    return float(nu)
+
+
+def _depths(depths, p: np.ndarray, x: np.ndarray, y: np.ndarray, dx: float, dy: float, step: int,
+            comm: MPI.Comm) -> np.ndarray:
+    """The depths (m, sorted) for :func:`stress`: the given ones (each finite, >= 0), or for None / "auto"
+    ``AUTO_DEPTHS`` from 0 to twice the smaller half-width of the contact (cells with p > 0, all ranks)."""
+    if depths is not None and not (isinstance(depths, str) and depths == "auto"):
+        if isinstance(depths, str):
+            raise PetrollError(f"--depths {depths!r}: only 'auto' is allowed (or give --depth z1,z2,...)")
+        z = np.asarray(depths, dtype=float).ravel()
+        if z.size == 0 or not np.all(np.isfinite(z)) or np.any(z < 0):
+            raise PetrollError(f"--depth {','.join(f'{v:g}' for v in z)}: depths must be finite numbers >= 0 "
+                               "(m, below the surface)")
+        return np.unique(z)
+    ix, iy = np.nonzero(p > 0)
+    lo, hi = np.full(2, np.inf), np.full(2, -np.inf)
+    comm.Allreduce(np.array([x[ix].min(), y[iy].min()]) if ix.size else lo.copy(), lo, op=MPI.MIN)
+    comm.Allreduce(np.array([x[ix].max(), y[iy].max()]) if ix.size else hi.copy(), hi, op=MPI.MAX)
+    if not np.all(np.isfinite(lo)):
+        raise PetrollError(f"step {step}: no contact (the pressure is 0 everywhere), so --depths auto has no "
+                           "contact size to go by; give --depth z1,z2,... (m)")
+    half = min((hi[0] - lo[0] + dx) / 2, (hi[1] - lo[1] + dy) / 2)
+    return np.linspace(0.0, 2 * half, AUTO_DEPTHS)

@@ -524,3 +524,75 @@ def _secondary_axis(x: np.ndarray, v: np.ndarray, logx: bool):
         return np.exp(r) if logx else r
 
     return forward, inverse
+
+
+def plot_stress(stress_path: str | pathlib.Path, out: str | pathlib.Path | None = None) -> pathlib.Path:
+    """Write stress.png (default: next to ``stress_path``) for a stress.h5 of ``petroll stress``: for the
+    von Mises stress and the maximum shear stress, a section along the motion through the maximum (depth
+    downwards) and a map at the maximum's depth, zoomed on where the stress exceeds 10 % of its maximum."""
+    from petroll.io.stress import stress_planes
+
+    stress_path = pathlib.Path(stress_path)
+    try:
+        import matplotlib  # noqa: F401
+    except ImportError:
+        raise PetrollError("stress.png needs matplotlib: pip install matplotlib") from None
+    figure = _figure(11.0, 8.0)
+    axes = figure.subplots(2, 2, squeeze=False)
+    for row, (name, title) in enumerate((("von_mises", "von Mises"),
+                                          ("max_shear", "max shear (Tresca)"))):
+        planes = stress_planes(stress_path, name)
+        x, y, z, peak, (px, py, pz) = planes["x"], planes["y"], planes["z"], planes["peak"], planes["at"]
+        attrs = planes["attrs"]
+        axis = str(attrs["motion_axis"])
+        unit, scale = _pressure_unit(max(peak, 1e-300))
+        along, here, across = (x, px, ("Y", py)) if axis == "x" else (y, py, ("X", px))
+        section, plane = planes["section"], planes["map"]
+        span = _above(section.max(axis=0), 0.1 * peak)
+        ax = axes[row, 0]
+        h = abs(along[1] - along[0]) if len(along) > 1 else 1e-3
+        image = ax.pcolormesh(_cell_edges(along)[span.start:span.stop + 1] * MM, _depth_edges(z, h) * MM,
+                              section[:, span] / scale, cmap="viridis", shading="flat", vmin=0,
+                              vmax=peak / scale)
+        ax.set_aspect("equal")
+        ax.invert_yaxis()
+        ax.plot([here * MM], [pz * MM], marker="x", color="red", linestyle="none",
+                label=f"maximum {peak / scale:.4g} {unit}")
+        ax.set_xlabel(f"{axis.upper()} (mm), along the motion")
+        ax.set_ylabel("depth z (mm)")
+        ax.set_title(f"{title}: section at {across[0]} = {across[1] * MM:.4g} mm", fontsize=10)
+        ax.legend(loc="lower right", fontsize=8)
+        figure.colorbar(image, ax=ax, label=unit)
+        bx, by = _above(plane.max(axis=1), 0.1 * peak), _above(plane.max(axis=0), 0.1 * peak)
+        ax = axes[row, 1]
+        image = ax.pcolormesh(_cell_edges(x)[bx.start:bx.stop + 1] * MM,
+                              _cell_edges(y)[by.start:by.stop + 1] * MM, plane[bx, by].T / scale,
+                              cmap="viridis", shading="flat", vmin=0, vmax=peak / scale)
+        ax.plot([px * MM], [py * MM], marker="x", color="red", linestyle="none")
+        ax.set_aspect("equal")
+        ax.set_xlabel("X (mm)")
+        ax.set_ylabel("Y (mm)")
+        ax.set_title(f"{title} at z = {pz * MM:.4g} mm (the maximum's depth)", fontsize=10)
+        figure.colorbar(image, ax=ax, label=unit)
+    figure.suptitle(f"{stress_path.parent.resolve().name}: stresses below the surface, step "
+                    f"{int(attrs['step'])} (t = {float(attrs['t']):.4g} s, nu = {float(attrs['nu']):g})")
+    target = pathlib.Path(out) if out is not None else stress_path.with_suffix(".png")
+    figure.savefig(target, dpi=120)
+    return target
+
+
+def _above(values: np.ndarray, level: float, pad: int = 2) -> slice:
+    """Index slice spanning the entries of ``values`` above ``level``, widened by ``pad`` (all if none)."""
+    inside = np.flatnonzero(values > level)
+    if inside.size == 0:
+        return slice(0, len(values))
+    return slice(max(int(inside[0]) - pad, 0), min(int(inside[-1]) + pad + 1, len(values)))
+
+
+def _depth_edges(z: np.ndarray, h: float) -> np.ndarray:
+    """Edges (m) of depth bins centred at the sorted depths ``z`` (a single depth: a bin ``h`` high),
+    clipped at 0."""
+    if len(z) == 1:
+        return np.array([max(z[0] - h / 2, 0.0), z[0] + h / 2])
+    mid = (z[1:] + z[:-1]) / 2
+    return np.concatenate([[max(z[0] - (mid[0] - z[0]), 0.0)], mid, [z[-1] + (z[-1] - mid[-1])]])

@@ -223,7 +223,8 @@ def test_malformed_scene_files_fail_with_one_line_and_keep_the_output(tmp_path, 
 
 
 tokens = st.one_of(
-    st.sampled_from(["run", "keys", "plot", "restart", "--out", "--quiet", "--scene", "--times", "--fast",
+    st.sampled_from(["run", "keys", "plot", "restart", "stress", "--depth", "--step", "--out", "--quiet",
+                     "--scene", "--times", "--fast",
                      "--bogus", "-petroll_tao_type", "-h", "-x", "", "1,2", "nan", "--out=",
                      "runs/hertz.toml", "missing.toml", "DIR", "-1", "inf"]),
     st.text(max_size=6),

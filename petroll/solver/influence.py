@@ -100,9 +100,13 @@ class Convolution:
     of its largest value. C^-1 is the preconditioner of the contact QP's conjugate gradients
     (petroll/solver/precondition.py): it undoes A's 1/|k| smoothing, whose spread of scales makes plain conjugate
     gradients need more iterations as the grid is refined.
+
+    ``coefficients=None`` builds no kernel: the instance then gives the padded transforms only
+    (:meth:`forward`, :meth:`backward`, :meth:`kernel_spectrum`), e.g. for kernels that are not even
+    (petroll/solver/stress.py).
     """
 
-    def __init__(self, coefficients: np.ndarray, nx: int, ny: int, comm: MPI.Comm = MPI.COMM_SELF,
+    def __init__(self, coefficients: np.ndarray | None, nx: int, ny: int, comm: MPI.Comm = MPI.COMM_SELF,
                  inverse: bool = False):
         self.nx, self.ny, self.comm = nx, ny, comm
         if inverse:
@@ -112,35 +116,57 @@ class Convolution:
         self.rows = RowPartition(nx, comm.size)
         self.freqs = RowPartition(self.ly // 2 + 1, comm.size)  # Y-frequencies, split after transposing
         self.r0, self.r1 = self.rows.range(comm.rank)
+        if coefficients is None:
+            return
         self.diagonal = float(coefficients[0, 0])
-        self.spectrum = self._kernel_spectrum(np.asarray(coefficients)[:nx, :ny])
+        table = np.asarray(coefficients)[:nx, :ny]
+        self.spectrum = self.kernel_spectrum(lambda ox, oy: table[np.abs(ox), np.abs(oy)]).real
         if inverse:
             floor = comm.allreduce(float(self.spectrum.max(initial=0.0)), op=MPI.MAX) * 1e-12
             self.spectrum = 1.0 / np.maximum(self.spectrum, floor)
 
-    def _kernel_spectrum(self, table: np.ndarray) -> np.ndarray:
-        """The kernel's lx x ly DFT (real: the kernel is even), for this rank's Y-frequencies."""
-        nx, ny = self.nx, self.ny
+    def kernel_spectrum(self, kernel) -> np.ndarray:
+        """The lx x ly DFT of a kernel given at signed cell offsets, for this rank's Y-frequencies.
+
+        ``kernel(ox, oy)`` returns the kernel at integer offsets (target minus source cell; broadcast
+        arrays with |ox| < nx, |oy| < ny), or a stack of kernels (m, ...); they are zero beyond those
+        offsets. The spectrum (or the stack of m spectra) is complex in general, real for an even kernel.
+        Collective.
+        """
         padded_rows = RowPartition(self.lx, self.comm.size)
         k0, k1 = padded_rows.range(self.comm.rank)
         offsets_x = _wrapped_offsets(self.lx)[k0:k1]
         offsets_y = _wrapped_offsets(self.ly)
-        kernel = np.zeros((k1 - k0, self.ly))
-        valid = (np.abs(offsets_x) < nx)[:, None] & (np.abs(offsets_y) < ny)[None, :]
-        ax, ay = np.broadcast_arrays(np.abs(offsets_x)[:, None], np.abs(offsets_y)[None, :])
-        kernel[valid] = table[np.minimum(ax, nx - 1), np.minimum(ay, ny - 1)][valid]
-        half = np.fft.rfft(kernel, axis=1)
-        columns = _rows_to_columns(half, padded_rows, self.freqs, self.comm)
-        return np.ascontiguousarray(np.fft.fft(columns, axis=0).real)
+        rows = np.flatnonzero(np.abs(offsets_x) < self.nx)
+        cols = np.flatnonzero(np.abs(offsets_y) < self.ny)
+        inside = np.asarray(kernel(offsets_x[rows, None], offsets_y[None, cols]), dtype=float)
+        lead = inside.shape[:-2]
+        stack = inside.reshape((int(np.prod(lead)), len(rows), len(cols)))
+        spectra = []
+        for block in stack:
+            values = np.zeros((k1 - k0, self.ly))
+            values[np.ix_(rows, cols)] = block
+            half = np.fft.rfft(values, axis=1)
+            columns = _rows_to_columns(half, padded_rows, self.freqs, self.comm)
+            spectra.append(np.fft.fft(columns, axis=0))
+        return np.stack(spectra).reshape(lead + spectra[0].shape)
 
-    def __call__(self, x: np.ndarray) -> np.ndarray:
+    def forward(self, x: np.ndarray) -> np.ndarray:
+        """The padded DFT of a field's local rows ``x`` (local rows, ny): this rank's Y-frequencies."""
         half = np.fft.rfft(x, n=self.ly, axis=1)
         columns = _rows_to_columns(half, self.rows, self.freqs, self.comm)
-        spectrum = np.fft.fft(columns, n=self.lx, axis=0)
-        spectrum *= self.spectrum
+        return np.fft.fft(columns, n=self.lx, axis=0)
+
+    def backward(self, spectrum: np.ndarray) -> np.ndarray:
+        """This rank's rows (local rows, ny) of the field whose padded DFT is ``spectrum`` (:meth:`forward`)."""
         columns = np.fft.ifft(spectrum, axis=0)[: self.nx]
         half = _columns_to_rows(columns, self.rows, self.freqs, self.comm)
         return np.fft.irfft(half, n=self.ly, axis=1)[:, : self.ny]
+
+    def __call__(self, x: np.ndarray) -> np.ndarray:
+        spectrum = self.forward(x)
+        spectrum *= self.spectrum
+        return self.backward(spectrum)
 
 
 def fft_length(n: int) -> int:

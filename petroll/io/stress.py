@@ -1,0 +1,153 @@
+"""stress.h5: the stresses below a saved pressure field of a run (``petroll stress``; docs/results.md).
+
+    /z                    (nz,) depths below the surface in m (z into the half-space)
+    /x, /y                (nx,), (ny,) cell-centre coordinates in m (material frame), as in results.h5
+    /sigma_xx ... /sigma_yz, /von_mises, /max_shear
+                          (nz, nx, ny) in Pa at the cell centres, tension positive (the surface carries
+                          sigma_zz = -p); max_shear is Tresca's: half the largest principal stress difference
+    attributes            step, t (s), nu, source (the results file), motion_axis ("x" or "y": the section
+                          of stress.png), and for von_mises and max_shear: <name>_max (Pa) with its
+                          location <name>_at = (x, y, z) in m
+
+Written by rank 0 one depth at a time (each rank's rows gathered for that depth only) to a temporary name,
+fsynced and renamed into place.
+"""
+
+from __future__ import annotations
+
+import pathlib
+
+import h5py
+import numpy as np
+
+from petroll.errors import PetrollError, reason
+from petroll.io.results import OutputError, atomic_write
+from petroll.solver.partition import RowPartition, gather_field
+
+STRESS_DATASETS = ("sigma_xx", "sigma_yy", "sigma_zz", "sigma_xy", "sigma_xz", "sigma_yz", "von_mises",
+                   "max_shear")
+"""The (nz, nx, ny) datasets of stress.h5, in Pa."""
+
+
+def read_saved_pressure(path: pathlib.Path, step: int | None, comm) -> dict:
+    """This rank's rows (:class:`RowPartition` over ``comm``) of the pressure field saved at ``step`` (None:
+    the last saved) of a results file, with what a stress computation needs: ``pressure`` (local rows, ny)
+    Pa, ``rows`` (r0, r1), ``step``, ``t`` (s), ``x``, ``y`` (m), ``scene`` (its TOML text), ``sx``, ``sy``
+    (the body's path, m). Collective in effect (every rank reads its rows). Raises PetrollError naming the
+    file or the step (with the saved steps) when it cannot."""
+    try:
+        with h5py.File(path, "r") as f:
+            r0, r1 = RowPartition(len(f["fields/x"]), comm.size).range(comm.rank)
+            steps = f["fields/step"][()]
+            if len(steps) == 0:
+                raise PetrollError(f"{path}: the file holds no saved pressure fields")
+            k = len(steps) - 1 if step is None else np.flatnonzero(steps == step)
+            if step is not None and len(k) == 0:
+                shown = ", ".join(str(int(s)) for s in steps[:20]) + (", ..." if len(steps) > 20 else "")
+                raise PetrollError(f"--step {step}: no pressure field saved at that step in {path}; saved "
+                                   f"steps: {shown} ([output] every sets them)")
+            k = int(k) if step is None else int(k[0])
+            series = f["series"]
+            row = int(np.flatnonzero(series["step"][()] == steps[k])[0])
+            return {"pressure": f["fields/pressure"][k, r0:r1, :], "rows": (r0, r1), "step": int(steps[k]),
+                    "t": float(series["t"][row]), "x": f["fields/x"][()], "y": f["fields/y"][()],
+                    "scene": str(f.attrs["scene"]), "sx": series["sx"][()], "sy": series["sy"][()]}
+    except (OSError, KeyError) as exc:
+        raise PetrollError(f"{path}: not a readable petroll results file ({reason(exc)})") from None
+
+
+def write_stress(path: pathlib.Path, z: np.ndarray, x: np.ndarray, y: np.ndarray, depths, attrs,
+                 comm) -> None:
+    """Write stress.h5 atomically; collective. ``depths`` yields, for each z in turn, this rank's rows of
+    the eight fields (8, local rows, ny) in the order of :data:`STRESS_DATASETS`; ``attrs()`` (collective:
+    called once on every rank after the last depth) gives the file's attributes. Raises OutputError on
+    every rank when the file cannot be written (after computing every depth: the ranks stay in step)."""
+    nx, ny = len(x), len(y)
+    message, done = None, []
+
+    def attributes() -> dict:
+        done.append(True)
+        return attrs()
+
+    def fill(f):
+        f.create_dataset("z", data=z).attrs["units"] = "m"
+        f.create_dataset("x", data=x).attrs["units"] = "m"
+        f.create_dataset("y", data=y).attrs["units"] = "m"
+        sets = [f.create_dataset(name, (len(z), nx, ny), dtype=float, chunks=(1, nx, ny)) for name in
+                STRESS_DATASETS]
+        for d in sets:
+            d.attrs["units"] = "Pa"
+        failure = None
+        for k, local in enumerate(depths):
+            for d, field in zip(sets, local):
+                whole = gather_field(field, nx, comm)
+                try:
+                    if failure is None:
+                        d[k] = whole
+                except OSError as exc:  # keep computing with the other ranks (collective), then report
+                    failure = exc
+        values = attributes()
+        if failure is not None:
+            raise failure
+        for key, value in values.items():
+            f.attrs[key] = value
+
+    if comm.rank == 0:
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+
+            def write(tmp):
+                with h5py.File(tmp, "w") as f:
+                    fill(f)
+
+            atomic_write(path, write)
+        except OSError as exc:
+            message = f"{path}: cannot write the stresses ({reason(exc)})"
+            _drain(depths, nx, comm)  # the depths not yet computed: the other ranks wait for them
+            if not done:
+                attributes()
+    else:
+        _drain(depths, nx, comm)
+        attributes()
+    message = comm.bcast(message, root=0)
+    if message is not None:
+        raise OutputError(message)
+
+
+def _drain(depths, nx: int, comm) -> None:
+    """Compute (collectively) and gather the depths still to come, writing nothing."""
+    for local in depths:
+        for field in local:
+            gather_field(field, nx, comm)
+
+
+def read_stress(path: str | pathlib.Path) -> dict:
+    """A stress.h5 file as a dict of numpy arrays (its datasets) and its attributes under ``attrs``."""
+    path = pathlib.Path(path)
+    try:
+        with h5py.File(path, "r") as f:
+            out = {name: f[name][()] for name in ("z", "x", "y", *STRESS_DATASETS)}
+            out["attrs"] = dict(f.attrs)
+            return out
+    except (OSError, KeyError) as exc:
+        raise PetrollError(f"{path}: not a readable petroll stress file ({reason(exc)})") from None
+
+
+def stress_planes(path: str | pathlib.Path, name: str) -> dict:
+    """For figures: dataset ``name`` (von_mises or max_shear) of a stress file in the two planes through
+    its maximum: ``section`` (nz, n) along the motion axis (attribute motion_axis) through the maximum's
+    cell row, and ``map`` (nx, ny) at the maximum's depth; with ``z``, ``x``, ``y`` (m), ``peak`` (Pa),
+    ``at`` (x, y, z of the maximum, m) and ``attrs``. Reads only those planes."""
+    path = pathlib.Path(path)
+    try:
+        with h5py.File(path, "r") as f:
+            attrs = dict(f.attrs)
+            z, x, y = f["z"][()], f["x"][()], f["y"][()]
+            at = np.asarray(attrs[f"{name}_at"], dtype=float)
+            i, j, k = (int(np.argmin(np.abs(c - v))) for c, v in ((x, at[0]), (y, at[1]), (z, at[2])))
+            d = f[name]
+            section = d[:, :, j] if attrs["motion_axis"] == "x" else d[:, i, :]
+            return {"section": section, "map": d[k], "z": z, "x": x, "y": y,
+                    "peak": float(attrs[f"{name}_max"]), "at": at, "attrs": attrs}
+    except (OSError, KeyError) as exc:
+        raise PetrollError(f"{path}: not a readable petroll stress file ({reason(exc)})") from None

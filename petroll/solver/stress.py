@@ -1,0 +1,148 @@
+"""Stresses below the surface: the half-space's stress tensor under a saved surface pressure.
+
+Frictionless contact loads the half-space z >= 0 (z into it) with a normal pressure p >= 0 only. With a
+constant Poisson's ratio nu the stresses of a linear viscoelastic half-space under given surface tractions
+are the elastic ones (they do not depend on the moduli), so those of the current pressure need no history.
+Sign: tension positive, so the surface carries sigma_zz = -p.
+
+Method: Love's (1929) potentials of the loaded surface (Johnson, Contact Mechanics, 1985, §3.2):
+psi = integral p / rho dA and chi = integral p ln(rho + z) dA (rho the distance to the load point), with
+
+    sigma_xx = [2 nu psi_z - (1 - 2 nu) chi_xx - z psi_xx] / (2 pi)     (yy: x -> y)
+    sigma_zz = [psi_z - z psi_zz] / (2 pi)
+    sigma_xy = -[(1 - 2 nu) chi_xy + z psi_xy] / (2 pi)
+    sigma_xz = -z psi_xz / (2 pi),   sigma_yz = -z psi_yz / (2 pi)
+
+(derived from the displacements 4 pi G u_x = -(1 - 2 nu) chi_x - z psi_x, 4 pi G u_z = 2 (1 - nu) psi
+- z psi_z; a point load gives Boussinesq's closed forms). For a pressure uniform on a dx x dy cell every
+derivative above is a sum over the cell's corners of a closed-form function of the corner's offset
+(u, v) = (x - xi, y - eta): ``corner_terms``. So the stress at every cell centre at depth z from cell-uniform
+pressure is an exact discrete convolution with these influence coefficients, applied with zero-padded FFTs
+(linear, not periodic: the DC-FFT of petroll/solver/influence.py, rows split over ranks). No truncation,
+no aliasing: the result is exact for the cell-uniform pressure to round-off (about 1e-13 of p_max,
+measured against quadrature of the point-load solution in tests/test_stress.py); its accuracy against a
+smooth pressure is that of the pressure field itself.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from mpi4py import MPI
+
+from petroll.solver.influence import Convolution
+
+COMPONENTS = ("sigma_xx", "sigma_yy", "sigma_zz", "sigma_xy", "sigma_xz", "sigma_yz")
+"""The six independent components of the stress tensor, in the order of :func:`cell_stress`."""
+
+
+def corner_terms(u: np.ndarray, v: np.ndarray, z: float) -> dict[str, np.ndarray]:
+    """Corner functions F(u, v) at depth z >= 0 whose mixed difference over a cell's corners gives the
+    derivatives of Love's potentials for unit pressure on the cell (d2F/du dv = the point-load value).
+
+    Keys: ``chi_xx``, ``chi_yy``, ``chi_xy``, ``psi_z``, ``psi_xx``, ``psi_yy``, ``psi_xy``, ``psi_xz``,
+    ``psi_yz``, ``psi_zz``. u and v must not be 0 (corner offsets from cell centres never are).
+    """
+    rho = np.sqrt(u * u + v * v + z * z)
+    rho_minus_z = (u * u + v * v) / (rho + z)  # rho - z without cancellation
+    v_plus = _plus(v, rho, u * u + z * z)  # v + rho, stable for v < 0
+    u_plus = _plus(u, rho, v * v + z * z)
+    psi_xx = u / (rho * v_plus)
+    psi_yy = v / (rho * u_plus)
+    return {
+        "chi_xx": np.arctan2(u * v * rho_minus_z, u * u * rho + v * v * z),
+        "chi_yy": np.arctan2(u * v * rho_minus_z, v * v * rho + u * u * z),
+        "chi_xy": np.log(rho + z),
+        "psi_z": -np.arctan2(u * v, z * rho),
+        "psi_xx": psi_xx,
+        "psi_yy": psi_yy,
+        "psi_xy": 1.0 / rho,
+        "psi_xz": z / (rho * v_plus),
+        "psi_yz": z / (rho * u_plus),
+        "psi_zz": -(psi_xx + psi_yy),
+    }
+
+
+def _plus(a: np.ndarray, rho: np.ndarray, rest: np.ndarray) -> np.ndarray:
+    """a + rho with rho^2 = a^2 + rest, computed as rest / (rho - a) where a < 0 (no cancellation)."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(a >= 0, a + rho, rest / (rho - a))
+
+
+def cell_stress(x: np.ndarray, y: np.ndarray, z: float, dx: float, dy: float, nu: float) -> np.ndarray:
+    """Stresses (6, ...) at (x, y, z) relative to the centre of a dx x dy cell carrying unit pressure
+    (compressive), in the order of :data:`COMPONENTS`; tension positive. x, y broadcast; z >= 0; the point
+    must not lie on a vertical line through the cell's edges (cell centres never do)."""
+    a, b = dx / 2, dy / 2
+    x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
+    total: dict[str, np.ndarray] = {}
+    for su, sv, sign in ((a, b, 1.0), (a, -b, -1.0), (-a, b, -1.0), (-a, -b, 1.0)):
+        for k, t in corner_terms(x + su, y + sv, z).items():
+            total[k] = total.get(k, 0.0) + sign * t
+    return _stresses(total, z, nu)
+
+
+def cell_stress_table(ox: np.ndarray, oy: np.ndarray, z: float, dx: float, dy: float,
+                      nu: float) -> np.ndarray:
+    """:func:`cell_stress` at the cell centres offset by ox[i] dx, oy[j] dy (integer 1-D arrays): (6, len(ox),
+    len(oy)). Neighbouring cells share corners, so each corner's terms are evaluated once (4x fewer)."""
+    ox, oy = np.asarray(ox, dtype=np.int64).ravel(), np.asarray(oy, dtype=np.int64).ravel()
+    cu, cv = np.union1d(2 * ox - 1, 2 * ox + 1), np.union1d(2 * oy - 1, 2 * oy + 1)  # in half cells
+    terms = corner_terms(cu[:, None] * (dx / 2), cv[None, :] * (dy / 2), z)
+    # the corners 2o - 1 and 2o + 1 of a cell are neighbours in cu (all odd): its sum is a mixed difference
+    sums = {k: np.diff(np.diff(t, axis=0), axis=1) for k, t in terms.items()}
+    stresses = _stresses(sums, z, nu)
+    return stresses[:, np.searchsorted(cu, 2 * ox - 1)][:, :, np.searchsorted(cv, 2 * oy - 1)]
+
+
+def _stresses(t: dict[str, np.ndarray], z: float, nu: float) -> np.ndarray:
+    """The six stresses (6, ...) from the cell sums of the corner terms (module docstring)."""
+    s = [2 * nu * t["psi_z"] - (1 - 2 * nu) * t["chi_xx"] - z * t["psi_xx"],
+         2 * nu * t["psi_z"] - (1 - 2 * nu) * t["chi_yy"] - z * t["psi_yy"],
+         t["psi_z"] - z * t["psi_zz"],
+         -(1 - 2 * nu) * t["chi_xy"] - z * t["psi_xy"],
+         -z * t["psi_xz"],
+         -z * t["psi_yz"]]
+    return np.stack(np.broadcast_arrays(*s)) / (2 * np.pi)
+
+
+def von_mises(s: np.ndarray) -> np.ndarray:
+    """Von Mises equivalent stress (Pa) of stresses ``s`` (6, ...) in the order of :data:`COMPONENTS`."""
+    xx, yy, zz, xy, xz, yz = s
+    return np.sqrt(0.5 * ((xx - yy) ** 2 + (yy - zz) ** 2 + (zz - xx) ** 2) + 3 * (xy**2 + xz**2 + yz**2))
+
+
+def max_shear(s: np.ndarray) -> np.ndarray:
+    """Maximum shear stress (Tresca, Pa): half the largest difference of principal stresses of ``s``
+    (6, ...) in the order of :data:`COMPONENTS`."""
+    xx, yy, zz, xy, xz, yz = s
+    rows = (np.stack([xx, xy, xz], -1), np.stack([xy, yy, yz], -1), np.stack([xz, yz, zz], -1))
+    tensor = np.stack(rows, -1)
+    principal = np.linalg.eigvalsh(tensor)
+    return 0.5 * (principal[..., -1] - principal[..., 0])
+
+
+class SubsurfaceStress:
+    """The stresses below cell-uniform pressure on an nx x ny grid of dx x dy cells, rows split over ``comm``
+    (:class:`petroll.solver.partition.RowPartition`, as every field).
+
+    ``at(p, z)`` takes this rank's rows of the pressure (Pa, shape (local rows, ny)) and returns the six
+    components (6, local rows, ny) in Pa at depth z >= 0 (m) below the cell centres, tension positive.
+    Collective. The pressure's transform is computed once per field and reused for every depth.
+    """
+
+    def __init__(self, nx: int, ny: int, dx: float, dy: float, nu: float, comm: MPI.Comm = MPI.COMM_SELF):
+        self.nx, self.ny, self.dx, self.dy, self.nu, self.comm = nx, ny, dx, dy, nu, comm
+        self.fft = Convolution(None, nx, ny, comm)
+        self.r0, self.r1 = self.fft.r0, self.fft.r1
+        self._field: tuple[np.ndarray, np.ndarray] | None = None
+
+    def at(self, p: np.ndarray, z: float) -> np.ndarray:
+        if z < 0:
+            raise ValueError(f"depth z = {z} must be >= 0")
+        if self._field is None or self._field[0] is not p:
+            self._field = (p, self.fft.forward(np.asarray(p, dtype=float)))
+        spectrum = self._field[1]
+        dx, dy, nu = self.dx, self.dy, self.nu
+        # offsets are target minus source cell: the unit-pressure cell is centred at the source
+        kernels = self.fft.kernel_spectrum(lambda ox, oy: cell_stress_table(ox, oy, z, dx, dy, nu))
+        return np.stack([self.fft.backward(spectrum * k) for k in kernels])
