@@ -171,11 +171,12 @@ def stress(run_dir: str | pathlib.Path, step: int | None = None, depths=None, nu
     raw = tomllib.loads(saved["scene"])
     nu = _poisson_ratio(raw, nu)
     x, y, p = saved["x"], saved["y"], saved["pressure"]
-    g = raw["grid"]
-    dx, dy = (g["x"][1] - g["x"][0]) / g["nx"], (g["y"][1] - g["y"][0]) / g["ny"]
+    g, line = raw["grid"], saved["line"]
+    dx = (g["x"][1] - g["x"][0]) / g["nx"]
+    dy = 1.0 if line else (g["y"][1] - g["y"][0]) / g["ny"]
     r0, r1 = saved["rows"]
-    z = _depths(depths, p, x[r0:r1], y, dx, dy, saved["step"], comm)
-    solver = SubsurfaceStress(len(x), len(y), dx, dy, nu, comm)
+    z = _depths(depths, p, x[r0:r1], y, dx, dy, saved["step"], comm, line)
+    solver = SubsurfaceStress(len(x), len(y), dx, dy, nu, comm, line)
     best = {"von_mises": (-1.0, (0.0, 0.0, 0.0)), "max_shear": (-1.0, (0.0, 0.0, 0.0))}
 
     def fields():
@@ -190,7 +191,7 @@ def stress(run_dir: str | pathlib.Path, step: int | None = None, depths=None, nu
             yield out
 
     d = np.array([saved["sx"][-1] - saved["sx"][0], saved["sy"][-1] - saved["sy"][0]])
-    attrs = {"step": saved["step"], "t": saved["t"], "nu": nu, "source": str(path),
+    attrs = {"step": saved["step"], "t": saved["t"], "nu": nu, "source": str(path), "line_contact": line,
              "motion_axis": "y" if abs(d[1]) > abs(d[0]) else "x"}
     target = run_dir / "stress.h5"
 
@@ -202,7 +203,7 @@ def stress(run_dir: str | pathlib.Path, step: int | None = None, depths=None, nu
         return {**attrs, **{f"{name}_max": value for name, (value, _) in top.items()},
                 **{f"{name}_at": np.array(at) for name, (_, at) in top.items()}}
 
-    write_stress(target, z, x, y, fields(), attributes, comm)
+    write_stress(target, z, x, y, fields(), attributes, comm, line)
     p_max = comm.allreduce(float(p.max(initial=0.0)), op=MPI.MAX)
     return StressSummary(target, saved["step"], saved["t"], z, nu, top["von_mises"][0], top["von_mises"][1],
                          top["max_shear"][0], top["max_shear"][1], p_max)
@@ -221,9 +222,10 @@ def _poisson_ratio(raw: dict, nu: float | None) -> float:
 
 
 def _depths(depths, p: np.ndarray, x: np.ndarray, y: np.ndarray, dx: float, dy: float, step: int,
-            comm: MPI.Comm) -> np.ndarray:
+            comm: MPI.Comm, line: bool = False) -> np.ndarray:
     """The depths (m, sorted) for :func:`stress`: the given ones (each finite, >= 0), or for None / "auto"
-    ``AUTO_DEPTHS`` from 0 to twice the smaller half-width of the contact (cells with p > 0, all ranks)."""
+    ``AUTO_DEPTHS`` from 0 to twice the smaller half-width of the contact (cells with p > 0, all ranks;
+    line contact: its half-width)."""
     if depths is not None and not (isinstance(depths, str) and depths == "auto"):
         if isinstance(depths, str):
             raise PetrollError(f"--depths {depths!r}: only 'auto' is allowed (or give --depth z1,z2,...)")
@@ -239,5 +241,5 @@ def _depths(depths, p: np.ndarray, x: np.ndarray, y: np.ndarray, dx: float, dy: 
     if not np.all(np.isfinite(lo)):
         raise PetrollError(f"step {step}: no contact (the pressure is 0 everywhere), so --depths auto has no "
                            "contact size to go by; give --depth z1,z2,... (m)")
-    half = min((hi[0] - lo[0] + dx) / 2, (hi[1] - lo[1] + dy) / 2)
+    half = (hi[0] - lo[0] + dx) / 2 if line else min((hi[0] - lo[0] + dx) / 2, (hi[1] - lo[1] + dy) / 2)
     return np.linspace(0.0, 2 * half, AUTO_DEPTHS)

@@ -560,9 +560,21 @@ def plot_stress(stress_path: str | pathlib.Path, out: str | pathlib.Path | None 
                 label=f"maximum {peak / scale:.4g} {unit}")
         ax.set_xlabel(f"{axis.upper()} (mm), along the motion")
         ax.set_ylabel("depth z (mm)")
-        ax.set_title(f"{title}: section at {across[0]} = {across[1] * MM:.4g} mm", fontsize=10)
+        line = plane.ndim == 1  # line contact: the section is the whole (plane-strain) field
+        ax.set_title(f"{title}: " + ("plane strain" if line else f"section at {across[0]} = "
+                                     f"{across[1] * MM:.4g} mm"), fontsize=10)
         ax.legend(loc="lower right", fontsize=8)
         figure.colorbar(image, ax=ax, label=unit)
+        if line:
+            ax = axes[row, 1]
+            ax.plot(x * MM, plane / scale, color="tab:blue")
+            ax.plot([px * MM], [peak / scale], marker="x", color="red", linestyle="none")
+            ax.set_xlim(_cell_edges(x)[span.start] * MM, _cell_edges(x)[span.stop] * MM)
+            ax.set_xlabel("X (mm)")
+            ax.set_ylabel(unit)
+            ax.grid(alpha=0.3)
+            ax.set_title(f"{title} at z = {pz * MM:.4g} mm (the maximum's depth)", fontsize=10)
+            continue
         bx, by = _above(plane.max(axis=1), 0.1 * peak), _above(plane.max(axis=0), 0.1 * peak)
         ax = axes[row, 1]
         image = ax.pcolormesh(_cell_edges(x)[bx.start:bx.stop + 1] * MM,

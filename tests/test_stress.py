@@ -1,6 +1,7 @@
 """Stresses below the surface (``petroll stress``) against closed forms: the influence coefficients of a
 loaded cell against quadrature of Boussinesq's point load, a Hertz step's stresses on the axis and its
-maximum shear (Johnson 1985, §3.4), the far field of a small patch against a point load, ranks."""
+maximum shear (Johnson 1985, §3.4), the far field of a small patch against a point load, ranks; line
+contact: the strip's coefficients against Flamant's line load, a cylinder against McEwen's closed form."""
 
 import pathlib
 
@@ -228,3 +229,69 @@ def test_command_writes_the_file_and_figure_and_refuses_bad_requests(comm, tmp_p
     if comm.rank == 0:
         assert "[material] nu: the run's scene gives no Poisson's ratio" in capsys.readouterr().err
     assert main(["stress", str(base / "J"), "--nu", "0.5"]) == 0
+
+
+# -- line contact (plane strain) -------------------------------------------------------------------------
+def line_load(x, z, nu):
+    """Flamant: the plane-strain stresses (6, ...) at (x, z) below a unit compressive line load (N/m) at
+    x = 0 (Johnson 1985, §2.2), tension positive; sigma_yy = nu (sigma_xx + sigma_zz)."""
+    r4 = (x * x + z * z) ** 2
+    sxx, szz, sxz = -2 * x * x * z / (np.pi * r4), -2 * z**3 / (np.pi * r4), -2 * x * z * z / (np.pi * r4)
+    return np.array([sxx, nu * (sxx + szz), szz, 0 * x, sxz, 0 * x])
+
+
+def mcewen(x, z, a):
+    """Hertz line contact (peak pressure 1, half-width a): McEwen's (1949) closed form (Johnson 1985,
+    §4.2, with m, n the signs of z, x): sigma_xx, sigma_zz, sigma_xz, tension positive."""
+    A = a * a - x * x + z * z
+    root = np.sqrt(A * A + 4 * x * x * z * z)
+    m, n = np.sqrt(0.5 * (root + A)), np.sign(x) * np.sqrt(np.maximum(0.5 * (root - A), 0.0))
+    q = (z * z + n * n) / (m * m + n * n)
+    return (-(m * (1 + q) - 2 * z) / a, -m * (1 - q) / a, -n * (m * m - z * z) / ((m * m + n * n) * a))
+
+
+@pytest.mark.parametrize("offset", [(0, 0.3), (1, 0.5), (-2, 1.3), (3, 0.05)])
+def test_strip_coefficients_are_the_integral_of_the_line_load(offset):
+    from petroll.solver.stress import strip_stress_table
+
+    dx, nu = 0.8, 0.3
+    k, z = offset
+    table = strip_stress_table(np.array([k]), z, dx, nu)[:, 0, 0]
+    quadrature = [sum(integrate.quad(lambda s: line_load(k * dx - s, z, nu)[c], s0, s1, epsabs=1e-13,
+                                     epsrel=1e-12)[0] for s0, s1 in ((-dx / 2, 0), (0, dx / 2)))
+                  for c in range(6)]
+    assert np.max(np.abs(table - quadrature)) < 1e-12
+
+
+def test_line_contact_hertz_stresses_are_mcewens(comm, tmp_path):
+    """A cylinder on an elastic half-space in plane strain, a/dx = 16 (load control, 1000 N/m): every
+    stress at every strip from z = 0.1 a to 2 a within 1 % of p0 of McEwen's closed form, and the maximum
+    shear 0.300 p0 at z = 0.786 a within 1 %. stress.h5 holds (nz, nx) fields."""
+    nu, E, R, load = 0.3, 1e7, 0.01, 1000.0
+    a = np.sqrt(4 * load * R * (1 - nu**2) / (E * np.pi))
+    p0 = 2 * load / (np.pi * a)
+    dx = a / 16
+    base = shared_dir(comm, tmp_path)
+    run(parse_scene({"grid": {"nx": 96, "x": [-48 * dx, 48 * dx]},
+                     "material": {"model": "elastic", "E": E, "nu": nu},
+                     "body": {"shape": "cylinder", "radius": R}, "motion": {"load": load}},
+                    source="test_stress"), comm, base)
+    z = a * np.linspace(0.1, 2.0, 77)
+    found = petroll.stress(base, depths=z, comm=comm)
+    with h5py.File(found.path, "r") as f:
+        assert f["sigma_xx"].shape == (77, 96) and bool(f.attrs["line_contact"])
+        got = {name: f[name][()] for name in ("sigma_xx", "sigma_yy", "sigma_zz", "sigma_xy", "sigma_xz",
+                                             "sigma_yz", "max_shear")}
+        x = f["x"][()]
+    X, Z = np.meshgrid(x, z)
+    sxx, szz, sxz = mcewen(X, Z, a)
+    for name, exact in (("sigma_xx", sxx), ("sigma_zz", szz), ("sigma_xz", sxz),
+                        ("sigma_yy", nu * (sxx + szz))):
+        assert np.max(np.abs(got[name] / p0 - exact)) < 0.01, name
+    assert not np.any(got["sigma_xy"]) and not np.any(got["sigma_yz"])
+    tau = 0.5 * np.sqrt((sxx - szz) ** 2 + 4 * sxz**2)  # in-plane (sigma_yy is the intermediate one)
+    k = np.unravel_index(np.argmax(tau), tau.shape)
+    assert abs(tau[k] - 0.300) < 0.001 and abs(z[k[0]] / a - 0.786) < 0.02  # the known values
+    assert abs(found.max_shear_max / (tau[k] * p0) - 1) < 0.01
+    assert abs(found.max_shear_at[0]) < dx and found.max_shear_at[1] == 0.0
+    assert abs(found.max_shear_at[2] - z[k[0]]) < 0.05 * a

@@ -4,10 +4,11 @@
     /x, /y                (nx,), (ny,) cell-centre coordinates in m (material frame), as in results.h5
     /sigma_xx ... /sigma_yz, /von_mises, /max_shear
                           (nz, nx, ny) in Pa at the cell centres, tension positive (the surface carries
-                          sigma_zz = -p); max_shear is Tresca's: half the largest principal stress difference
+                          sigma_zz = -p); max_shear is Tresca's: half the largest principal stress difference;
+                          line contact (plane strain): (nz, nx)
     attributes            step, t (s), nu, source (the results file), motion_axis ("x" or "y": the section
-                          of stress.png), and for von_mises and max_shear: <name>_max (Pa) with its
-                          location <name>_at = (x, y, z) in m
+                          of stress.png), line_contact, and for von_mises and max_shear: <name>_max (Pa)
+                          with its location <name>_at = (x, y, z) in m (line contact: y = 0)
 
 Written by rank 0 one depth at a time (each rank's rows gathered for that depth only) to a temporary name,
 fsynced and renamed into place.
@@ -33,7 +34,7 @@ def read_saved_pressure(path: pathlib.Path, step: int | None, comm) -> dict:
     """This rank's rows (:class:`RowPartition` over ``comm``) of the pressure field saved at ``step`` (None:
     the last saved) of a results file, with what a stress computation needs: ``pressure`` (local rows, ny)
     Pa, ``rows`` (r0, r1), ``step``, ``t`` (s), ``x``, ``y`` (m), ``scene`` (its TOML text), ``sx``, ``sy``
-    (the body's path, m). Collective in effect (every rank reads its rows). Raises PetrollError naming the
+    (the body's path, m), ``line`` (a line-contact run: ny = 1). Collective in effect (every rank reads its rows). Raises PetrollError naming the
     file or the step (with the saved steps) when it cannot."""
     try:
         with h5py.File(path, "r") as f:
@@ -50,6 +51,7 @@ def read_saved_pressure(path: pathlib.Path, step: int | None, comm) -> dict:
             series = f["series"]
             row = int(np.flatnonzero(series["step"][()] == steps[k])[0])
             return {"pressure": f["fields/pressure"][k, r0:r1, :], "rows": (r0, r1), "step": int(steps[k]),
+                    "line": bool(f.attrs.get("line_contact", False)),
                     "t": float(series["t"][row]), "x": f["fields/x"][()], "y": f["fields/y"][()],
                     "scene": str(f.attrs["scene"]), "sx": series["sx"][()], "sy": series["sy"][()]}
     except (OSError, KeyError) as exc:
@@ -57,12 +59,14 @@ def read_saved_pressure(path: pathlib.Path, step: int | None, comm) -> dict:
 
 
 def write_stress(path: pathlib.Path, z: np.ndarray, x: np.ndarray, y: np.ndarray, depths, attrs,
-                 comm) -> None:
+                 comm, line: bool = False) -> None:
     """Write stress.h5 atomically; collective. ``depths`` yields, for each z in turn, this rank's rows of
     the eight fields (8, local rows, ny) in the order of :data:`STRESS_DATASETS`; ``attrs()`` (collective:
-    called once on every rank after the last depth) gives the file's attributes. Raises OutputError on
-    every rank when the file cannot be written (after computing every depth: the ranks stay in step)."""
+    called once on every rank after the last depth) gives the file's attributes. ``line``: a line-contact
+    run (ny = 1), whose fields are written (nz, nx). Raises OutputError on every rank when the file cannot
+    be written (after computing every depth: the ranks stay in step)."""
     nx, ny = len(x), len(y)
+    shape = (len(z), nx) if line else (len(z), nx, ny)
     message, done = None, []
 
     def attributes() -> dict:
@@ -73,7 +77,7 @@ def write_stress(path: pathlib.Path, z: np.ndarray, x: np.ndarray, y: np.ndarray
         f.create_dataset("z", data=z).attrs["units"] = "m"
         f.create_dataset("x", data=x).attrs["units"] = "m"
         f.create_dataset("y", data=y).attrs["units"] = "m"
-        sets = [f.create_dataset(name, (len(z), nx, ny), dtype=float, chunks=(1, nx, ny)) for name in
+        sets = [f.create_dataset(name, shape, dtype=float, chunks=(1, *shape[1:])) for name in
                 STRESS_DATASETS]
         for d in sets:
             d.attrs["units"] = "Pa"
@@ -83,7 +87,7 @@ def write_stress(path: pathlib.Path, z: np.ndarray, x: np.ndarray, y: np.ndarray
                 whole = gather_field(field, nx, comm)
                 try:
                     if failure is None:
-                        d[k] = whole
+                        d[k] = whole[:, 0] if line else whole
                 except OSError as exc:  # keep computing with the other ranks (collective), then report
                     failure = exc
         values = attributes()
@@ -136,7 +140,8 @@ def read_stress(path: str | pathlib.Path) -> dict:
 def stress_planes(path: str | pathlib.Path, name: str) -> dict:
     """For figures: dataset ``name`` (von_mises or max_shear) of a stress file in the two planes through
     its maximum: ``section`` (nz, n) along the motion axis (attribute motion_axis) through the maximum's
-    cell row, and ``map`` (nx, ny) at the maximum's depth; with ``z``, ``x``, ``y`` (m), ``peak`` (Pa),
+    cell row, and ``map`` (nx, ny) at the maximum's depth (line contact: the (nz, nx) field and the (nx,)
+    profile at that depth); with ``z``, ``x``, ``y`` (m), ``peak`` (Pa),
     ``at`` (x, y, z of the maximum, m) and ``attrs``. Reads only those planes."""
     path = pathlib.Path(path)
     try:
@@ -146,7 +151,10 @@ def stress_planes(path: str | pathlib.Path, name: str) -> dict:
             at = np.asarray(attrs[f"{name}_at"], dtype=float)
             i, j, k = (int(np.argmin(np.abs(c - v))) for c, v in ((x, at[0]), (y, at[1]), (z, at[2])))
             d = f[name]
-            section = d[:, :, j] if attrs["motion_axis"] == "x" else d[:, i, :]
+            if d.ndim == 2:  # line contact: the whole (nz, nx) section, a profile at the maximum's depth
+                section = d[()]
+            else:
+                section = d[:, :, j] if attrs["motion_axis"] == "x" else d[:, i, :]
             return {"section": section, "map": d[k], "z": z, "x": x, "y": y,
                     "peak": float(attrs[f"{name}_max"]), "at": at, "attrs": attrs}
     except (OSError, KeyError) as exc:

@@ -62,6 +62,18 @@ def corner_terms(u: np.ndarray, v: np.ndarray, z: float) -> dict[str, np.ndarray
     }
 
 
+def strip_terms(u: np.ndarray, z: float) -> dict[str, np.ndarray]:
+    """The corner terms of a strip infinitely long along Y (line contact, plane strain): the limits of
+    :func:`corner_terms` as the cell's Y-corners go to +-infinity, F(u, +inf) - F(u, -inf), so that their
+    difference over the strip's two edges gives the potentials' derivatives (``chi_xy``, ``psi_xy``,
+    ``psi_yz``, ``chi_yy`` and ``psi_yy`` vanish). u must not be 0 (edge offsets from centres never are)."""
+    r2 = u * u + z * z
+    zero = np.zeros(np.shape(r2))
+    angle = 2 * np.arctan2(u, z)
+    return {"chi_xx": angle, "chi_yy": zero, "chi_xy": zero, "psi_z": -angle, "psi_xx": -2 * u / r2,
+            "psi_yy": zero, "psi_xy": zero, "psi_xz": -2 * z / r2, "psi_yz": zero, "psi_zz": 2 * u / r2}
+
+
 def _plus(a: np.ndarray, rho: np.ndarray, rest: np.ndarray) -> np.ndarray:
     """a + rho with rho^2 = a^2 + rest, computed as rest / (rho - a) where a < 0 (no cancellation)."""
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -94,6 +106,16 @@ def cell_stress_table(ox: np.ndarray, oy: np.ndarray, z: float, dx: float, dy: f
     return stresses[:, np.searchsorted(cu, 2 * ox - 1)][:, :, np.searchsorted(cv, 2 * oy - 1)]
 
 
+def strip_stress_table(ox: np.ndarray, z: float, dx: float, nu: float) -> np.ndarray:
+    """The plane-strain stresses (6, len(ox), 1) at the centres of strips offset by ox[i] dx (integers) from
+    a strip of width dx carrying unit pressure (line contact); sigma_xy = sigma_yz = 0 and sigma_yy =
+    nu (sigma_xx + sigma_zz)."""
+    ox = np.asarray(ox, dtype=np.int64).ravel()
+    edges = np.union1d(2 * ox - 1, 2 * ox + 1)  # in half strips; a strip's two edges are neighbours
+    sums = {k: np.diff(t)[:, None] for k, t in strip_terms(edges * (dx / 2), z).items()}
+    return _stresses(sums, z, nu)[:, np.searchsorted(edges, 2 * ox - 1)]
+
+
 def _stresses(t: dict[str, np.ndarray], z: float, nu: float) -> np.ndarray:
     """The six stresses (6, ...) from the cell sums of the corner terms (module docstring)."""
     s = [2 * nu * t["psi_z"] - (1 - 2 * nu) * t["chi_xx"] - z * t["psi_xx"],
@@ -123,15 +145,19 @@ def max_shear(s: np.ndarray) -> np.ndarray:
 
 class SubsurfaceStress:
     """The stresses below cell-uniform pressure on an nx x ny grid of dx x dy cells, rows split over ``comm``
-    (:class:`petroll.solver.partition.RowPartition`, as every field).
+    (:class:`petroll.solver.partition.RowPartition`, as every field). ``line``: a line-contact grid (ny = 1
+    strips, plane strain: :func:`strip_stress_table`).
 
     ``at(p, z)`` takes this rank's rows of the pressure (Pa, shape (local rows, ny)) and returns the six
     components (6, local rows, ny) in Pa at depth z >= 0 (m) below the cell centres, tension positive.
     Collective. The pressure's transform is computed once per field and reused for every depth.
     """
 
-    def __init__(self, nx: int, ny: int, dx: float, dy: float, nu: float, comm: MPI.Comm = MPI.COMM_SELF):
-        self.nx, self.ny, self.dx, self.dy, self.nu, self.comm = nx, ny, dx, dy, nu, comm
+    def __init__(self, nx: int, ny: int, dx: float, dy: float, nu: float, comm: MPI.Comm = MPI.COMM_SELF,
+                 line: bool = False):
+        if line and ny != 1:
+            raise ValueError(f"a line-contact grid has ny = 1, not {ny}")
+        self.nx, self.ny, self.dx, self.dy, self.nu, self.comm, self.line = nx, ny, dx, dy, nu, comm, line
         self.fft = Convolution(None, nx, ny, comm)
         self.r0, self.r1 = self.fft.r0, self.fft.r1
         self._field: tuple[np.ndarray, np.ndarray] | None = None
@@ -144,5 +170,8 @@ class SubsurfaceStress:
         spectrum = self._field[1]
         dx, dy, nu = self.dx, self.dy, self.nu
         # offsets are target minus source cell: the unit-pressure cell is centred at the source
-        kernels = self.fft.kernel_spectrum(lambda ox, oy: cell_stress_table(ox, oy, z, dx, dy, nu))
+        if self.line:
+            kernels = self.fft.kernel_spectrum(lambda ox, oy: strip_stress_table(ox, z, dx, nu))
+        else:
+            kernels = self.fft.kernel_spectrum(lambda ox, oy: cell_stress_table(ox, oy, z, dx, dy, nu))
         return np.stack([self.fft.backward(spectrum * k) for k in kernels])
