@@ -56,7 +56,13 @@ mkdir -p "$root"
 tar -xf "$tarball" -C "$root" || fail "cannot unpack $tarball; remove it to rebuild"
 git clone -q "$project" "$root/petroll" || fail "git clone of $project"
 (cd "$root/petroll" && git checkout -q "$(git -C "$project" rev-parse HEAD)") || fail "checkout of HEAD"
+# The network as the host sees it: its resolver and the local certificate authorities it trusts (a proxy
+# that re-signs HTTPS, as on corporate networks and this project's machines, is otherwise refused by pip).
 cp /etc/resolv.conf "$root/etc/resolv.conf" 2>/dev/null || true
+if compgen -G "/usr/local/share/ca-certificates/*.crt" >/dev/null; then
+  cp /usr/local/share/ca-certificates/*.crt "$root/usr/local/share/ca-certificates/" \
+    && chroot "$root" update-ca-certificates >/dev/null 2>&1 || fail "installing the host's local certificate authorities"
+fi
 mount -t proc proc "$root/proc" && mount --rbind /dev "$root/dev" && mount --make-rslave "$root/dev" \
   && mount --rbind /sys "$root/sys" && mount --make-rslave "$root/sys" || fail "mounting proc/dev/sys"
 
