@@ -1,0 +1,86 @@
+"""The package's rooms keep their rules (each package's __init__ states them): read from the source with
+ast, every import counted, including those inside functions."""
+
+import ast
+import pathlib
+import subprocess
+import sys
+
+import pytest
+
+PACKAGE = pathlib.Path(__file__).resolve().parents[1] / "petroll"
+FACES = ("petroll.driver", "petroll.cli", "petroll.plot")
+
+FORBIDDEN = {
+    "petroll.model": ("petroll.solver", "petroll.io", "petroll.studies", *FACES, "petsc4py", "mpi4py"),
+    "petroll.solver": ("petroll.io", "petroll.studies", *FACES),
+    "petroll.io": ("petroll.studies", *FACES),
+}
+
+
+def module_name(path: pathlib.Path) -> str:
+    parts = path.relative_to(PACKAGE.parent).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def imports() -> dict[str, set[str]]:
+    """Every module of petroll and the modules it imports (absolute names, anywhere in the file)."""
+    graph = {}
+    for path in PACKAGE.rglob("*.py"):
+        names = set()
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.Import):
+                names.update(alias.name for alias in node.names)
+            elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+                names.add(node.module)
+                names.update(f"{node.module}.{alias.name}" for alias in node.names)
+        graph[module_name(path)] = names
+    return graph
+
+
+def within(name: str, prefix: str) -> bool:
+    return name == prefix or name.startswith(prefix + ".")
+
+
+def test_no_room_imports_what_its_rules_forbid():
+    broken = [(module, name) for module, names in imports().items() for room, banned in FORBIDDEN.items()
+              if within(module, room) for name in names if any(within(name, b) for b in banned)]
+    assert not broken, broken
+
+
+def test_no_import_circles():
+    graph = imports()
+    modules = set(graph)
+    edges = {m: {n for n in graph[m] if n in modules and n != m and not within(m, n)} for m in modules}
+    state: dict[str, int] = {}
+
+    def visit(m, trail):
+        state[m] = 1
+        for n in sorted(edges[m]):
+            if state.get(n) == 1:
+                raise AssertionError("import circle: " + " -> ".join([*trail, m, n]))
+            if n not in state:
+                visit(n, [*trail, m])
+        state[m] = 2
+
+    for m in sorted(modules):
+        if m not in state:
+            visit(m, [])
+
+
+def test_no_private_name_is_imported_across_modules():
+    private = [(module, name) for module, names in imports().items() for name in names
+               if name.startswith("petroll.") and name.rsplit(".", 1)[-1].startswith("_")
+               and not name.rsplit(".", 1)[-1].startswith("__")]
+    assert not private, private
+
+
+@pytest.mark.serial
+def test_importing_petroll_and_its_model_starts_neither_mpi_nor_petsc():
+    code = ("import sys, petroll, petroll.model.scene, petroll.model.materials, petroll.model.bodies; "
+            "scene = petroll.load_scene(sys.argv[1]); "
+            "print(sorted(m for m in ('mpi4py.MPI', 'petsc4py.PETSc') if m in sys.modules))")
+    done = subprocess.run([sys.executable, "-c", code, str(PACKAGE.parent / "runs" / "sphere.toml")],
+                          capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "[]"
