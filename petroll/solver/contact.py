@@ -32,7 +32,7 @@ from petroll.model.grid import Grid
 from petroll.model.scene import DEFAULT_TAO_TYPE, TAO_TYPES
 from petroll.solver.partition import RowPartition, move_rows
 from petroll.solver.influence import influence_operator, shell_matrix
-from petroll.solver.pk import PK_PYTHON_TYPE, PolonskyKeer
+from petroll.solver.pk import PK_PYTHON_TYPE, PolonskyKeer, tao_reasons
 from petroll.solver.precondition import CirculantInverse
 
 @dataclass
@@ -380,7 +380,5 @@ def _clip(rows: tuple[int, int], i0: int, i1: int) -> tuple[int, int]:
 
 
 def _reason_name(reason: int) -> str:
-    from petsc4py import PETSc
-
-    names = {v: k for k, v in vars(PETSc.TAO.Reason).items() if isinstance(v, int)}
+    names = {v: k for k, v in vars(tao_reasons()).items() if isinstance(v, int)}
     return f"{names.get(reason, 'UNKNOWN')} ({reason})"

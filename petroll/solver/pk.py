@@ -87,7 +87,7 @@ class PolonskyKeer:
         from mpi4py import MPI
         from petsc4py import PETSc
 
-        Reason = PETSc.TAO.Reason
+        Reason = tao_reasons()
         x = tao.getSolution()
         hessian = tao.getHessian()[0]
         comm = x.getComm().tompi4py()
@@ -193,3 +193,11 @@ class PolonskyKeer:
         lo[lo <= -1e300] = -np.inf
         hi[hi >= 1e300] = np.inf
         return lo, hi
+
+
+def tao_reasons():
+    """TAO's converged/diverged reason constants: ``PETSc.TAO.ConvergedReason`` (petsc4py >= 3.20; what a
+    PyPI build gives) or ``PETSc.TAO.Reason`` (petsc4py 3.18, Debian 12)."""
+    from petsc4py import PETSc
+
+    return getattr(PETSc.TAO, "ConvergedReason", None) or PETSc.TAO.Reason
