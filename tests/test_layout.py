@@ -68,13 +68,6 @@ def test_no_import_circles():
             visit(m, [])
 
 
-def test_no_private_name_is_imported_across_modules():
-    private = [(module, name) for module, names in imports().items() for name in names
-               if name.startswith("petroll.") and name.rsplit(".", 1)[-1].startswith("_")
-               and not name.rsplit(".", 1)[-1].startswith("__")]
-    assert not private, private
-
-
 @pytest.mark.serial
 def test_importing_petroll_and_its_model_starts_neither_mpi_nor_petsc():
     code = ("import sys, petroll, petroll.model.scene, petroll.model.materials, petroll.model.bodies; "
