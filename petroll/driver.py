@@ -210,7 +210,11 @@ def stress(run_dir: str | pathlib.Path, step: int | None = None, depths=None, nu
 
 
 def _poisson_ratio(raw: dict, nu: float | None) -> float:
-    """Poisson's ratio for the stresses: ``nu`` if given, else the scene's [material] nu (checked)."""
+    """Poisson's ratio for the stresses: ``nu`` if given, else the scene's [material] nu (checked). A
+    layer on a rigid base ([material] layer) is refused: the stresses computed are a half-space's."""
+    if "layer" in raw.get("material", {}):
+        raise PetrollError(f"[material] layer = {raw['material']['layer']!r}: petroll stress computes the "
+                           "stresses of a half-space only, not of a layer on a rigid base")
     if nu is None:
         nu = raw.get("material", {}).get("nu")
         if nu is None:

@@ -229,6 +229,14 @@ def test_command_writes_the_file_and_figure_and_refuses_bad_requests(comm, tmp_p
     if comm.rank == 0:
         assert "[material] nu: the run's scene gives no Poisson's ratio" in capsys.readouterr().err
     assert main(["stress", str(base / "J"), "--nu", "0.5"]) == 0
+    if comm.rank == 0:
+        (base / "layer").mkdir()
+    comm.Barrier()
+    write_patch_results(base / "layer", 'model = "elastic"\nE = 1e7\nnu = 0.3\nlayer = {thickness = 1e-3}')
+    capsys.readouterr()
+    assert main(["stress", str(base / "layer")]) == 2
+    if comm.rank == 0:
+        assert "stresses of a half-space only" in capsys.readouterr().err
 
 
 # -- line contact (plane strain) -------------------------------------------------------------------------

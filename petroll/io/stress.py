@@ -39,7 +39,7 @@ def read_saved_pressure(path: pathlib.Path, step: int | None, comm) -> dict:
     try:
         with h5py.File(path, "r") as f:
             r0, r1 = RowPartition(len(f["fields/x"]), comm.size).range(comm.rank)
-            steps = f["fields/step"][()]
+            steps = f["fields/step"][: int(f.attrs.get("fields_written", len(f["fields/step"])))]
             if len(steps) == 0:
                 raise PetrollError(f"{path}: the file holds no saved pressure fields")
             k = len(steps) - 1 if step is None else np.flatnonzero(steps == step)
@@ -49,11 +49,12 @@ def read_saved_pressure(path: pathlib.Path, step: int | None, comm) -> dict:
                                    f"steps: {shown} ([output] every sets them)")
             k = int(k) if step is None else int(k[0])
             series = f["series"]
-            row = int(np.flatnonzero(series["step"][()] == steps[k])[0])
+            n = int(f.attrs.get("steps_written", len(series["step"])))  # a growing file: its valid part
+            row = int(np.flatnonzero(series["step"][:n] == steps[k])[0])
             return {"pressure": f["fields/pressure"][k, r0:r1, :], "rows": (r0, r1), "step": int(steps[k]),
                     "line": bool(f.attrs.get("line_contact", False)),
                     "t": float(series["t"][row]), "x": f["fields/x"][()], "y": f["fields/y"][()],
-                    "scene": str(f.attrs["scene"]), "sx": series["sx"][()], "sy": series["sy"][()]}
+                    "scene": str(f.attrs["scene"]), "sx": series["sx"][:n], "sy": series["sy"][:n]}
     except (OSError, KeyError) as exc:
         raise PetrollError(f"{path}: not a readable petroll results file ({reason(exc)})") from None
 

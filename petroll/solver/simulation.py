@@ -73,6 +73,7 @@ class Simulation:
         self.warm = WarmStart(scene.grid, self.solver.rows, comm)
         self.wake = Wake(self.solver, scene.solver.history_cutoff)
         self.t, self.dt_next = 0.0, None
+        self._newest = None  # the newest step's (profile, v, J_eff, delta): what surface() needs
 
     # -- the run ----------------------------------------------------------------------------------------
     def steps(self, t: float = 0.0, dts: Iterable[float] | None = None) -> Iterator[StepRecord]:
@@ -153,6 +154,7 @@ class Simulation:
         solution.applications = solver.work[1] - work[1]
         self.history.advance(solution.pressure, dt)
         self.pressure = solution.pressure
+        self._newest = (profile, v, compliance, solution.delta)
         self.warm.record(solution.pressure, sx, sy)
         elapsed = clock.perf_counter() - start
         velocity = np.asarray(scene.velocity(t), dtype=float)
@@ -164,6 +166,21 @@ class Simulation:
         record = self._diagnose(len(self.records), t, sx, sy, solution, velocity, distance, elapsed)
         self.records.append(record)
         return record
+
+    def surface(self) -> tuple[np.ndarray, np.ndarray]:
+        """The newest solved step's surface displacement w (m, positive into the half-space) and gap
+        g = Z + w - delta (m) on this rank's rows. w = J_eff A p + A v is the whole displacement at that
+        step: the step's own pressure plus the preceding displacement of the whole history (no cut-off);
+        for line contact it is relative to the datum (petroll.solver.influence.strip_coefficients).
+        One convolution on the whole grid; collective. A step restored from a checkpoint, not solved since,
+        has none (RuntimeError)."""
+        if self._newest is None:
+            raise RuntimeError("no solved step: the surface of a restored step is not kept")
+        profile, v, compliance, delta = self._newest
+        g = self.scene.grid
+        source = compliance * self.pressure if v is None else compliance * self.pressure + v
+        w = self.solver.influence.window(g.nx, g.ny)(source)
+        return w, profile + w - delta
 
     def _solve_load(self, profile, v, compliance: float, load: float, warm):
         """The step under load control. With a history, u is first computed on the box for a penetration
