@@ -8,6 +8,8 @@
     petroll sweep SCENE.toml --vary KEY=SPEC [--out DIR]   one scene over values of a key (docs/sweep.md)
     petroll stress DIR [--step N] [--depth z1,z2,... | --depths auto] [--nu NU]   stresses below a saved
                             pressure field: DIR/stress.h5 and DIR/stress.png
+    petroll material fit DMA.csv [--terms N | --per-decade K] [--nu NU] [--shift LAW] [--out FILE.toml]
+                            a Prony series fitted to DMA data: the [material] block (docs/materials.md)
 
 Options that argparse does not know are handed to PETSc's options database. A user mistake (bad scene,
 unreachable load, solver failure) prints one line ``petroll: error: ...`` and exits with status 2 (a bad
@@ -77,6 +79,23 @@ def _parser() -> argparse.ArgumentParser:
                        "motion.velocity=1e-4..1e-1:log:7 (a vector key varies its magnitude)")
     sweep.add_argument("--out", help="output directory (default: the scene's [output] dir + -sweep)")
     sweep.add_argument("--quiet", action="store_true", help="no progress line (also off when not a terminal)")
+    material = verbs.add_parser("material", help="materials from measurements (docs/materials.md)")
+    material_verbs = material.add_subparsers(dest="material_verb", required=True, metavar="fit")
+    fit = material_verbs.add_parser("fit", help="fit a Maxwell (relaxation) Prony series with non-negative "
+                                    "moduli to DMA data; write the scene's [material] block and fit.png")
+    fit.add_argument("csv", help="DMA table: header frequency,storage,loss[,temperature] (Hz, Pa, Pa, K)")
+    density = fit.add_mutually_exclusive_group()
+    density.add_argument("--terms", type=_positive(int), help="candidate relaxation times in all")
+    density.add_argument("--per-decade", type=_positive(float), help="candidate relaxation times per decade "
+                         "(default 20; NNLS keeps few of them)")
+    fit.add_argument("--nu", type=float, default=0.5, help="Poisson's ratio written into the block (default "
+                     "0.5)")
+    fit.add_argument("--shift", help="shift law for a temperature column, written into the block: "
+                     "wlf:C1,C2,T_ref or arrhenius:Ea,T_ref (C2, T_ref in K; Ea in J/mol) or a TOML file "
+                     "whose [material] shift gives it")
+    fit.add_argument("--out", help="write the [material] block here (atomically; default: print it)")
+    fit.add_argument("--plot", help="the figure of data and fit (default: fit.png beside --out, or in the "
+                     "current directory)")
     plot = verbs.add_parser("plot", help="write PNG figures of a run (pressure maps, patch outlines, series)")
     plot.add_argument("dir", help="a run's output directory (holding results.h5)")
     plot.add_argument("--out", help="directory for the PNG files (default: DIR/plots)")
@@ -116,6 +135,21 @@ def _ranks(text: str) -> tuple[int, ...]:
     return counts
 
 
+def _positive(kind: type):
+    """An argparse type: a finite ``kind`` (int or float) > 0."""
+    def parse(text: str):
+        try:
+            value = kind(text)
+        except ValueError:
+            value = 0
+        if not 0 < value < float("inf"):
+            raise argparse.ArgumentTypeError(f"expected {'an integer' if kind is int else 'a finite number'} "
+                                             f"> 0, got {text!r}")
+        return value
+
+    return parse
+
+
 def _seconds(text: str) -> list[float]:
     try:
         return [float(item) for item in text.split(",") if item.strip()]
@@ -123,27 +157,74 @@ def _seconds(text: str) -> list[float]:
         raise argparse.ArgumentTypeError(f"expected comma-separated seconds, got {text!r}") from None
 
 
-def _plot(args: argparse.Namespace, comm) -> int:
-    """``petroll plot``: rank 0 draws; every rank returns rank 0's exit status."""
+def _on_rank0(action, comm) -> int:
+    """Verbs that only read and write files (plot, material): rank 0 runs ``action()``; every rank
+    returns rank 0's exit status (2 and one line on a PetrollError)."""
     from petroll.errors import PetrollError
 
     code = 1
     try:
         if comm.rank == 0:
-            from petroll.plot import plot_results
-
             try:
-                paths = plot_results(args.dir, args.out, args.times)
-                print("petroll: wrote " + ", ".join(str(p) for p in paths))
+                action()
                 code = 0
             except PetrollError as exc:
-                print(f"petroll: error: {exc}", file=sys.stderr)
+                print(f"petroll: error: {' '.join(str(exc).split())}", file=sys.stderr)
                 code = 2
         else:
             code = 0
     finally:
         code = comm.bcast(code, root=0)
     return code
+
+
+def _plot(args: argparse.Namespace) -> None:
+    """``petroll plot``."""
+    from petroll.plot import plot_results
+
+    paths = plot_results(args.dir, args.out, args.times)
+    print("petroll: wrote " + ", ".join(str(p) for p in paths))
+
+
+def _material_fit(args: argparse.Namespace) -> None:
+    """``petroll material fit``: read, fit, write the block (or print it), draw the figure, report."""
+    import pathlib
+
+    from petroll.io.results import atomic_write
+    from petroll.model import dma
+    from petroll.plot import plot_fit  # imports matplotlib only when drawing
+
+    shift = dma.parse_shift(args.shift) if args.shift else None
+    data = dma.read_dma(args.csv, shift)
+    fit = dma.fit_prony(data.reduced, data.storage, data.loss, args.terms, args.per_decade, args.nu)
+    text = dma.material_toml(fit, shift, args.csv)
+    report = sys.stdout
+    if args.out:
+        out = pathlib.Path(args.out)
+        try:
+            atomic_write(out, lambda tmp: tmp.write_text(text, encoding="utf-8"))
+        except OSError as exc:
+            raise dma.DMAError(f"--out {out}: cannot write it ({exc.strerror})") from None
+    else:
+        print(text, end="", flush=True)
+        report = sys.stderr  # the block alone on stdout, ready to redirect
+    png = pathlib.Path(args.plot) if args.plot else (pathlib.Path(args.out).with_name("fit.png") if args.out
+                                                      else pathlib.Path("fit.png"))
+    try:
+        plot_fit(data, fit, png)
+    except ImportError:
+        print("petroll: warning: matplotlib is not installed: no plot", file=sys.stderr)
+        png = "none"
+    except OSError as exc:
+        raise dma.DMAError(f"--plot {png}: cannot write it ({exc.strerror})") from None
+    lo, hi = fit.frequency_range
+    temperatures = "" if data.temperature is None else (
+        f", {len(set(data.temperature.tolist()))} temperatures shifted to T_ref = {shift.T_ref:g} K")
+    print(f"petroll: {args.csv}: {len(data.frequency)} points{temperatures} over {lo:.4g} ... {hi:.4g} Hz: "
+          f"{len(fit.moduli)} Maxwell terms (of {fit.candidates} candidate times), Einf = {fit.Einf:.6g} Pa; "
+          f"relative error rms {100 * fit.rms_error:.3g} %, max {100 * fit.max_error:.3g} % (E' "
+          f"{100 * fit.max_storage_error:.3g} %, E'' {100 * fit.max_loss_error:.3g} %). "
+          f"Block: {args.out or 'printed above'}; plot: {png}", file=report)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -165,7 +246,9 @@ def main(argv: list[str] | None = None) -> int:
 
     comm = MPI.COMM_WORLD
     if args.verb == "plot":
-        return _plot(args, comm)
+        return _on_rank0(lambda: _plot(args), comm)
+    if args.verb == "material":
+        return _on_rank0(lambda: _material_fit(args), comm)
     errors = comm.Dup() if comm.size > 1 else None  # only for agreeing on an error (see _failed)
     try:
         with warnings.catch_warnings():

@@ -13,7 +13,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from petroll.errors import PetrollError
-from petroll.io.results import Results
+from petroll.io.results import Results, atomic_write
 
 MAX_PANELS = 4
 """Pressure maps drawn when no times are requested: the first, the last and evenly spaced ones between."""
@@ -476,6 +476,39 @@ def plot_sweep(table, path: str | pathlib.Path) -> pathlib.Path:
     return path
 
 
+def plot_fit(data, fit, path: str | pathlib.Path) -> pathlib.Path:
+    """One PNG (written atomically) of a Prony fit to DMA data (:mod:`petroll.model.dma`): E', E'' and
+    tan delta against the (reduced) frequency, the data as points (one colour per temperature), the fit
+    as a line."""
+    figure = _figure(12, 4)
+    axes = figure.subplots(1, 3)
+    f = np.geomspace(*fit.frequency_range, 400)
+    storage, loss = fit.dynamic(f)
+    from matplotlib import colormaps
+
+    temperatures = [None] if data.temperature is None else sorted(set(data.temperature.tolist()))
+    for i, T in enumerate(temperatures):
+        rows = np.ones(len(data.reduced), bool) if T is None else data.temperature == T
+        colour = "tab:blue" if T is None else colormaps["viridis"](i / max(1, len(temperatures) - 1))
+        label = "data" if T is None else f"data at {T:g} K"
+        for ax, y in zip(axes, (data.storage, data.loss, data.loss / data.storage)):
+            ax.plot(data.reduced[rows], y[rows], "o", markersize=3.5, color=colour, label=label, alpha=0.8)
+    for ax, y, name in zip(axes, (storage, loss, loss / storage), ("E' (Pa)", "E'' (Pa)", "tan delta (-)")):
+        ax.plot(f, y, "-", color="black", linewidth=1.2, label=f"fit: {len(fit.moduli)} Maxwell terms")
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlabel("reduced frequency (Hz)" if data.shift is not None else "frequency (Hz)")
+        ax.set_ylabel(name)
+        ax.grid(alpha=0.3, which="both")
+    axes[0].legend(fontsize=8)
+    at = f" at T_ref = {data.shift.T_ref:g} K" if data.shift is not None else ""
+    figure.suptitle(f"{pathlib.Path(data.source).name}: Prony fit{at}; relative error rms "
+                    f"{100 * fit.rms_error:.3g} %, max {100 * fit.max_error:.3g} %")
+    path = pathlib.Path(path)
+    atomic_write(path, lambda tmp: figure.savefig(tmp, dpi=110, format="png"))
+    return path
+
+
 def _proportional(x: np.ndarray, y: np.ndarray, dense: np.ndarray) -> np.ndarray | None:
     """y on ``dense`` if y = k x for one k (to 1e-9), else None."""
     if np.any(x == 0):
@@ -497,6 +530,8 @@ def _secondary_axis(x: np.ndarray, v: np.ndarray, logx: bool):
         return (lambda q: np.asarray(q, dtype=float) * k0), (lambda q: np.asarray(q, dtype=float) / k0)
     if logx:
         u, w = np.log(x), np.log(v)
+    elif np.ptp(np.log10(v)) > 1:
+        return None  # decades of V tau/a over a linear axis (a temperature sweep): no readable top axis
     else:
         u, w = x, np.log(v)
     if not (np.all(np.diff(w) > 0) or np.all(np.diff(w) < 0)) or not np.all(np.diff(u) > 0):

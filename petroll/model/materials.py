@@ -3,6 +3,10 @@
 J(t) is the surface compliance (1 - nu^2) D(t) in 1/Pa, D the uniaxial creep compliance, nu constant.
 Laws: elastic, standard linear solid, Prony series (Kelvin creep or Maxwell relaxation form, converted
 exactly to the creep series), tabulated J(t). Their time integrators live in :mod:`petroll.solver.history`.
+
+Temperature enters through time-temperature superposition: a shift law (:class:`WLF`, :class:`Arrhenius`)
+gives the factor a_T(T) by which every relaxation and retardation time at temperature T exceeds its value
+at the reference temperature T_ref (:func:`shifted`). Temperatures are absolute, in kelvin.
 """
 
 from __future__ import annotations
@@ -11,6 +15,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+
 
 @dataclass(frozen=True)
 class Prony:
@@ -154,3 +159,88 @@ class Tabulated:
     @property
     def longest_time(self) -> float:
         return self.t[-1]
+
+
+# -- temperature: time-temperature superposition ---------------------------------------------------------
+GAS_CONSTANT = 8.314462618
+"""Molar gas constant R, J/(mol K) (CODATA 2018, exact)."""
+
+SHIFT_FORMS = ('{law = "wlf", C1 = ..., C2 = ... (K), T_ref = ... (K)} or {law = "arrhenius", Ea = ... (J/mol), '
+               'T_ref = ... (K)}, all numbers > 0')
+"""What a shift law may be written as (scene key [material] shift)."""
+
+
+@dataclass(frozen=True)
+class WLF:
+    """Williams-Landel-Ferry: log10 a_T = -C1 (T - T_ref) / (C2 + T - T_ref); C2 and T_ref in K.
+
+    Defined above its pole, T > T_ref - C2 (:meth:`lowest`)."""
+
+    C1: float
+    C2: float
+    T_ref: float
+
+    def log10(self, T: float) -> float:
+        """log10 a_T at the temperature T (K); ValueError at or below the pole T_ref - C2."""
+        if not T > self.lowest:
+            raise ValueError(f"must be above T_ref - C2 = {self.lowest:g} K, the pole of the WLF law")
+        return -self.C1 * (T - self.T_ref) / (self.C2 + T - self.T_ref)
+
+    @property
+    def lowest(self) -> float:
+        return self.T_ref - self.C2
+
+    def table(self) -> dict:
+        return {"law": "wlf", "C1": self.C1, "C2": self.C2, "T_ref": self.T_ref}
+
+
+@dataclass(frozen=True)
+class Arrhenius:
+    """Arrhenius: ln a_T = (Ea / R) (1/T - 1/T_ref); Ea in J/mol, T and T_ref in K, R = GAS_CONSTANT."""
+
+    Ea: float
+    T_ref: float
+
+    def log10(self, T: float) -> float:
+        """log10 a_T at the temperature T (K)."""
+        return self.Ea / GAS_CONSTANT * (1.0 / T - 1.0 / self.T_ref) / math.log(10.0)
+
+    def table(self) -> dict:
+        return {"law": "arrhenius", "Ea": self.Ea, "T_ref": self.T_ref}
+
+
+def shift_factor(law: WLF | Arrhenius, T: float) -> float:
+    """a_T(T) = 10^law.log10(T): the factor on every material time at T (K) relative to T_ref (> 1 colder).
+
+    ValueError (with what is allowed) where the law is undefined or a_T over- or underflows."""
+    exponent = law.log10(T)
+    if not -300 < exponent < 300:
+        raise ValueError(f"gives a_T = 10^{exponent:.4g}, beyond what a float holds; a temperature nearer "
+                         "T_ref is needed")
+    return 10.0**exponent
+
+
+def make_shift(table: dict) -> WLF | Arrhenius:
+    """A shift law from its table (``[material] shift``, :data:`SHIFT_FORMS`); ValueError naming what is
+    allowed otherwise."""
+    laws = {"wlf": (WLF, ("C1", "C2", "T_ref")), "arrhenius": (Arrhenius, ("Ea", "T_ref"))}
+    if not isinstance(table, dict) or table.get("law") not in laws:
+        raise ValueError(f"must be {SHIFT_FORMS}")
+    build, names = laws[table["law"]]
+    if set(table) != {"law", *names}:
+        raise ValueError(f"the {table['law']} law takes exactly the keys law, {', '.join(names)}; allowed: "
+                         f"{SHIFT_FORMS}")
+    values = [table[name] for name in names]
+    for name, value in zip(names, values):
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 < value < math.inf:
+            raise ValueError(f"{name} = {value!r} must be a finite number > 0; allowed: {SHIFT_FORMS}")
+    return build(*(float(v) for v in values))
+
+
+def shifted(material: Prony | Tabulated, factor: float) -> Prony | Tabulated:
+    """The material at another temperature: every time multiplied by ``factor`` = a_T, i.e. J_T(t) =
+    J_ref(t / a_T). For a Prony series that scales each retardation time (and with them the relaxation
+    times, exactly: s E~(s) maps to itself under s -> s / a_T); for a table, its time axis."""
+    if isinstance(material, Tabulated):
+        return Tabulated(tuple(t * factor for t in material.t), material.J)
+    return Prony(material.Jinf, material.dJ, tuple(tau * factor for tau in material.tau))

@@ -206,11 +206,21 @@ def _text(value: Any) -> str:
     return value
 
 
+def _shift(value: Any):
+    try:
+        return materials.make_shift(value)
+    except ValueError as exc:
+        raise _Invalid(str(exc)) from None
+
+
+TEMPERATURE_KEYS = {"temperature", "shift"}
+"""[material] keys of time-temperature superposition, taken by every model with material times."""
+
 MODEL_KEYS: dict[str, tuple[set[str], set[str]]] = {
     "elastic": ({"E", "nu"}, set()),
-    "sls": ({"E0", "Einf", "nu"}, {"tau_creep", "tau_relax"}),
-    "prony": ({"series", "Einf", "nu", "times"}, {"compliances", "moduli"}),
-    "tabulated": ({"file", "quantity"}, {"nu"}),
+    "sls": ({"E0", "Einf", "nu"}, {"tau_creep", "tau_relax"} | TEMPERATURE_KEYS),
+    "prony": ({"series", "Einf", "nu", "times"}, {"compliances", "moduli"} | TEMPERATURE_KEYS),
+    "tabulated": ({"file", "quantity"}, {"nu"} | TEMPERATURE_KEYS),
 }
 """Per model: the [material] keys it requires, and those it may take."""
 
@@ -250,6 +260,14 @@ SCHEMA: dict[str, dict[str, Key]] = {
                     "file (tabulated)", _text, default=None),
         "quantity": Key("string", 'what the table holds (tabulated): "D" (creep compliance, 1/Pa; J = (1 - '
                         'nu^2) D) or "J" (surface compliance, 1/Pa)', _choice("D", "J"), default=None),
+        "temperature": Key("number > 0", "temperature of the material (sls, prony, tabulated; with shift): "
+                           "every relaxation and retardation time (a table's time axis) is multiplied by "
+                           "a_T(temperature); the other keys give the material at shift's T_ref "
+                           "(docs/materials.md)", _positive, default=None, unit="K"),
+        "shift": Key("inline table", 'time-temperature shift law a_T (with temperature): {law = "wlf", C1, '
+                     'C2 (K), T_ref (K)}: log10 a_T = -C1 (T - T_ref)/(C2 + T - T_ref), or {law = '
+                     '"arrhenius", Ea (J/mol), T_ref (K)}: ln a_T = (Ea/R)(1/T - 1/T_ref), R = 8.314462618 '
+                     'J/(mol K)', _shift, default=None),
     },
     "body": {
         "shape": Key("string", "body shape: " + ", ".join(BODY_KEYS) + " (its own keys: see below)",
@@ -364,6 +382,7 @@ class Scene:
     base_dir: pathlib.Path = field(repr=False)
     checkpoint_every: int = 0  # steps between checkpoints (0: none)
     keep: int = 2  # checkpoints kept
+    shift_factor: float = 1.0  # a_T at [material] temperature: material's times / their values at T_ref
 
     def replace(self, changes: str | dict[str, Any], value: Any = None) -> "Scene":
         """A copy with keys changed, validated again: ``scene.replace("motion.penetration", 3e-5)`` or,
@@ -434,6 +453,7 @@ def parse_scene(raw: dict, source: str = "<python>", base_dir: str | pathlib.Pat
                              "all (nx ny; PETSc's 32-bit indices)")
         grid = Grid(g["nx"], g["ny"], *g["x"], *g["y"])
     material = _material(values["material"], raw.get("material", {}), base_dir, source)
+    material, shift_factor = _temperature(values["material"], raw.get("material", {}), material, source)
     body = make_body(raw.get("body", {}), base_dir, source, line=line)
     m = values["motion"]
     if line:
@@ -458,7 +478,8 @@ def parse_scene(raw: dict, source: str = "<python>", base_dir: str | pathlib.Pat
                   solver=Solver(values["solver"]["tao_type"], values["solver"]["tol"], integrator,
                                 values["solver"]["history_cutoff"]),
                   output_dir=output_dir, every=values["output"]["every"], base_dir=base_dir,
-                  checkpoint_every=values["output"]["checkpoint_every"], keep=values["output"]["keep"])
+                  checkpoint_every=values["output"]["checkpoint_every"], keep=values["output"]["keep"],
+                  shift_factor=shift_factor)
     _check_contact_inside(scene)
     from petroll.model.limits import check_scene  # slopes beyond the linear theory: refused or warned
 
@@ -571,6 +592,28 @@ def _material(values: dict, table: dict, base_dir: pathlib.Path, source: str):
         build = materials.kelvin if terms == "compliances" else materials.maxwell
         return build(v["Einf"], v["nu"], v[terms], v["times"])
     return _tabulated_material(v, base_dir, source)
+
+
+def _temperature(values: dict, table: dict, material, source: str):
+    """(material at [material] temperature, a_T): every time multiplied by a_T (1 without temperature)."""
+    T, law = values["temperature"], values["shift"]
+    if T is None and law is None:
+        return material, 1.0
+    if T is None or law is None:
+        given, missing = ("temperature", "shift") if law is None else ("shift", "temperature")
+        raise SceneError(source, f"[material] {given}", table[given], f"needs [material] {missing} too: "
+                         f"temperature (K) and shift = {materials.SHIFT_FORMS} go together")
+    try:
+        factor = materials.shift_factor(law, T)
+    except ValueError as exc:
+        raise SceneError(source, "[material] temperature", table["temperature"], str(exc)) from None
+    material = materials.shifted(material, factor)
+    times = material.tau if isinstance(material, materials.Prony) else material.t[1:]
+    if times and not (min(times) > 0 and max(times) < math.inf):
+        raise SceneError(source, "[material] temperature", table["temperature"], f"gives a_T = {factor:.4g}, "
+                         "which takes the material's times beyond what a float holds; a temperature nearer "
+                         "T_ref is needed")
+    return material, factor
 
 
 def _tabulated_material(v: dict, base_dir: pathlib.Path, source: str) -> materials.Tabulated:

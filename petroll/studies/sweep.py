@@ -88,6 +88,7 @@ COLUMNS: dict[str, tuple[str, str]] = {
     "solve_time": ("s", "wall time of the point's steps (their sum; file writes excluded)"),
     "speed": ("m/s", "|V| of a constant velocity (NaN otherwise)"),
     "tau": ("s", "longest creep (retardation) time of a Prony/SLS material (NaN otherwise)"),
+    "a_T": ("-", "time-temperature shift factor at the point's [material] temperature (1 without one)"),
     "a": ("m", "Hertz radius of the first step: sqrt(R delta_0) for a sphere, else sqrt(area_0/pi)"),
     "v_tau_a": ("-", "V tau / a (NaN where speed or tau is)"),
     "mu_r_slow": ("-", "slow-rolling limit V sum(dJ_r tau_r) / (Jinf R) (sphere, Prony; = V tau (1 - "
@@ -385,7 +386,7 @@ def table_row(scene: Scene, results: Results, value: float) -> dict[str, float]:
         a = math.sqrt(scene.body.radius * delta0)
     else:
         a = math.sqrt(float(s["area"][0]) / math.pi)
-    row.update(speed=speed, tau=tau, a=a,
+    row.update(speed=speed, tau=tau, a_T=scene.shift_factor, a=a,
                v_tau_a=speed * tau / a if a > 0 and speed > 0 else math.nan)
     nan = math.nan
     row.update(mu_r_slow=nan, force_J0=nan, force_Jinf=nan, delta_J0=nan, delta_Jinf=nan)
