@@ -18,10 +18,9 @@ import numpy as np
 from mpi4py import MPI
 
 from petroll.errors import PetrollError
-from petroll.io.checkpoint import RunInterrupted, checkpoint_dir, write_checkpoint
-from petroll.io.results import OutputError, Results, write_results
+from petroll.io.checkpoint import RunInterrupted, checkpoint_dir, run_directory, write_checkpoint
+from petroll.io.results import OutputError, Results, ResultsFile
 from petroll.model.scene import Scene
-from petroll.solver.partition import gather_field
 from petroll.solver.simulation import Simulation, StepRecord
 
 
@@ -32,11 +31,13 @@ def run(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, out: str | pathlib.Path |
     Returns the results read back from the file, on every rank. ``progress`` prints a status line on
     rank 0's stderr after every step.
 
-    Checkpoints (docs/checkpoints.md): with ``[output] checkpoint_every`` = k > 0, after every k-th step
-    and after the last one, ``<out>/checkpoints/step-NNNNNNNN.h5`` is written and results.h5 is rewritten
-    (atomically) with the series and fields so far. ``restart`` (a :class:`petroll.io.checkpoint.Checkpoint`
-    of a compatible scene, see ``restart_scene``) continues that run from its step: the results then hold
-    the whole run, identical to an uninterrupted one. ``stop`` (a :class:`petroll.io.checkpoint.StopRequest`)
+    results.h5 grows as the run goes (docs/results.md): the series and each saved field are appended when
+    a field is saved, at every checkpoint and at the end. Checkpoints (docs/checkpoints.md): with
+    ``[output] checkpoint_every`` = k > 0, after every k-th step and after the last one,
+    ``<out>/checkpoints/step-NNNNNNNN.h5`` is written (after results.h5 is brought up to that step).
+    ``restart`` (a :class:`petroll.io.checkpoint.Checkpoint` of a compatible scene, see ``restart_scene``)
+    continues that run from its step: results.h5 of the checkpoint's run is continued (copied to ``out``
+    first if that is another directory) and then holds the whole run, identical to an uninterrupted one. ``stop`` (a :class:`petroll.io.checkpoint.StopRequest`)
     is agreed on by the ranks after every step: once set, the run writes a checkpoint and the results so
     far and raises :class:`petroll.io.checkpoint.RunInterrupted`. ``on_step(record)`` is called on every rank
     after every step.
@@ -45,17 +46,18 @@ def run(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, out: str | pathlib.Path |
     prepare_output(out, comm)
     sim = Simulation(scene, comm)
     g = scene.grid
+    results = ResultsFile(out / "results.h5", scene.text, g.x, g.y, comm, line=g.line)
     if restart is not None:
-        t, fields, field_steps = restart.restore(sim)
+        t, field_steps = restart.restore(sim)
+        results.resume(run_directory(restart.path) / "results.h5", len(sim.records), field_steps)
     else:
-        t, fields, field_steps = 0.0, [], []
+        t = 0.0
     resumed = restart is not None  # the first record is the restored step's, not solved again
     wall = clock.perf_counter()
     for record in sim.steps(t):
         stop_now = sim.dt_next is None
-        if not resumed and (stop_now or record.step == 0 or (scene.every and record.step % scene.every == 0)):
-            fields.append(gather_field(sim.pressure, g.nx, comm))
-            field_steps.append(record.step)
+        save = not resumed and (stop_now or record.step == 0
+                                or bool(scene.every and record.step % scene.every == 0))
         if on_step is not None:
             on_step(record)
         signum = stop.agreed(comm) if stop is not None else 0
@@ -64,11 +66,12 @@ def run(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, out: str | pathlib.Path |
         due = every and not resumed and ((record.step > 0 and record.step % every == 0) or stop_now)
         if progress and comm.rank == 0:
             _show_progress(scene, record, clock.perf_counter() - wall)
+        if save or due or interrupted or stop_now:  # the results first: a checkpoint's fields are in them
+            results.append(sim.records, {"pressure": sim.pressure} if save else None, complete=stop_now,
+                           describe=bool(due or interrupted or stop_now))
         if due or interrupted:
-            path = write_checkpoint(checkpoint_dir(out), sim, sim.t, sim.dt_next, fields, field_steps,
+            path = write_checkpoint(checkpoint_dir(out), sim, sim.t, sim.dt_next, results.field_steps,
                                     scene.keep)
-            if not stop_now:
-                _write_results(out, sim, fields, field_steps, complete=False)
             if interrupted:
                 if progress and comm.rank == 0:
                     print(file=sys.stderr)
@@ -76,7 +79,7 @@ def run(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, out: str | pathlib.Path |
         resumed = False
     if progress and comm.rank == 0:
         print(file=sys.stderr)
-    return Results.open(_write_results(out, sim, fields, field_steps, complete=True))
+    return Results.open(results.path)
 
 
 def prepare_output(out: pathlib.Path, comm: MPI.Comm) -> None:
@@ -94,26 +97,6 @@ def prepare_output(out: pathlib.Path, comm: MPI.Comm) -> None:
     message = comm.bcast(message, root=0)
     if message is not None:
         raise OutputError(message)
-
-
-def _write_results(out: pathlib.Path, sim: Simulation, fields: list, field_steps: list[int],
-                   complete: bool) -> pathlib.Path:
-    """Rank 0 writes ``out/results.h5`` (and results.xdmf) atomically; collective, errors on every rank."""
-    comm, g = sim.comm, sim.scene.grid
-    path = out / "results.h5"
-    message = None
-    if comm.rank == 0:
-        series = {name: np.array([getattr(r, name) for r in sim.records])
-                  for name in StepRecord.__annotations__}
-        try:
-            write_results(path, series, np.array(fields).reshape(-1, g.nx, g.ny), np.array(field_steps), g.x,
-                          g.y, sim.scene.text, complete=complete, line=g.line)
-        except OutputError as exc:
-            message = str(exc)
-    message = comm.bcast(message, root=0)
-    if message is not None:
-        raise OutputError(message)
-    return path
 
 
 def _show_progress(scene: Scene, r: StepRecord, wall: float) -> None:

@@ -3,7 +3,7 @@
 See docs/checkpoints.md.
 
 A checkpoint ``DIR/checkpoints/step-NNNNNNNN.h5`` holds everything the time loop needs to continue after
-step N exactly as if it had never stopped (format version 1, readable with plain h5py):
+step N exactly as if it had never stopped (format version 2, readable with plain h5py):
 
     attributes   format = "petroll-checkpoint", format_version, petroll_version, ranks (the rank count
                  that wrote it), step, t (s), next_dt (s; NaN: the run was over), nx, ny, history
@@ -23,7 +23,7 @@ step N exactly as if it had never stopped (format version 1, readable with plain
                                        /state/recent_position (k, 2) the body's positions, m: the first
                                        guess of the next step
     /series/<name>       (N + 1,)      the per-step series so far (as in results.h5)
-    /fields/pressure     (n_saved, nx, ny), /fields/step (n_saved,): the pressure fields saved so far
+    /fields/step         (n_saved,)    the steps of the fields saved so far (the fields are in results.h5)
 
 Each dataset carries the SHA-256 of its contents (attribute ``sha256``); the file's ``sha256`` attribute
 covers its other attributes and the datasets' digests, so any change of the content is found on reading.
@@ -59,8 +59,9 @@ from petroll.solver.history import HereditaryHistory, RelaxationHistory
 from petroll.io.results import sync_directory
 
 FORMAT = "petroll-checkpoint"
-FORMAT_VERSION = 1
-"""The checkpoint layout written here; files of a larger version are refused."""
+FORMAT_VERSION = 2
+"""The checkpoint layout written here; files of a larger version are refused. Version 1 also held the
+saved fields (/fields/pressure), which now live in results.h5 only; it is still read."""
 
 SAFE_KEYS = {"time": {"end", "distance", "steady", "max_steps"},
              "output": {"dir", "every", "checkpoint_every", "keep"}}
@@ -180,10 +181,10 @@ def run_directory(checkpoint: str | pathlib.Path) -> pathlib.Path:
 
 
 # -- writing ----------------------------------------------------------------------------------------------
-def write_checkpoint(directory: str | pathlib.Path, sim, t: float, next_dt: float | None, fields: list,
+def write_checkpoint(directory: str | pathlib.Path, sim, t: float, next_dt: float | None,
                      field_steps: list[int], keep: int = 2) -> pathlib.Path:
     """Write the state of ``sim`` after its last step (time ``t``; ``next_dt`` the step that follows, None
-    if none) with the fields saved so far (``fields``: rank 0's list, same length elsewhere), then remove
+    if none) with the steps of the fields saved so far (``field_steps``: they are in results.h5), then remove
     all but the newest ``keep`` checkpoints of earlier steps. Collective over ``sim.comm``; returns the
     path. CheckpointError if the file cannot be written (every earlier checkpoint stays as it was).
     """
@@ -212,7 +213,6 @@ def write_checkpoint(directory: str | pathlib.Path, sim, t: float, next_dt: floa
     for name in StepRecord.__annotations__:
         sink.array(f"series/{name}", lambda name=name: np.array([getattr(r, name) for r in sim.records]))
     sink.array("fields/step", lambda: np.asarray(field_steps, dtype=np.int64))
-    sink.stack("fields/pressure", (len(field_steps), g.nx, g.ny), lambda k: fields[k])
     attrs = {
         "format": FORMAT, "format_version": FORMAT_VERSION, "petroll_version": __version__,
         "ranks": comm.size, "step": step, "t": float(t),
@@ -379,7 +379,6 @@ class Checkpoint:
     field_steps: np.ndarray
     direction: np.ndarray
     times: np.ndarray | None
-    fields: np.ndarray | None  # (n_saved, nx, ny), rank 0
     state: dict[str, np.ndarray] | None  # pressure (nx, ny), q or increments (k, nx, ny); rank 0
 
     @property
@@ -399,9 +398,10 @@ class Checkpoint:
         return str(self.attrs["scene"])
 
     # -- the state back into a simulation ---------------------------------------------------------------
-    def restore(self, sim) -> tuple[float, list, list[int]]:
+    def restore(self, sim) -> tuple[float, list[int]]:
         """Put the state into ``sim`` (a fresh Simulation of a compatible scene, any rank count) and return
-        (t, fields, field_steps) for the time loop. Collective."""
+        (t, field_steps) for the time loop: the time and the steps of the fields saved up to the checkpoint
+        (they are in the run's results.h5). Collective."""
         from petroll.solver.simulation import StepRecord
 
         comm, g, history = sim.comm, sim.scene.grid, sim.history
@@ -445,9 +445,7 @@ class Checkpoint:
         else:
             sim.warm.recent = [(scatter_rows(self.state["recent"][k] if root else None, nx, ny, comm), *xy)
                                for k, xy in enumerate(positions.tolist())]
-        saved = len(self.field_steps)
-        fields = [self.fields[k] for k in range(saved)] if root else [None] * saved
-        return self.t, fields, [int(s) for s in self.field_steps]
+        return self.t, [int(s) for s in self.field_steps]
 
 
 def scatter_rows(whole: np.ndarray | None, nx: int, ny: int, comm: MPI.Comm) -> np.ndarray:
@@ -477,11 +475,10 @@ def read_checkpoint(path: str | pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD) -
     message = comm.bcast(message, root=0)
     if message is not None:
         raise CheckpointError(message)
-    shared = comm.bcast({k: v for k, v in loaded.items() if k not in ("fields", "state")} if loaded else None,
-                        root=0)
+    shared = comm.bcast({k: v for k, v in loaded.items() if k != "state"} if loaded else None, root=0)
     return Checkpoint(path=path, attrs=shared["attrs"], series=shared["series"],
                       field_steps=shared["field_steps"], direction=shared["direction"], times=shared["times"],
-                      fields=loaded["fields"] if loaded else None, state=loaded["state"] if loaded else None)
+                      state=loaded["state"] if loaded else None)
 
 
 def _load(path: pathlib.Path) -> dict:
@@ -512,7 +509,7 @@ def _load(path: pathlib.Path) -> dict:
                 raise CheckpointError(f"{path}: written in checkpoint format {version} (petroll "
                                       f"{attrs.get('petroll_version', '?')}); this petroll {__version__} "
                                       f"reads format {FORMAT_VERSION} and older: use a newer petroll")
-            if version != FORMAT_VERSION:
+            if version not in (1, FORMAT_VERSION):
                 raise CheckpointError(f"{path}: corrupted (format_version {version!r} is not a known "
                                       "version)")
             missing = [k for k in _ATTRS if k not in attrs]
@@ -539,7 +536,7 @@ def _load(path: pathlib.Path) -> dict:
         raise CheckpointError(f"{path}: corrupted (its attributes or list of datasets do not match the "
                               f"checksum)")
     prony = attrs["history"] == "prony"
-    needed = ["state/pressure", "state/direction", "fields/step", "fields/pressure",
+    needed = ["state/pressure", "state/direction", "fields/step",
               *(f"series/{n}" for n in StepRecord.__annotations__),
               *(["state/q"] if prony else ["state/times", "state/increments"])]
     absent = [n for n in needed if n not in data]
@@ -556,8 +553,7 @@ def _load(path: pathlib.Path) -> dict:
         state["increments"] = data["state/increments"]
     return {"attrs": attrs, "series": {n: data[f"series/{n}"] for n in StepRecord.__annotations__},
             "field_steps": data["fields/step"], "direction": data["state/direction"],
-            "times": None if prony else data["state/times"], "fields": data["fields/pressure"],
-            "state": state}
+            "times": None if prony else data["state/times"], "state": state}
 
 
 # -- the scene of a restart -------------------------------------------------------------------------------

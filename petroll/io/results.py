@@ -1,22 +1,25 @@
-"""results.h5: the per-step series and the saved pressure fields of a run (layout: docs/results.md).
+"""results.h5: the per-step series and the saved fields of a run (layout: docs/results.md).
 
     /series/<name>        1-D datasets, one value per step (force, delta, area, p_max, iterations, ...)
-    /fields/pressure      (n_saved, nx, ny) pressure in Pa, axis 1 along X
+    /fields/<field>       (n_saved, nx, ny) saved fields, axis 1 along X (``FIELD_UNITS``: pressure in Pa)
     /fields/step          (n_saved,) step number of each saved field
     /fields/x, /fields/y  cell-centre coordinates in m (material frame)
     /mesh/xy              ((nx + 1) (ny + 1), 2) cell-corner coordinates in m, for the XDMF file
     attributes            scene (the scene's TOML text), petroll_version, format_version, complete
-                          (False while the run goes on: written at a checkpoint), last_step,
+                          (False while the run goes on), steps_written, fields_written, last_step,
                           line_contact (True: a plane-strain run; fields (n_saved, nx, 1) on strips of
                           unit length, y = [0]; series per unit length, force_y and cop_y absent)
 
-The file is written by rank 0 to a temporary name and renamed into place, so a reader never sees a
-half-written file, and a run killed at any moment leaves the previous complete file. Next to it,
+The file grows as the run goes (:class:`ResultsFile`): its datasets are resizable and chunked, the series
+and fields are appended, never rewritten, every rank writing its own rows of a field (parallel HDF5, or
+through rank 0: :mod:`petroll.io.hdf5`). Between appends the file is closed; ``steps_written`` and
+``fields_written`` say how far it is valid and readers cut the datasets there. Next to it,
 ``results.xdmf`` describes the saved pressure fields as a time series for ParaView (docs/checkpoints.md).
 """
 
 from __future__ import annotations
 
+import functools
 import math
 import os
 import pathlib
@@ -27,6 +30,7 @@ import numpy as np
 
 from petroll import __version__
 from petroll.errors import PetrollError, reason
+from petroll.io.hdf5 import RowFile, chunk_rows
 
 FORMAT_VERSION = 1
 
@@ -122,32 +126,43 @@ def steady_state(series: dict[str, np.ndarray], scene_text: str = "") -> SteadyS
 
 @dataclass
 class Results:
-    """A run's results as numpy arrays: ``series[name]`` (one value per step) and the saved fields.
+    """A run's results: ``series[name]`` (one value per step, numpy arrays) and its saved fields.
 
     Units: see :data:`SERIES_UNITS` (SI); ``pressure`` in Pa, ``x`` and ``y`` in m. ``steady`` gives the
-    final values with their convergence measure (:class:`SteadyState`).
+    final values with their convergence measure (:class:`SteadyState`). The saved fields are read from
+    the file when first used (``pressure``, or ``field(name)``), not when it is opened.
     """
 
     path: pathlib.Path
     series: dict[str, np.ndarray]
-    pressure: np.ndarray  # (n_saved, nx, ny), Pa
     field_steps: np.ndarray  # (n_saved,)
     x: np.ndarray  # (nx,) cell centres, m
     y: np.ndarray  # (ny,) cell centres, m
     scene_text: str
-    complete: bool = True  # False: written at a checkpoint of a run that goes on (or was interrupted)
+    complete: bool = True  # False: the run goes on (or was interrupted); the file holds steps_written steps
     line: bool = False  # a line-contact (plane-strain) run: series per unit length, pressure (n, nx, 1)
 
     @classmethod
     def open(cls, path: str | pathlib.Path) -> "Results":
-        """Read a results file (any rank may call it)."""
+        """Read a results file's series and coordinates (any rank may call it), up to ``steps_written``."""
         path = pathlib.Path(path)
         with h5py.File(path, "r") as f:
-            series = {name: f["series"][name][()] for name in f["series"]}
+            n = int(f.attrs.get("steps_written", len(f["series/t"])))
+            k = int(f.attrs.get("fields_written", len(f["fields/step"])))
+            series = {name: f["series"][name][:n] for name in f["series"]}
             fields = f["fields"]
-            return cls(path, series, fields["pressure"][()], fields["step"][()], fields["x"][()],
-                       fields["y"][()], str(f.attrs["scene"]), bool(f.attrs.get("complete", True)),
-                       bool(f.attrs.get("line_contact", False)))
+            return cls(path, series, fields["step"][:k], fields["x"][()], fields["y"][()], str(f.attrs["scene"]),
+                       bool(f.attrs.get("complete", True)), bool(f.attrs.get("line_contact", False)))
+
+    def field(self, name: str) -> np.ndarray:
+        """The saved fields ``name`` (a key of FIELD_UNITS), (n_saved, nx, ny), read from the file."""
+        with h5py.File(self.path, "r") as f:
+            return f["fields"][name][: len(self.field_steps)]
+
+    @functools.cached_property
+    def pressure(self) -> np.ndarray:
+        """(n_saved, nx, ny) saved pressure fields, Pa (read on first use)."""
+        return self.field("pressure")
 
     @property
     def steady(self) -> SteadyState:
@@ -156,56 +171,247 @@ class Results:
         return steady_state(self.series, self.scene_text)
 
 
-def write_results(path: pathlib.Path, series: dict[str, np.ndarray], pressure: np.ndarray,
-                  field_steps: np.ndarray, x: np.ndarray, y: np.ndarray, scene_text: str,
-                  complete: bool = True, line: bool = False) -> None:
-    """Write a complete results file and its ``.xdmf`` companion atomically (temporary file, fsync,
-    rename). Call on one rank. Raises :class:`OutputError` (the previous files are left as they were).
-    ``line``: a line-contact run (the series of LINE_SERIES_UNITS only, with their units)."""
-    units = LINE_SERIES_UNITS if line else SERIES_UNITS
-    path = pathlib.Path(path)
-    nx, ny = len(x), len(y)
+FIELD_UNITS = {"pressure": "Pa"}
+"""The fields a run can save (name: unit), each as /fields/<name> (n_saved, nx, ny)."""
+
+
+class ResultsFile:
+    """``results.h5`` of a running simulation, appended to as it goes (layout: docs/results.md).
+
+    Collective: every rank of ``comm`` calls every method alike, with its own rows (RowPartition of nx)
+    of the fields. The file is closed between calls: each :meth:`append` opens it, extends the series and
+    the fields, sets ``steps_written``/``fields_written`` last and closes it; a process killed while no
+    append is under way leaves a file holding every step up to the last append. ``fields`` names the
+    fields a run saves (keys of FIELD_UNITS); ``line``: a line-contact run. Raises :class:`OutputError` (on every rank).
+    """
+
+    def __init__(self, path: str | pathlib.Path, scene_text: str, x: np.ndarray, y: np.ndarray, comm,
+                 fields: tuple[str, ...] = ("pressure",), line: bool = False):
+        from petroll.solver.partition import RowPartition
+
+        self.path, self.scene_text, self.comm = pathlib.Path(path), scene_text, comm
+        self.x, self.y, self.fields = np.asarray(x, dtype=float), np.asarray(y, dtype=float), tuple(fields)
+        self.rows = RowPartition(len(self.x), comm.size)
+        self.line = bool(line)  # a line-contact run: the series of LINE_SERIES_UNITS, with their units
+        self.names = [n for n in _series_names() if not (line and n in LINE_ABSENT)]
+        self.steps = 0  # series rows in the file
+        self.field_steps: list[int] = []  # the steps of the fields in the file
+        self.started = False  # the file exists (create or resume); the first append creates it otherwise
+
+    # -- starting ---------------------------------------------------------------------------------------
+    def create(self) -> None:
+        """A new file with empty series and fields (atomically replacing a results.h5 already there)."""
+        nx, ny = len(self.x), len(self.y)
+        r0, r1 = self.rows.range(self.comm.rank)
+        tmp = self.path.with_name(f".{self.path.name}.tmp{self._pid()}")
+
+        def build(f: RowFile):
+            if f.writer:
+                h = f.file
+                h.attrs.update(scene=self.scene_text, petroll_version=__version__, format_version=FORMAT_VERSION,
+                               line_contact=self.line)
+                units = LINE_SERIES_UNITS if self.line else SERIES_UNITS
+                group = h.create_group("series")
+                for name in self.names:
+                    group.create_dataset(name, shape=(0,), maxshape=(None,), chunks=(1024,),
+                                         dtype=series_dtype(name), dcpl=early()).attrs["units"] = units.get(name, "-")
+                fields = h.create_group("fields")
+                chunks = (1, min(nx, chunk_rows(ny)), ny)
+                for name in self.fields:
+                    fields.create_dataset(name, shape=(0, nx, ny), maxshape=(None, nx, ny), chunks=chunks,
+                                          dtype=np.float64, dcpl=early(), **PACKED).attrs["units"] = FIELD_UNITS[name]
+                fields.create_dataset("step", shape=(0,), maxshape=(None,), chunks=(1024,), dtype=np.int64,
+                                      dcpl=early())
+                fields.create_dataset("x", data=self.x).attrs["units"] = "m"
+                fields.create_dataset("y", data=self.y).attrs["units"] = "m"
+                h.create_group("mesh").create_dataset(
+                    "xy", shape=((nx + 1) * (ny + 1), 2), dtype=np.float64,
+                    chunks=(min((nx + 1) * (ny + 1), chunk_rows(2) // 2), 2), **PACKED).attrs["units"] = "m"
+                self._mark(h, 0, 0, complete=False)
+            last = r1 + 1 if r1 == nx else r1  # the last rank writes the corners' last row too
+            corners = cell_corners(self.x, self.y, r0, last)
+            f.put("mesh/xy", (), r0 * (ny + 1), corners)
+
+        self._guarded(lambda: self._write(tmp, "w", build), tmp)
+        self._guarded(lambda: self._replace(tmp), tmp)
+        self.steps, self.field_steps, self.started = 0, [], True
+
+    def resume(self, source: str | pathlib.Path, steps: int, field_steps: list[int]) -> None:
+        """Continue ``source`` (the results.h5 of the run a checkpoint came from): its first ``steps`` series
+        values and the fields of ``field_steps`` are kept, what it holds beyond them is dropped. A source
+        elsewhere than this file is copied here first (atomically)."""
+        source = pathlib.Path(source)
+        message = None
+        if self.comm.rank == 0:
+            message = _resumable(source, steps, field_steps)
+        message = self.comm.bcast(message, root=0)
+        if message is not None:
+            raise OutputError(message)
+        if source.resolve() != self.path.resolve():
+            tmp = self.path.with_name(f".{self.path.name}.tmp{self._pid()}")
+            self._guarded(lambda: self._copy(source, tmp), tmp)
+            self._guarded(lambda: self._replace(tmp), tmp)
+
+        def cut(f: RowFile):
+            if f.writer:
+                h = f.file
+                for name in h["series"]:
+                    h["series"][name].resize((steps,))
+                for name in (*self.fields, "step"):
+                    h["fields"][name].resize(len(field_steps), axis=0)
+                self._mark(h, steps, len(field_steps), complete=False)
+
+        self._guarded(lambda: self._write(self.path, "r+", cut))
+        self.steps, self.field_steps, self.started = steps, [int(s) for s in field_steps], True
+
+    # -- growing ----------------------------------------------------------------------------------------
+    def append(self, records: list, saved: dict[str, np.ndarray] | None = None, complete: bool = False,
+               describe: bool = False) -> None:
+        """Append the series of ``records`` (StepRecords) not yet in the file and, with ``saved`` ({field
+        name: this rank's rows}), the fields of the last record's step; then mark the file (``complete``:
+        the run is over). ``describe`` rewrites results.xdmf too (atomically). The first append of a file
+        neither created nor resumed creates it (so a run failing in its first step leaves none)."""
+        if not self.started:
+            self.create()
+        names = self.names
+        new = records[self.steps:]
+        n = self.steps + len(new)
+        k = len(self.field_steps) + (saved is not None)
+        step = int(records[-1].step)
+        r0 = self.rows.range(self.comm.rank)[0]
+
+        def grow(f: RowFile):
+            h = f.file
+            if f.writer:
+                for name in names:
+                    h["series"][name].resize((n,))
+            mine = f.parallel or self.comm.rank == 0  # parallel: every rank writes the same values
+            for name in names:
+                values = np.array([getattr(r, name) for r in new] if mine else [], dtype=series_dtype(name))
+                f.put(f"series/{name}", (), self.steps, values)
+            if saved is not None:
+                if f.writer:
+                    for name in (*self.fields, "step"):
+                        h["fields"][name].resize(k, axis=0)
+                for name in self.fields:
+                    f.put(f"fields/{name}", (k - 1,), r0, np.asarray(saved[name], dtype=np.float64))
+                f.put("fields/step", (), k - 1, np.array([step] if mine else [], dtype=np.int64))
+            if f.writer:
+                h.flush()  # the data first, then the marks that make them count
+                self._mark(h, n, k, complete)
+
+        self._guarded(lambda: self._write(self.path, "r+", grow))
+        self.steps = n
+        if saved is not None:
+            self.field_steps.append(step)
+        if describe and self.comm.rank == 0:
+            times = {int(r.step): float(r.t) for r in records}
+            text = xdmf_text(self.path.name, len(self.x), len(self.y), self.field_steps,
+                             [times[s] for s in self.field_steps])
+            self._guarded(lambda: atomic_write(self.path.with_suffix(".xdmf"),
+                                               lambda tmp: tmp.write_text(text, encoding="utf-8")), local=True)
+        if describe:
+            self._agree()
+
+    # -- helpers ----------------------------------------------------------------------------------------
+    @staticmethod
+    def _mark(h: h5py.File, steps: int, fields: int, complete: bool) -> None:
+        """The attributes saying how far the file is valid: ``steps`` series values, ``fields`` fields."""
+        h.attrs.update(complete=bool(complete), steps_written=int(steps), fields_written=int(fields),
+                       last_step=int(steps) - 1)
+
+    def _pid(self) -> int:
+        return self.comm.bcast(os.getpid() if self.comm.rank == 0 else None, root=0)
+
+    def _write(self, path: pathlib.Path, mode: str, work) -> None:
+        if self.comm.rank == 0:
+            path.parent.mkdir(parents=True, exist_ok=True)
+        with RowFile(path, mode, self.comm) as f:
+            work(f)
+        if self.comm.rank == 0:
+            with open(path, "rb") as fh:
+                os.fsync(fh.fileno())
+
+    def _replace(self, tmp: pathlib.Path) -> None:
+        if self.comm.rank == 0:
+            os.replace(tmp, self.path)
+            sync_directory(self.path.parent)
+
+    @staticmethod
+    def _copy(source: pathlib.Path, tmp: pathlib.Path) -> None:
+        import shutil
+
+        tmp.parent.mkdir(parents=True, exist_ok=True)
+        shutil.copyfile(source, tmp)
+        with open(tmp, "rb") as fh:
+            os.fsync(fh.fileno())
+
+    _error = None
+
+    def _guarded(self, action, tmp: pathlib.Path | None = None, local: bool = False) -> None:
+        """Run ``action`` (collective unless ``local``: rank 0 only); an error on any rank becomes an
+        OutputError on every rank (a temporary file is removed)."""
+        try:
+            if not local or self.comm.rank == 0:
+                action()
+        except (OSError, RuntimeError, KeyError, ValueError) as exc:
+            self._error = f"{self.path}: cannot write the results ({reason(exc)})"
+        if not local:
+            self._agree(tmp)
+
+    def _agree(self, tmp: pathlib.Path | None = None) -> None:
+        errors = [e for e in self.comm.allgather(self._error) if e]
+        self._error = None
+        if errors:
+            if tmp is not None and self.comm.rank == 0 and tmp.exists():
+                tmp.unlink()
+            raise OutputError(errors[0])
+
+
+INTEGER_SERIES = ("step", "iterations", "applications")
+"""Series stored as 64-bit integers (the others as doubles)."""
+
+PACKED = dict(compression="gzip", compression_opts=1, shuffle=True)
+"""How fields are stored: gzip (in every HDF5 build) after byte shuffling, fast level."""
+
+
+def early():
+    """Creation properties allocating a dataset's chunks when it is created or extended: what parallel HDF5
+    needs of a file extended by several ranks, whichever path (parallel or rank 0) created it."""
+    from h5py import h5d, h5p
+
+    dcpl = h5p.create(h5p.DATASET_CREATE)
+    dcpl.set_alloc_time(h5d.ALLOC_TIME_EARLY)
+    return dcpl
+
+
+def series_dtype(name: str):
+    """The stored type of series ``name``."""
+    return np.int64 if name in INTEGER_SERIES else np.float64
+
+
+def _series_names() -> list[str]:
+    from petroll.solver.simulation import StepRecord
+
+    return list(StepRecord.__annotations__)
+
+
+def _resumable(source: pathlib.Path, steps: int, field_steps: list[int]) -> str | None:
+    """Why ``source`` cannot be continued at ``steps`` steps with ``field_steps`` saved (None: it can)."""
+    fix = "; restart from an earlier checkpoint, or run the scene again from its start"
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-
-        def fill(f):
-            f.attrs["scene"] = scene_text
-            f.attrs["petroll_version"] = __version__
-            f.attrs["format_version"] = FORMAT_VERSION
-            f.attrs["complete"] = bool(complete)
-            steps = np.asarray(series.get("step", []))
-            f.attrs["last_step"] = int(steps[-1]) if steps.size else -1
-            f.attrs["line_contact"] = bool(line)
-            group = f.create_group("series")
-            for name, values in series.items():
-                if line and name in LINE_ABSENT:
-                    continue
-                dataset = group.create_dataset(name, data=np.asarray(values))
-                dataset.attrs["units"] = units.get(name, "-")
-            fields = f.create_group("fields")
-            data = np.asarray(pressure, dtype=float).reshape(-1, nx, ny)
-            packed = {}
-            if len(data):
-                packed = dict(compression="gzip", compression_opts=1, shuffle=True, chunks=(1, nx, ny))
-            fields.create_dataset("pressure", data=data, **packed).attrs["units"] = "Pa"
-            fields.create_dataset("step", data=np.asarray(field_steps, dtype=np.int64))
-            fields.create_dataset("x", data=x).attrs["units"] = "m"
-            fields.create_dataset("y", data=y).attrs["units"] = "m"
-            f.create_group("mesh").create_dataset("xy", data=cell_corners(x, y), compression="gzip",
-                                                  compression_opts=1).attrs["units"] = "m"
-
-        atomic_write(path, lambda tmp: _write_hdf5(tmp, fill))
-        times = np.asarray(series["t"])[np.asarray(field_steps, dtype=int)] if len(field_steps) else []
-        text = xdmf_text(path.name, nx, ny, list(np.asarray(field_steps, dtype=int)), list(times))
-        atomic_write(path.with_suffix(".xdmf"), lambda tmp: tmp.write_text(text, encoding="utf-8"))
-    except OSError as exc:
-        raise OutputError(f"{path}: cannot write the results ({reason(exc)}); the previous results file, if "
-                          "any, is unchanged") from None
-
-
-def _write_hdf5(tmp: pathlib.Path, fill) -> None:
-    with h5py.File(tmp, "w") as f:
-        fill(f)
+        with h5py.File(source, "r") as f:
+            if "steps_written" not in f.attrs or f["series/t"].maxshape != (None,):
+                return f"{source}: written by an older petroll (not appendable); run the scene again"
+            n, k = int(f.attrs["steps_written"]), int(f.attrs["fields_written"])
+            have = [int(s) for s in f["fields/step"][:k]]
+    except (OSError, KeyError) as exc:
+        return f"{source}: cannot continue the results of the checkpoint's run ({reason(exc)}){fix}"
+    if n < steps or have[: len(field_steps)] != [int(s) for s in field_steps]:
+        return (f"{source}: holds {n} steps and fields of steps {have[:6]}{'...' if len(have) > 6 else ''}; "
+                f"the checkpoint needs {steps} steps and fields of steps "
+                f"{list(field_steps)[:6]}{'...' if len(field_steps) > 6 else ''}{fix}")
+    return None
 
 
 def atomic_write(path: pathlib.Path, write) -> None:
@@ -238,12 +444,16 @@ def sync_directory(directory: pathlib.Path) -> None:
         os.close(fd)
 
 
-def cell_corners(x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """((nx + 1) (ny + 1), 2) corner coordinates of the cells centred at x, y (uniform), the last axis
-    (Y) varying fastest: the geometry of a 2DSMesh whose cell (i, j) is pressure[i, j]."""
-    dx = (x[-1] - x[0]) / (len(x) - 1) if len(x) > 1 else 1.0
+def cell_corners(x: np.ndarray, y: np.ndarray, i0: int = 0, i1: int | None = None) -> np.ndarray:
+    """((i1 - i0) (ny + 1), 2) corner coordinates of the cells centred at x, y (uniform), corner rows
+    i0 <= i <= nx below i1 (default: all nx + 1), the last axis (Y) varying fastest: rows i0:i1 of the
+    geometry of a 2DSMesh whose cell (i, j) is pressure[i, j]."""
+    nx = len(x)
+    i1 = nx + 1 if i1 is None else i1
+    dx = (x[-1] - x[0]) / (nx - 1) if nx > 1 else 1.0
     dy = (y[-1] - y[0]) / (len(y) - 1) if len(y) > 1 else 1.0
-    xe = np.concatenate([x - dx / 2, [x[-1] + dx / 2]])
+    rows = np.arange(i0, i1)
+    xe = np.where(rows < nx, x[np.minimum(rows, nx - 1)] - dx / 2, x[-1] + dx / 2)
     ye = np.concatenate([y - dy / 2, [y[-1] + dy / 2]])
     X, Y = np.meshgrid(xe, ye, indexing="ij")
     return np.stack([X.ravel(), Y.ravel()], axis=1)
