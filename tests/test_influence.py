@@ -47,6 +47,21 @@ def test_convolution_equals_dense_matrix(comm, nx, ny):
     assert np.abs(y - ref[conv.r0 : conv.r1]).max(initial=0.0) <= 1e-12 * np.abs(ref).max()
 
 
+@pytest.mark.parametrize("nx,ny", [(13, 7), (5, 24)])
+def test_a_block_beyond_the_kept_table_computes_each_ranks_kernel_rows_from_loves_formula(comm, nx, ny):
+    """Blocks larger than TABLE_CELLS get their kernel from Love's formula, row by row as each rank needs
+    them: the same operator as the dense matrix."""
+    dx, dy = 0.3, 0.2
+    op = InfluenceOperator(dx, dy, comm)
+    op.TABLE_CELLS = 10
+    conv = op.window(nx, ny)
+    x = np.random.default_rng(nx + ny).random((nx, ny))
+    ref = dense_reference(nx, ny, dx, dy, x)
+    y = conv(x[conv.r0 : conv.r1])
+    assert np.abs(y - ref[conv.r0 : conv.r1]).max(initial=0.0) <= 1e-12 * np.abs(ref).max()
+    assert conv.diagonal == love_coefficients(1, 1, dx, dy)[0, 0]
+
+
 def test_shell_matrix_mult_symmetry_and_rank_independence(comm):
     nx, ny, dx, dy = 20, 11, 1e-4, 2e-4
     op = InfluenceOperator(dx, dy, comm)
@@ -123,4 +138,4 @@ def test_kernels_of_the_most_recent_window_shapes_are_kept(comm):
     op.window(40, 40)  # one shape more: the least recently used goes
     assert (20, 20, False) not in op._windows and (4, 5, False) in op._windows
     x = np.random.default_rng(1).random((op.window(9, 9).r1 - op.window(9, 9).r0, 9))
-    assert np.array_equal(op.window(9, 9)(x), Convolution(op._table_for(9, 9), 9, 9, comm)(x))
+    assert np.array_equal(op.window(9, 9)(x), Convolution(op.coefficients(9, 9), 9, 9, comm)(x))

@@ -56,6 +56,9 @@ def test_row_sum_bound_is_the_largest_row_sum_of_the_dense_matrix():
     largest = table[di, dj].sum(axis=1).max()
     bound = solver.influence.row_sum_bound(grid.nx, grid.ny)
     assert largest <= bound <= 4 * largest  # an upper bound, and not a loose one
+    # Love's formula for the (2 nx - 1) x (2 ny - 1) rectangle = the sum of the table over all offsets
+    t = table
+    assert bound == pytest.approx(4 * t.sum() - 2 * t[0, :].sum() - 2 * t[:, 0].sum() + t[0, 0], rel=1e-13)
 
 
 def test_a_long_track_rolls_the_same_with_the_wake_cut_off(comm):

@@ -29,15 +29,20 @@ from petroll.model.grid import Grid
 from petroll.solver.partition import RowPartition
 
 
-def love_coefficients(nx: int, ny: int, dx: float, dy: float) -> np.ndarray:
-    """Love's coefficients A(ix, iy) for cell offsets 0 <= ix < nx, 0 <= iy < ny (units of dx).
+def love_coefficients(nx: int, ny: int, dx: float, dy: float, rows: np.ndarray | None = None) -> np.ndarray:
+    """Love's coefficients A(ix, iy) for cell offsets 0 <= ix < nx, 0 <= iy < ny (units of dx); with
+    ``rows``, only the offsets ix in ``rows`` (shape (len(rows), ny)).
 
     The displacement at a cell centre offset by (ix dx, iy dy) from a dx x dy cell carrying unit pressure,
     for unit surface compliance. A is even in both offsets, so these values give every pair of cells.
     """
-    x = np.arange(nx)[:, None] * dx
-    y = np.arange(ny)[None, :] * dy
-    a, b = dx / 2, dy / 2
+    ix = np.arange(nx) if rows is None else np.asarray(rows)
+    return rectangle_displacement(ix[:, None] * dx, np.arange(ny)[None, :] * dy, dx / 2, dy / 2)
+
+
+def rectangle_displacement(x, y, a: float, b: float):
+    """Displacement at (x, y) (m) from unit pressure on the rectangle |X| < a, |Y| < b, for unit surface
+    compliance (Love 1929): units of length."""
     return (_f(x + a, y + b) - _f(x + a, y - b) - _f(x - a, y + b) + _f(x - a, y - b)) / np.pi
 
 
@@ -90,7 +95,9 @@ def dense_influence(coefficients: np.ndarray) -> np.ndarray:
 class Convolution:
     """y = A x on an (nx, ny) grid whose rows are split over ``comm`` by :class:`RowPartition`.
 
-    ``coefficients`` is a coefficient table (Love's, or the strip kernel's) at least nx x ny (a larger one is cut); x and y are the local rows,
+    ``coefficients`` is a coefficient table (Love's, or the strip kernel's) at least nx x ny (a larger one
+    is cut), or a function giving its rows ``coefficients(ix)`` = A(ix, 0:ny) for an array of row offsets
+    ix (so that a rank computes only the rows its part of the kernel needs); x and y are the local rows,
     shape (local rows, ny). One instance per grid shape: the kernel spectrum is computed once.
 
     ``inverse=True`` gives instead y = C^-1 x, C the circulant (periodic, Strang) approximation of A on the
@@ -118,9 +125,14 @@ class Convolution:
         self.r0, self.r1 = self.rows.range(comm.rank)
         if coefficients is None:
             return
-        self.diagonal = float(coefficients[0, 0])
-        table = np.asarray(coefficients)[:nx, :ny]
-        self.spectrum = self.kernel_spectrum(lambda ox, oy: table[np.abs(ox), np.abs(oy)]).real
+        if callable(coefficients):
+            rows_of = coefficients
+        else:
+            table = np.asarray(coefficients)[:nx, :ny]
+            rows_of = table.__getitem__
+        self.diagonal = float(rows_of(np.zeros(1, dtype=int))[0, 0])
+        self.spectrum = self.kernel_spectrum(
+            lambda ox, oy: rows_of(np.abs(np.ravel(ox)))[:, np.abs(np.ravel(oy))]).real
         if inverse:
             floor = comm.allreduce(float(self.spectrum.max(initial=0.0)), op=MPI.MAX) * 1e-12
             self.spectrum = 1.0 / np.maximum(self.spectrum, floor)
@@ -226,15 +238,21 @@ def _columns_to_rows(a: np.ndarray, rows: RowPartition, cols: RowPartition, comm
 class InfluenceOperator:
     """Influence convolutions on windows of one grid's cells (dx x dy), with kernels built once.
 
-    ``window(nx, ny)`` returns the :class:`Convolution` for an nx x ny block of cells; the coefficient
-    table and each window shape's kernel spectrum are computed on first use and kept (the last ``kept``
-    shapes). ``coefficients(nx, ny)`` gives the table A(|di|, |dj|) for offsets below (nx, ny); the default
-    is Love's rectangles (:func:`love_coefficients`); :func:`influence_operator` picks a grid's.
+    ``window(nx, ny)`` returns the :class:`Convolution` for an nx x ny block of cells; each window shape's
+    kernel spectrum is computed on first use and kept (the last ``kept`` shapes). ``coefficients(nx, ny)``
+    gives the table A(|di|, |dj|) for offsets below (nx, ny); the default is Love's rectangles
+    (:func:`love_coefficients`); :func:`influence_operator` picks a grid's. Love's table is kept for blocks
+    up to ``TABLE_CELLS`` cells; a larger block's kernel is computed from Love's formula for the rows each
+    rank needs, so that no rank holds a table of a whole large grid.
     """
+
+    TABLE_CELLS = 1 << 20
+    """Largest Love table kept (8 MiB)."""
 
     def __init__(self, dx: float, dy: float, comm: MPI.Comm = MPI.COMM_SELF,
                  coefficients: Callable[[int, int], np.ndarray] | None = None):
         self.dx, self.dy, self.comm = dx, dy, comm
+        self.love = coefficients is None
         self.coefficients = coefficients or (lambda nx, ny: love_coefficients(nx, ny, dx, dy))
         self._table = self.coefficients(1, 1)
         self._windows: dict[tuple[int, int], Convolution] = {}
@@ -251,7 +269,7 @@ class InfluenceOperator:
     def window(self, nx: int, ny: int, inverse: bool = False) -> Convolution:
         """A on an nx x ny block; ``inverse``: the inverse of its circulant approximation (a preconditioner)."""
         key = (nx, ny, inverse)
-        conv = self._windows.pop(key, None) or Convolution(self._table_for(nx, ny), nx, ny, self.comm, inverse)
+        conv = self._windows.pop(key, None) or Convolution(self.table_rows(nx, ny), nx, ny, self.comm, inverse)
         self._windows[key] = conv  # the newest last
         while len(self._windows) > self.kept:
             del self._windows[next(iter(self._windows))]
@@ -259,16 +277,26 @@ class InfluenceOperator:
 
     def row_sum_bound(self, nx: int, ny: int) -> float:
         """An upper bound of every row sum of A on an nx x ny block: sum_k A_ik <= this (unit compliance),
-        i.e. the largest displacement a unit field on every cell can cause."""
-        t = self._table_for(nx, ny)[:nx, :ny]
+        i.e. the largest displacement a unit field on every cell can cause: the sum over all offsets
+        |di| < nx, |dj| < ny. For Love's coefficients that is the displacement at the centre of a
+        (2 nx - 1) dx x (2 ny - 1) dy rectangle under unit pressure: Love's formula, no table."""
+        if self.love:
+            return float(rectangle_displacement(0.0, 0.0, (2 * nx - 1) * self.dx / 2,
+                                                (2 * ny - 1) * self.dy / 2))
+        t = self.table_rows(nx, ny)(np.arange(nx))
         return float(4 * t.sum() - 2 * t[0, :].sum() - 2 * t[:, 0].sum() + t[0, 0])
 
-    def _table_for(self, nx: int, ny: int) -> np.ndarray:
-        """The coefficient table A(|di|, |dj|), grown to cover offsets up to nx - 1, ny - 1."""
+    def table_rows(self, nx: int, ny: int) -> Callable[[np.ndarray], np.ndarray]:
+        """The rows of the coefficient table of an nx x ny block: ``rows(ix)`` = A(ix, 0:ny) for row offsets
+        ix (from a kept table, or for Love's coefficients of a block beyond TABLE_CELLS cells, from
+        Love's formula)."""
+        if self.love and nx * ny > self.TABLE_CELLS:
+            return lambda ix: love_coefficients(nx, ny, self.dx, self.dy, rows=ix)
         if nx > self._table.shape[0] or ny > self._table.shape[1]:
             big = (max(nx, self._table.shape[0]), max(ny, self._table.shape[1]))
             self._table = self.coefficients(*big)
-        return self._table
+        table = self._table
+        return lambda ix: table[ix, :ny]
 
 
 def influence_operator(grid: Grid, comm: MPI.Comm = MPI.COMM_SELF) -> InfluenceOperator:

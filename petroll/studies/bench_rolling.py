@@ -453,7 +453,7 @@ def skips(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, track_cells: int =
     application = {k: _median_application(window.window(*shape), repeats, comm) for k, shape in shapes.items()}
     start = time.perf_counter()  # the two kernels a pk step's window needs: A's and its preconditioner's
     for inverse in (False, True):
-        Convolution(window._table_for(*shapes["window"]), *shapes["window"], comm, inverse)
+        Convolution(window.coefficients(*shapes["window"]), *shapes["window"], comm, inverse)
     build = comm.allreduce(time.perf_counter() - start, op=MPI.MAX)
     rows = [dict(saving="QP on the interference window", scene=f"runs/sphere.toml, steady window "
                  f"{shapes['window'][0]}x{shapes['window'][1]} of {g.nx}x{g.ny} cells",
