@@ -61,16 +61,21 @@ def _parser() -> argparse.ArgumentParser:
     stability.add_argument("--fast", action="store_true", help="only the subset that the test suite runs")
     stability.add_argument("--out", default="results/stability", help="directory for stability.csv and .md")
     bench = verbs.add_parser("bench", help="run a benchmark, print its table and write CSV (docs/benchmarks.md)")
-    bench.add_argument("which", choices=["tao", "warm", "skips", "peers", "precision", "growth", "mpi"],
+    bench.add_argument("which", choices=["tao", "warm", "skips", "peers", "precision", "growth", "mpi", "memory",
+                                         "append"],
                        help="tao: every TAO type on the Hertz step; warm: operator applications per rolling "
                        "step for each first guess; skips: each saving on and off; peers: petroll against Tamaas and "
                        "ContactMechanics on the Hertz step; precision: error against run time of the "
                        "integrators and of grid refinement on the rolling sphere; growth: time per rolling "
                        "step against the contact window's cells, and along a long track; mpi: time per "
-                       "rolling step against the rank count")
+                       "rolling step against the rank count; memory: peak memory of every rank against the "
+                       "grid's cells at 1, 2 and 4 ranks (--ranks); append: results.h5 writing time per "
+                       "saved step over 1000 steps")
     bench.add_argument("--out", default="results/bench", help="directory for the CSV (and PNG) files")
-    bench.add_argument("--ranks", type=_ranks, help="mpi only: rank counts to run side by side as mpirun "
-                       "children, e.g. 1,2 (default: the current communicator only)")
+    bench.add_argument("--ranks", type=_ranks, help="mpi and memory only: rank counts to run side by side as "
+                       "mpirun children, e.g. 1,2 (default: mpi: the current communicator only; memory: 1,2,4)")
+    bench.add_argument("--sides", type=_ranks, help="memory only: grid sides (cells) to measure, e.g. "
+                       "1024,2048,4096 (the default)")
     sweep = verbs.add_parser("sweep", help="run a scene over values of one key to steady state; table and "
                              "plot in DIR (docs/sweep.md); run again to resume")
     sweep.add_argument("scene", help="scene file (TOML)")
@@ -341,11 +346,21 @@ def _main(args: argparse.Namespace, comm) -> int:
         from petroll.studies import bench, bench_rolling
         from petroll.errors import PetrollError
 
-        if args.ranks is not None and args.which != "mpi":
-            raise PetrollError(f"petroll bench {args.which}: --ranks applies to petroll bench mpi only")
+        if args.ranks is not None and args.which not in ("mpi", "memory"):
+            raise PetrollError(f"petroll bench {args.which}: --ranks applies to petroll bench mpi and memory only")
+        if args.sides is not None and args.which != "memory":
+            raise PetrollError(f"petroll bench {args.which}: --sides applies to petroll bench memory only")
         out = pathlib.Path(args.out)
         if args.which == "mpi":
             bench_rolling.mpi_scaling(out, comm, ranks=args.ranks)
+        elif args.which in ("memory", "append"):
+            from petroll.studies import bench_memory
+
+            if args.which == "append":
+                bench_memory.append(out, comm)
+            else:
+                bench_memory.memory(out, comm, sides=args.sides or bench_memory.SIDES,
+                                    ranks=args.ranks or bench_memory.RANKS)
         else:
             {"tao": bench.tao_types, "warm": bench.warm_starts, "peers": bench.peers,
              "precision": bench_rolling.precision, "growth": bench_rolling.growth,

@@ -28,8 +28,9 @@ step N exactly as if it had never stopped (format version 2, readable with plain
 Each dataset carries the SHA-256 of its contents (attribute ``sha256``); the file's ``sha256`` attribute
 covers its other attributes and the datasets' digests, so any change of the content is found on reading.
 
-Writing is collective: every rank's rows are gathered to rank 0 one field at a time and rank 0 writes
-(h5py without MPI: the virtual environment's h5py is serial). The file is written under a temporary
+Writing and reading are collective: every rank writes and reads its own rows of each field (parallel
+HDF5 when h5py has MPI, else through rank 0 in blocks: petroll.io.hdf5); no rank holds a whole field. A
+field's digest (format 2) is over the SHA-256 of each of its rows, so that each rank hashes its own. The file is written under a temporary
 name in the same directory, fsynced and renamed, then the directory is fsynced: a run killed at any
 moment leaves every earlier checkpoint intact. Only the newest ``[output] keep`` are kept.
 """
@@ -56,7 +57,8 @@ from petroll import __version__
 from petroll.errors import MISSING, PetrollError, SceneError, reason
 from petroll.solver.partition import RowPartition
 from petroll.solver.history import HereditaryHistory, RelaxationHistory
-from petroll.io.results import sync_directory
+from petroll.io.hdf5 import RowFile, chunk_rows
+from petroll.io.results import PACKED, early, sync_directory
 
 FORMAT = "petroll-checkpoint"
 FORMAT_VERSION = 2
@@ -66,9 +68,6 @@ saved fields (/fields/pressure), which now live in results.h5 only; it is still 
 SAFE_KEYS = {"time": {"end", "distance", "steady", "max_steps"},
              "output": {"dir", "every", "checkpoint_every", "keep"}}
 """Scene keys that a restart may change (everything else must equal the checkpoint's scene)."""
-
-PACKED = dict(compression="gzip", compression_opts=1, shuffle=True)
-"""How fields are stored: gzip (in every HDF5 build) after byte shuffling, fast level."""
 
 _NAME = re.compile(r"^step-(\d+)\.h5$")
 _ATTRS = ("format", "format_version", "petroll_version", "ranks", "step", "t", "next_dt", "nx", "ny",
@@ -185,34 +184,33 @@ def write_checkpoint(directory: str | pathlib.Path, sim, t: float, next_dt: floa
                      field_steps: list[int], keep: int = 2) -> pathlib.Path:
     """Write the state of ``sim`` after its last step (time ``t``; ``next_dt`` the step that follows, None
     if none) with the steps of the fields saved so far (``field_steps``: they are in results.h5), then remove
-    all but the newest ``keep`` checkpoints of earlier steps. Collective over ``sim.comm``; returns the
-    path. CheckpointError if the file cannot be written (every earlier checkpoint stays as it was).
+    all but the newest ``keep`` checkpoints of earlier steps. Collective over ``sim.comm``: every rank
+    writes its own rows of each field (parallel HDF5, or through rank 0 in blocks); returns the path.
+    CheckpointError if the file cannot be written (every earlier checkpoint stays as it was).
     """
-    from petroll.solver.partition import gather_field
     from petroll.solver.simulation import StepRecord
 
     comm, scene = sim.comm, sim.scene
     g, history = scene.grid, sim.history
     step = len(sim.records) - 1
     path = checkpoint_path(pathlib.Path(directory), step)
-    sink = _Sink(path, comm)
+    sink = _Sink(path, comm, RowPartition(g.nx, comm.size), g.ny)
     prony = not isinstance(history, HereditaryHistory)
-    sink.array("state/pressure", lambda: gather_field(history.pressure, g.nx, comm))
-    sink.array("state/direction", lambda: np.asarray(sim.direction, dtype=float))
+    sink.field("state/pressure", [history.pressure], stacked=False)
+    sink.array("state/direction", np.asarray(sim.direction, dtype=float))
     recent = sim.warm.recent
-    sink.stack("state/recent", (len(recent), g.nx, g.ny), lambda k: gather_field(recent[k][0], g.nx, comm))
-    sink.array("state/recent_position", lambda: np.array([r[1:] for r in recent], dtype=float).reshape(-1, 2))
+    sink.field("state/recent", [r[0] for r in recent])
+    sink.array("state/recent_position", np.array([r[1:] for r in recent], dtype=float).reshape(-1, 2))
     if prony:
-        sink.stack("state/q", (len(history.q), g.nx, g.ny), lambda r: gather_field(history.q[r], g.nx, comm))
+        sink.field("state/q", list(history.q))
         if isinstance(history, RelaxationHistory):
-            sink.array("state/displacement", lambda: gather_field(history.displacement, g.nx, comm))
+            sink.field("state/displacement", [history.displacement], stacked=False)
     else:
-        sink.array("state/times", lambda: np.asarray(history.times, dtype=float))
-        sink.stack("state/increments", (len(history.increments), g.nx, g.ny),
-                   lambda m: gather_field(history.increments[m], g.nx, comm))
+        sink.array("state/times", np.asarray(history.times, dtype=float))
+        sink.field("state/increments", list(history.increments))
     for name in StepRecord.__annotations__:
-        sink.array(f"series/{name}", lambda name=name: np.array([getattr(r, name) for r in sim.records]))
-    sink.array("fields/step", lambda: np.asarray(field_steps, dtype=np.int64))
+        sink.array(f"series/{name}", np.array([getattr(r, name) for r in sim.records]))
+    sink.array("fields/step", np.asarray(field_steps, dtype=np.int64))
     attrs = {
         "format": FORMAT, "format_version": FORMAT_VERSION, "petroll_version": __version__,
         "ranks": comm.size, "step": step, "t": float(t),
@@ -220,18 +218,18 @@ def write_checkpoint(directory: str | pathlib.Path, sim, t: float, next_dt: floa
         "nx": g.nx, "ny": g.ny, "history": "prony" if prony else "hereditary",
         "integrator": scene.solver.integrator, "scene": scene.text,
         "scene_source": scene.source, "base_dir": str(pathlib.Path(scene.base_dir).resolve()),
-        "fingerprint": fingerprint(scene) if comm.rank == 0 else "",
-        "created": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+        "fingerprint": comm.bcast(fingerprint(scene) if comm.rank == 0 else None, root=0),
+        "created": comm.bcast(datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
+                              if comm.rank == 0 else None, root=0),
     }
     sink.finish(attrs, keep)
     return path
 
 
 def _write_dataset(f: h5py.File, name: str, data: np.ndarray) -> str:
-    """One whole dataset (gzip-compressed when 2-D or more); returns its digest."""
+    """One whole (small) dataset; returns its digest."""
     data = np.ascontiguousarray(data)
-    packed = PACKED if data.ndim >= 2 and data.size else {}
-    f.create_dataset(name, data=data, **packed)
+    f.create_dataset(name, data=data)
     return _digest_of(name, data)
 
 
@@ -245,93 +243,126 @@ def _hasher(name: str, dtype, shape):
     return hashlib.sha256(f"{name}|{np.dtype(dtype).str}|{tuple(int(n) for n in shape)}|".encode())
 
 
+def _row_digests(parts: list[np.ndarray]) -> bytes:
+    """The SHA-256 of every row of every part (in order), concatenated: a rank's share of a field digest."""
+    return b"".join(hashlib.sha256(np.ascontiguousarray(row).tobytes()).digest() for part in parts
+                    for row in part)
+
+
+def _field_digest(name: str, shape, shares: list[bytes], count: int) -> str:
+    """A distributed field's digest (format 2): SHA-256 of its name, type, shape and of the SHA-256 of each
+    of its rows, slice by slice (``shares``: each rank's _row_digests, in rank order, ``count`` slices)."""
+    h = _hasher(name, np.float64, shape)
+    sizes = [len(share) // max(count, 1) for share in shares]
+    for i in range(count):
+        for share, size in zip(shares, sizes):
+            h.update(share[i * size : (i + 1) * size])
+    return h.hexdigest()
+
+
 class _Sink:
-    """The file a checkpoint is written to on rank 0 (its temporary name), and the first error met there.
+    """The temporary file a checkpoint is written to by every rank (:class:`petroll.io.hdf5.RowFile`),
+    and the first error met. Every rank calls every method in the same order; the ranks agree on errors
+    after each dataset, and after one no rank writes more."""
 
-    Every rank calls every method in the same order (the producers gather collectively); rank 0 writes.
-    After an error rank 0 keeps producing (so no rank waits forever) but writes no more.
-    """
-
-    def __init__(self, path: pathlib.Path, comm: MPI.Comm):
-        self.path, self.comm = path, comm
-        self.tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
+    def __init__(self, path: pathlib.Path, comm: MPI.Comm, rows: RowPartition, ny: int):
+        self.path, self.comm, self.rows, self.ny = path, comm, rows, ny
+        pid = comm.bcast(os.getpid() if comm.rank == 0 else None, root=0)
+        self.tmp = path.with_name(f".{path.name}.tmp{pid}")
         self.file, self.error, self.digests = None, None, {}
         self._guard(self._open)
 
     def _guard(self, action, *args) -> None:
-        if self.comm.rank != 0 or self.error is not None:
-            return
-        try:
-            action(*args)
-        except Exception as exc:  # noqa: BLE001 - reported on every rank by finish()
-            self.error = exc
+        if self.error is None:
+            try:
+                action(*args)
+            except Exception as exc:  # noqa: BLE001 - reported on every rank by finish()
+                self.error = exc
+        if self.comm.allreduce(self.error is not None, op=MPI.LOR) and self.error is None:
+            self.error = CheckpointError("failed on another rank")
 
     def _open(self) -> None:
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        self.file = h5py.File(self.tmp, "w")
+        if self.comm.rank == 0:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+        self.comm.Barrier()
+        self.file = RowFile(self.tmp, "w", self.comm)
 
-    def array(self, name: str, produce) -> None:
-        """A dataset whose data ``produce()`` returns on rank 0 (it is called on every rank)."""
-        data = produce()
+    def array(self, name: str, data: np.ndarray) -> None:
+        """A small dataset: rank 0's ``data`` (written by every rank under parallel HDF5)."""
+        data = self.comm.bcast(np.asarray(data) if self.comm.rank == 0 else None, root=0)
         self._guard(self._array, name, data)
 
-    def _array(self, name: str, data) -> None:
-        self.digests[name] = _write_dataset(self.file, name, np.asarray(data))
+    def _array(self, name: str, data: np.ndarray) -> None:
+        if self.file.writer:
+            self.digests[name] = _write_dataset(self.file.file, name, data)
 
-    def stack(self, name: str, shape: tuple[int, int, int], produce) -> None:
-        """A (count, nx, ny) dataset filled one slice at a time: ``produce(i)`` (called on every rank)."""
-        self._guard(self._create, name, shape)
-        hasher = _hasher(name, np.float64, shape)
-        for i in range(shape[0]):
-            part = produce(i)
-            self._guard(self._fill, name, i, part, hasher)
-        self._guard(lambda: self.digests.__setitem__(name, hasher.hexdigest()))
+    def field(self, name: str, parts: list[np.ndarray], stacked: bool = True) -> None:
+        """A (len(parts), nx, ny) dataset (``stacked``) or an (nx, ny) one (one part), each rank giving its
+        rows of every slice."""
+        self._guard(self._field, name, parts, stacked)
 
-    def _create(self, name: str, shape) -> None:
-        packed = dict(PACKED, chunks=(1, *shape[1:])) if shape[0] else {}
-        self.file.create_dataset(name, shape=shape, dtype=np.float64, **packed)
-
-    def _fill(self, name: str, i: int, part: np.ndarray, hasher) -> None:
-        part = np.ascontiguousarray(part, dtype=np.float64)
-        self.file[name][i] = part
-        hasher.update(part.tobytes())
+    def _field(self, name: str, parts: list[np.ndarray], stacked: bool) -> None:
+        nx, ny = self.rows.n, self.ny
+        r0 = self.rows.range(self.comm.rank)[0]
+        shape = (len(parts), nx, ny) if stacked else (nx, ny)
+        if self.file.writer:
+            chunks = (1, min(nx, chunk_rows(ny)), ny) if stacked else (min(nx, chunk_rows(ny)), ny)
+            packed = dict(PACKED, chunks=chunks) if np.prod(shape) else {}
+            self.file.file.create_dataset(name, shape=shape, dtype=np.float64, dcpl=early(), **packed)
+        parts = [np.ascontiguousarray(p, dtype=np.float64) for p in parts]
+        for i, part in enumerate(parts):
+            self.file.put(name, (i,) if stacked else (), r0, part)
+        shares = self.comm.gather(_row_digests(parts), root=0)
+        digest = _field_digest(name, shape, shares, len(parts)) if self.comm.rank == 0 else None
+        self.digests[name] = self.comm.bcast(digest, root=0)
 
     def finish(self, attrs: dict, keep: int) -> None:
         self._guard(self._close, attrs)
-        self._guard(_prune, self.path, keep)
-        if self.comm.rank == 0 and self.error is not None:
+        if self.comm.rank == 0 and self.error is None:
+            self._guard_local(_prune, self.path, keep)
+        if self.error is not None:
             self._discard()
-        message = None
-        if self.comm.rank == 0 and self.error is not None:
-            message = (f"{self.path}: cannot write the checkpoint ({reason(self.error)}); the earlier "
-                       f"checkpoints in {self.path.parent} are unchanged")
-        message = self.comm.bcast(message, root=0)
-        if message is not None:
-            if self.comm.rank == 0 and not isinstance(self.error, OSError):
+        errors = self.comm.allgather(None if self.error is None else reason(self.error))
+        first = next((e for e in errors if e and e != "failed on another rank"), None) or next(
+            (e for e in errors if e), None)
+        if first is not None:
+            message = (f"{self.path}: cannot write the checkpoint ({first}); the earlier checkpoints in "
+                       f"{self.path.parent} are unchanged")
+            if self.error is not None and not isinstance(self.error, (OSError, CheckpointError)):
                 raise CheckpointError(message) from self.error
             raise CheckpointError(message)
 
+    def _guard_local(self, action, *args) -> None:
+        try:
+            action(*args)
+        except Exception as exc:  # noqa: BLE001 - reported by finish()
+            self.error = exc
+
     def _close(self, attrs: dict) -> None:
-        f = self.file
-        for name, digest in self.digests.items():
-            f[name].attrs["sha256"] = digest
-        for key, value in attrs.items():
-            f.attrs[key] = value
-        f.attrs["sha256"] = _root_digest(attrs, self.digests)
-        f.flush()
-        f.close()
+        digests = self.comm.bcast(self.digests if self.comm.rank == 0 else None, root=0)
+        if self.file.writer:
+            f = self.file.file
+            for name, digest in digests.items():
+                f[name].attrs["sha256"] = digest
+            for key, value in attrs.items():
+                f.attrs[key] = value
+            f.attrs["sha256"] = _root_digest(attrs, digests)
+            f.flush()
+        self.file.close()
         self.file = None
-        with open(self.tmp, "rb") as fh:
-            os.fsync(fh.fileno())
-        os.replace(self.tmp, self.path)
-        sync_directory(self.path.parent)
+        if self.comm.rank == 0:
+            with open(self.tmp, "rb") as fh:
+                os.fsync(fh.fileno())
+            os.replace(self.tmp, self.path)
+            sync_directory(self.path.parent)
 
     def _discard(self) -> None:
         if self.file is not None:
             with contextlib.suppress(Exception):
                 self.file.close()
-        with contextlib.suppress(OSError):
-            self.tmp.unlink()
+        if self.comm.rank == 0:
+            with contextlib.suppress(OSError):
+                self.tmp.unlink()
 
 
 def _root_digest(attrs: dict, digests: dict[str, str]) -> str:
@@ -360,18 +391,28 @@ def _prune(path: pathlib.Path, keep: int) -> None:
 
 def fingerprint(scene) -> str:
     """A digest of the material and of the body's heights on the grid: what a restart must find unchanged
-    even when it comes from files ([material] file, [body] file) that the scene text only names."""
+    even when it comes from files ([material] file, [body] file) that the scene text only names. The
+    heights are computed and hashed a block of rows at a time (no whole-grid array)."""
     g = scene.grid
     h = hashlib.sha256(repr(scene.material).encode())
-    heights = scene.body.height(g.x[:, None] - scene.position[0], g.y[None, :] - scene.position[1])
-    h.update(np.ascontiguousarray(np.broadcast_to(heights, (g.nx, g.ny)), dtype=float).tobytes())
+    block = chunk_rows(g.ny)
+    for i in range(0, g.nx, block):
+        x = g.x[i : i + block, None] - scene.position[0]
+        heights = scene.body.height(x, g.y[None, :] - scene.position[1])
+        h.update(np.ascontiguousarray(np.broadcast_to(heights, (len(x), g.ny)), dtype=float).tobytes())
     return h.hexdigest()
 
 
 # -- reading ----------------------------------------------------------------------------------------------
+FIELDS = ("state/pressure", "state/displacement", "state/q", "state/recent", "state/increments")
+"""The checkpoint's grid fields: (nx, ny) or (k, nx, ny), each rank reading and writing its own rows."""
+
+
 @dataclass
 class Checkpoint:
-    """A checkpoint read and verified (collectively). ``state`` and ``fields`` are on rank 0 only."""
+    """A checkpoint read and verified (collectively). ``state`` holds this rank's rows of the fields
+    (RowPartition of nx over the communicator it was read on: restore it on one of the same size):
+    pressure and displacement (rows, ny), q, recent and increments lists of them; recent_position (k, 2)."""
 
     path: pathlib.Path
     attrs: dict
@@ -379,7 +420,7 @@ class Checkpoint:
     field_steps: np.ndarray
     direction: np.ndarray
     times: np.ndarray | None
-    state: dict[str, np.ndarray] | None  # pressure (nx, ny), q or increments (k, nx, ny); rank 0
+    state: dict
 
     @property
     def step(self) -> int:
@@ -399,57 +440,53 @@ class Checkpoint:
 
     # -- the state back into a simulation ---------------------------------------------------------------
     def restore(self, sim) -> tuple[float, list[int]]:
-        """Put the state into ``sim`` (a fresh Simulation of a compatible scene, any rank count) and return
-        (t, field_steps) for the time loop: the time and the steps of the fields saved up to the checkpoint
-        (they are in the run's results.h5). Collective."""
+        """Put the state into ``sim`` (a fresh Simulation of a compatible scene, any rank count; read on a
+        communicator of sim's size) and return (t, field_steps) for the time loop: the time and the steps of
+        the fields saved up to the checkpoint (they are in the run's results.h5). Collective."""
         from petroll.solver.simulation import StepRecord
 
-        comm, g, history = sim.comm, sim.scene.grid, sim.history
+        g, history, state = sim.scene.grid, sim.history, self.state
         nx, ny = int(self.attrs["nx"]), int(self.attrs["ny"])
         kind = "hereditary" if isinstance(history, HereditaryHistory) else "prony"
         if (nx, ny) != (g.nx, g.ny) or kind != self.attrs["history"]:
             raise CheckpointError(f"{self.path}: holds a {nx} x {ny} grid with a {self.attrs['history']} "
                                   f"history, the scene a {g.nx} x {g.ny} grid with a {kind} history")
-        root = comm.rank == 0
-        pressure = scatter_rows(self.state["pressure"] if root else None, nx, ny, comm)
+        pressure = state["pressure"]
         sim.pressure = pressure.copy()
         if kind == "prony":
-            count = comm.bcast(len(self.state["q"]) if root else None, root=0)
-            if count != len(history.q):
-                raise CheckpointError(f"{self.path}: holds {count} Prony state fields, the scene's material "
+            q = state["q"]
+            if len(q) != len(history.q):
+                raise CheckpointError(f"{self.path}: holds {len(q)} Prony state fields, the scene's material "
                                       f"has {len(history.q)} terms")
-            q = [scatter_rows(self.state["q"][r] if root else None, nx, ny, comm) for r in range(count)]
-            stored = comm.bcast("displacement" in self.state if root else None, root=0)
+            stored = "displacement" in state
             if stored != isinstance(history, RelaxationHistory):
                 raise CheckpointError(f"{self.path}: written for another integrator than the scene's "
                                       f"({sim.scene.solver.integrator})")
             if stored:  # W as computed, not rebuilt from p and s_k (which differs in the last bits)
-                history.restore(pressure, q, scatter_rows(self.state["displacement"] if root else None, nx, ny,
-                                                          comm))
+                history.restore(pressure, q, state["displacement"])
             else:
                 history.restore(pressure, q)
         else:
             history.pressure = pressure
             history.times = [float(v) for v in self.times]
-            history.increments = [scatter_rows(self.state["increments"][m] if root else None, nx, ny, comm)
-                                  for m in range(len(self.times))]
+            history.increments = list(state["increments"])
         sim.direction = np.array(self.direction, dtype=float)
         names = list(StepRecord.__annotations__)
         types = {name: int if name in ("step", "iterations", "applications") else float for name in names}
         n = len(self.series["step"])
         sim.records = [StepRecord(**{name: types[name](self.series[name][i]) for name in names})
                        for i in range(n)]
-        positions = comm.bcast(self.state.get("recent_position") if root else None, root=0)
+        positions = state.get("recent_position")
         if positions is None:  # a checkpoint written before the guesses were kept: carry the last pressure
             sim.warm.record(sim.pressure, sim.records[-1].sx, sim.records[-1].sy)
         else:
-            sim.warm.recent = [(scatter_rows(self.state["recent"][k] if root else None, nx, ny, comm), *xy)
-                               for k, xy in enumerate(positions.tolist())]
+            sim.warm.recent = [(state["recent"][k], *xy) for k, xy in enumerate(positions.tolist())]
         return self.t, [int(s) for s in self.field_steps]
 
 
 def scatter_rows(whole: np.ndarray | None, nx: int, ny: int, comm: MPI.Comm) -> np.ndarray:
-    """This rank's rows (RowPartition of nx over comm) of the (nx, ny) field ``whole`` given on rank 0."""
+    """This rank's rows (RowPartition of nx over comm) of the (nx, ny) field ``whole`` given on rank 0
+    (format-1 checkpoints, read whole by rank 0)."""
     rows = RowPartition(nx, comm.size)
     counts = [int(c) * ny for c in rows.counts]
     displs = [int(s) * ny for s in rows.starts[:-1]]
@@ -462,9 +499,10 @@ def scatter_rows(whole: np.ndarray | None, nx: int, ny: int, comm: MPI.Comm) -> 
 
 
 def read_checkpoint(path: str | pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD) -> Checkpoint:
-    """Read and verify a checkpoint (collective; rank 0 reads). CheckpointError with one line naming the
-    file and what is wrong if it is missing, not HDF5, not a checkpoint, of a newer format, truncated or
-    corrupted. Nothing is written."""
+    """Read and verify a checkpoint (collective: rank 0 checks its attributes and small datasets, every
+    rank reads its own rows of the fields and their digests are checked). CheckpointError with one line
+    naming the file and what is wrong if it is missing, not HDF5, not a checkpoint, of a newer format,
+    truncated or corrupted. Nothing is written."""
     path = pathlib.Path(path)
     loaded, message = None, None
     if comm.rank == 0:
@@ -475,13 +513,51 @@ def read_checkpoint(path: str | pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD) -
     message = comm.bcast(message, root=0)
     if message is not None:
         raise CheckpointError(message)
-    shared = comm.bcast({k: v for k, v in loaded.items() if k != "state"} if loaded else None, root=0)
+    whole = loaded.pop("whole") if loaded else None  # format 1: the fields, read whole on rank 0
+    shared = comm.bcast(loaded, root=0)
+    nx, ny = int(shared["attrs"]["nx"]), int(shared["attrs"]["ny"])
+    fields = {}
+    for name, shape in shared["fields"].items():
+        stacked = len(shape) == 3
+        count = shape[0] if stacked else 1
+        if shared["attrs"]["format_version"] == 1:
+            parts = [scatter_rows((whole[name][i] if stacked else whole[name]) if comm.rank == 0 else None,
+                                  nx, ny, comm) for i in range(count)]
+        else:
+            parts = _read_field(path, name, shape, shared["digests"][name], comm)
+        fields[name.split("/")[1]] = parts if stacked else parts[0]
+    state = dict(fields, **shared["small"])
     return Checkpoint(path=path, attrs=shared["attrs"], series=shared["series"],
                       field_steps=shared["field_steps"], direction=shared["direction"], times=shared["times"],
-                      state=loaded["state"] if loaded else None)
+                      state=state)
+
+
+def _read_field(path: pathlib.Path, name: str, shape: tuple, digest: str, comm: MPI.Comm) -> list[np.ndarray]:
+    """This rank's rows of every slice of a format-2 field, checked against its digest (collective)."""
+    stacked = len(shape) == 3
+    count, nx = (shape[0], shape[1]) if stacked else (1, shape[0])
+    r0, r1 = RowPartition(nx, comm.size).range(comm.rank)
+    parts, failure = [], None
+    try:
+        with RowFile(path, "r", comm) as f:
+            for i in range(count):
+                parts.append(f.get(name, (i,) if stacked else (), r0, r1 - r0))
+    except Exception as exc:  # noqa: BLE001 - h5py reports damage as OSError, RuntimeError, ...
+        failure = reason(exc)
+    failures = [e for e in comm.allgather(failure) if e]
+    if failures:
+        what = "truncated" if "truncated" in failures[0].lower() else "corrupted"
+        raise CheckpointError(f"{path}: {what}, cannot be read as a checkpoint ({failures[0]})")
+    shares = comm.gather(_row_digests(parts), root=0)
+    good = comm.bcast(_field_digest(name, shape, shares, count) == digest if comm.rank == 0 else None, root=0)
+    if not good:
+        raise CheckpointError(f"{path}: corrupted (the data of {name} do not match their checksum)")
+    return parts
 
 
 def _load(path: pathlib.Path) -> dict:
+    """Rank 0: the attributes and small datasets, checked; the fields' shapes and digests (format 2), or
+    the fields themselves (format 1, under "whole")."""
     from petroll.solver.simulation import StepRecord
 
     if not path.exists():
@@ -515,12 +591,15 @@ def _load(path: pathlib.Path) -> dict:
             missing = [k for k in _ATTRS if k not in attrs]
             if missing:
                 raise CheckpointError(f"{path}: corrupted (attribute {missing[0]!r} is missing)")
-            data, digests = {}, {}
+            data, digests, shapes = {}, {}, {}
 
             def visit(name, obj):
                 if isinstance(obj, h5py.Dataset):
-                    data[name] = obj[()]
                     digests[name] = _plain(obj.attrs.get("sha256", ""))
+                    if name in FIELDS and version > 1:
+                        shapes[name] = tuple(int(n) for n in obj.shape)
+                    else:
+                        data[name] = obj[()]
 
             f.visititems(visit)
     except CheckpointError:
@@ -539,21 +618,21 @@ def _load(path: pathlib.Path) -> dict:
     needed = ["state/pressure", "state/direction", "fields/step",
               *(f"series/{n}" for n in StepRecord.__annotations__),
               *(["state/q"] if prony else ["state/times", "state/increments"])]
-    absent = [n for n in needed if n not in data]
+    absent = [n for n in needed if n not in data and n not in shapes]
     if absent:
         raise CheckpointError(f"{path}: incomplete (dataset {absent[0]} is missing)")
-    state = {"pressure": data["state/pressure"]}
-    if "state/recent_position" in data and "state/recent" in data:
-        state.update(recent=data["state/recent"], recent_position=data["state/recent_position"])
-    if prony:
-        state["q"] = data["state/q"]
-        if "state/displacement" in data:
-            state["displacement"] = data["state/displacement"]
+    whole = {n: data.pop(n) for n in FIELDS if n in data}
+    if version > 1:
+        fields = shapes
     else:
-        state["increments"] = data["state/increments"]
+        fields = {n: tuple(v.shape) for n, v in whole.items()}
+    if "state/recent" in fields and "state/recent_position" not in data:
+        del fields["state/recent"]
+    small = {"recent_position": data["state/recent_position"]} if "state/recent" in fields else {}
     return {"attrs": attrs, "series": {n: data[f"series/{n}"] for n in StepRecord.__annotations__},
             "field_steps": data["fields/step"], "direction": data["state/direction"],
-            "times": None if prony else data["state/times"], "state": state}
+            "times": None if prony else data["state/times"], "fields": fields, "digests": digests,
+            "small": small, "whole": whole}
 
 
 # -- the scene of a restart -------------------------------------------------------------------------------

@@ -97,8 +97,9 @@ class RowFile:
             shape = self.comm.bcast(shape, root=0)
             shape = (count, *shape[1:])
         out = np.empty(shape, dtype=dtype)
-        if self.parallel:
-            self._transfer(name, index, start, out, write=False)
+        if self.parallel:  # independent reads: a rank failing to read (a damaged chunk) blocks no other
+            if count:
+                self.file[name].read_direct(out, np.s_[index + (slice(start, start + count),)])
             return out
         comm = self.comm
         for r in range(comm.size):
@@ -136,8 +137,8 @@ class RowFile:
                     yield a + s, block
 
     def _transfer(self, name: str, index: tuple, start: int, buf: np.ndarray, write: bool) -> None:
-        """Collective read or write of this rank's hyperslab (h5py's high-level calls skip empty selections,
-        which would leave the other ranks waiting: the low-level call is made on every rank)."""
+        """Collective write (or read) of this rank's hyperslab (h5py's high-level calls skip empty
+        selections, which would leave the other ranks waiting: the low-level call is made on every rank)."""
         from h5py import h5fd, h5p, h5s
 
         dset = self.file[name]

@@ -285,7 +285,7 @@ class ResultsFile:
             if f.writer:
                 for name in names:
                     h["series"][name].resize((n,))
-            mine = f.parallel or self.comm.rank == 0  # parallel: every rank writes the same values
+            mine = self.comm.rank == 0  # rank 0's series (solve_time differs between ranks)
             for name in names:
                 values = np.array([getattr(r, name) for r in new] if mine else [], dtype=series_dtype(name))
                 f.put(f"series/{name}", (), self.steps, values)
