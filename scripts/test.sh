@@ -19,5 +19,12 @@ parallel=$?
 if [ $parallel -ne 0 ]; then echo "== rank 1 report =="; cat "$log"; fi
 rm -f "$log"
 
-echo "serial exit $serial, parallel exit $parallel"
-[ $serial -eq 0 ] && [ $parallel -eq 0 ]
+echo "== parallel: mpirun -n 4 pytest -m ranks4 (oversubscribed; a small selection) =="
+timeout 900 mpirun -n 1 "$py" -m pytest -q --color=no -p no:cacheprovider -m ranks4 "$@" tests \
+  : -n 3 sh -c "\"$py\" -m pytest -q --color=no -p no:cacheprovider -m ranks4 $* tests > \"$log.\$OMPI_COMM_WORLD_RANK\" 2>&1"
+four=$?
+if [ $four -ne 0 ]; then for f in "$log".*; do echo "== $f =="; cat "$f"; done; fi
+rm -f "$log".*
+
+echo "serial exit $serial, parallel exit $parallel, four ranks exit $four"
+[ $serial -eq 0 ] && [ $parallel -eq 0 ] && [ $four -eq 0 ]

@@ -27,6 +27,8 @@ def pytest_collection_modifyitems(config, items):
 def pytest_configure(config):
     config.addinivalue_line("markers", "serial: a test that starts its own processes; run in the serial pass")
     config.addinivalue_line("markers", "parallel: a test that needs 2 ranks; run in the mpirun -n 2 pass")
+    config.addinivalue_line("markers", "ranks4: a cheap collective test also run in the mpirun -n 4 pass "
+                            "(scripts/test.sh: oversubscribed, -m ranks4)")
 
 
 @pytest.hookimpl(hookwrapper=True)

@@ -149,7 +149,8 @@ CASES = {
 }
 
 
-@pytest.mark.parametrize("case", list(CASES))
+@pytest.mark.parametrize("case", [pytest.param(c, marks=pytest.mark.ranks4) if c == "prony-constant-load" else c
+                                  for c in CASES])
 def test_interrupted_and_restarted_run_is_bitwise_the_uninterrupted_run(case, comm, shared):
     material, velocity, control = CASES[case]
     scene = make_scene(raw_scene(material, velocity, control))
@@ -247,6 +248,7 @@ def test_tabulated_material_restarts_bitwise_and_a_changed_table_is_refused(comm
         restart_scene(check)
 
 
+@pytest.mark.ranks4
 def test_checkpoint_layout_and_sizes_do_not_grow_with_the_steps_for_prony(comm, shared):
     """Prony: the state is p, W and one field per term whatever the step; only the series grow (the saved
     fields are in results.h5, not in the checkpoints). Every dataset is readable with plain h5py."""

@@ -37,6 +37,7 @@ def dense_reference(nx, ny, dx, dy, x):
     return (dense_influence(love_coefficients(nx, ny, dx, dy)) @ x.ravel()).reshape(nx, ny)
 
 
+@pytest.mark.ranks4
 @pytest.mark.parametrize("nx,ny", [(1, 1), (2, 9), (13, 7), (16, 16), (5, 24)])
 def test_convolution_equals_dense_matrix(comm, nx, ny):
     dx, dy = 0.3, 0.2
@@ -47,6 +48,7 @@ def test_convolution_equals_dense_matrix(comm, nx, ny):
     assert np.abs(y - ref[conv.r0 : conv.r1]).max(initial=0.0) <= 1e-12 * np.abs(ref).max()
 
 
+@pytest.mark.ranks4
 @pytest.mark.parametrize("nx,ny", [(13, 7), (5, 24)])
 def test_a_block_beyond_the_kept_table_computes_each_ranks_kernel_rows_from_loves_formula(comm, nx, ny):
     """Blocks larger than TABLE_CELLS get their kernel from Love's formula, row by row as each rank needs
@@ -62,6 +64,7 @@ def test_a_block_beyond_the_kept_table_computes_each_ranks_kernel_rows_from_love
     assert conv.diagonal == love_coefficients(1, 1, dx, dy)[0, 0]
 
 
+@pytest.mark.ranks4
 def test_shell_matrix_mult_symmetry_and_rank_independence(comm):
     nx, ny, dx, dy = 20, 11, 1e-4, 2e-4
     op = InfluenceOperator(dx, dy, comm)
@@ -98,6 +101,7 @@ def test_row_partition_covers_every_row_once(n, size):
     assert part.counts.max() - part.counts.min() <= 1
 
 
+@pytest.mark.ranks4
 def test_move_rows_between_partitions(comm):
     """Rows 3..14 of a 17-row field, split evenly, re-split as a window: every rank gets exactly its rows."""
     field = np.arange(17 * 4, dtype=float).reshape(17, 4)
@@ -110,6 +114,7 @@ def test_move_rows_between_partitions(comm):
     assert np.array_equal(moved, field[c:d])
 
 
+@pytest.mark.ranks4
 @pytest.mark.parametrize("di,dj", [(0, 0), (1, 0), (3, -2), (-4, 1), (12, 0), (0, -7), (-2, -3)])
 def test_shift_field_moves_a_distributed_field_by_whole_cells(comm, di, dj):
     from petroll.solver.partition import shift_field

@@ -50,6 +50,7 @@ def grow(path, comm, steps: int, every: int, records=None, out=None) -> tuple[Re
     return out, records
 
 
+@pytest.mark.ranks4
 def test_appended_series_and_fields_read_back_and_earlier_chunks_are_never_rewritten(comm, shared):
     path = shared / "results.h5"
     out, records = grow(path, comm, 6, 2)
@@ -77,6 +78,7 @@ def test_appended_series_and_fields_read_back_and_earlier_chunks_are_never_rewri
         assert np.allclose(corners[0, :, 1], -dy / 2 + dy * np.arange(NY + 1), atol=1e-14)
 
 
+@pytest.mark.ranks4
 def test_a_resumed_file_keeps_the_given_prefix_and_continues(comm, shared):
     path = shared / "results.h5"
     grow(path, comm, 15, 3)
