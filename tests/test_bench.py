@@ -99,3 +99,25 @@ def test_tao_types_on_the_rolling_scene_agree(tmp_path):
     assert len(rows) == 9 and max(forces) / min(forces) - 1 < 1e-6  # every solver, the same answer
     assert all(int(r["steps"]) == rows[0]["steps"] for r in rows)
     assert (tmp_path / "tao_rolling.csv").exists()
+
+
+def test_memory_bench_reports_every_ranks_peak_and_the_same_force_on_1_and_2_ranks(tmp_path):
+    """petroll bench memory on a 256^2 grid: a peak above the fixed cost on every rank, rank 0 / mean near 1,
+    and one answer whatever the rank count (the children run the same scene)."""
+    from petroll.studies.bench_memory import memory
+
+    rows = memory(tmp_path, sides=(256,), ranks=(1, 2), steps=2)
+    assert [r["ranks"] for r in rows] == [1, 2] and all(r["cells"] == 256 * 256 for r in rows)
+    assert all(r["mean_mib"] > r["fixed_mib"] > 20 and r["run_mib"] > 0 for r in rows)
+    assert rows[1]["rank0_over_mean"] < 1.15 and rows[0]["steps"] == rows[1]["steps"] == 3
+    assert rows[1]["force"] == pytest.approx(rows[0]["force"], rel=1e-12)
+    with open(tmp_path / "memory.csv") as fh:
+        assert len(list(csv.DictReader(fh))) == 2
+
+
+def test_append_bench_times_every_append(tmp_path):
+    from petroll.studies.bench_memory import append
+
+    rows = append(tmp_path, side=16, steps=30, block=10)
+    assert [r["steps"] for r in rows] == ["0-9", "10-19", "20-29"]
+    assert all(0 < r["median_ms"] <= r["max_ms"] for r in rows)
