@@ -19,8 +19,11 @@ import numpy as np
 from mpi4py import MPI
 
 from petroll.solver.contact import BeyondReach, ContactSolver
-from petroll.errors import SceneError
+from petroll.errors import SceneError, SolverError
 from petroll.solver.history import make_history
+from petroll.solver.influence import InfluenceOperator
+from petroll.solver.steady import Anderson, memory
+from petroll.model.materials import Prony
 from petroll.model.scene import Scene
 from petroll.solver.wake import Wake
 from petroll.solver.warm import WarmStart
@@ -164,6 +167,82 @@ class Simulation:
         if self.records:
             distance += float(np.hypot(sx - self.records[-1].sx, sy - self.records[-1].sy))
         record = self._diagnose(len(self.records), t, sx, sy, solution, velocity, distance, elapsed)
+        self.records.append(record)
+        return record
+
+    def solve_steady(self, tol: float = 1e-10, max_iterations: int = 500) -> StepRecord:
+        """The constant-velocity steady state solved directly in the body frame (petroll.solver.steady),
+        recorded as step 0 at t = 0 with the body at [motion] position. Velocity, penetration or load are
+        taken at t = 0 and must be constant (the caller checks); the motion must be along X or Y. ``tol``:
+        relative change of the memory field (scaled by the QP compliance x p_max) at which the fixed point
+        stops. The wake behind the grid (up to 25 V tau) is included; surface() is not available after it."""
+        scene, solver, comm, g = self.scene, self.solver, self.comm, self.scene.grid
+        material = scene.material
+        if not isinstance(material, Prony):
+            raise SceneError(scene.source, "[material] model", "tabulated",
+                             'the direct steady solve needs a Prony series: use [time] mode = "transient"')
+        start = clock.perf_counter()
+        velocity = np.asarray(scene.velocity(0.0), dtype=float)
+        speed = float(np.hypot(*velocity))
+        axis = 0 if abs(velocity[1]) == 0 else 1
+        if speed == 0 or abs(velocity[1 - axis]) > 0:
+            raise SceneError(scene.source, "[motion] velocity", list(velocity),
+                             "the steady solve needs a non-zero velocity along X or Y")
+        sign = 1 if velocity[axis] > 0 else -1
+        cell = g.dx if axis == 0 else g.dy
+        self.direction = velocity / speed
+        sx, sy = scene.position
+        profile = scene.body.height(self.x - sx, self.y - sy)
+        # the wake behind the grid (no pressure, memory decaying over V tau) pushes on the contact too:
+        # the memory and its displacement are computed on the grid extended behind by ``behind`` cells
+        # the QPs' compliance: J at the time the material takes to cross a Hertz half-width (relaxed when
+        # rolling slowly, instantaneous when fast); the rest of the operator is the memory, lagged
+        if scene.penetration is not None:
+            half_width = math.sqrt(scene.body.radius_hint * float(scene.penetration(0.0)))
+        else:
+            half_width = (0.75 * float(scene.load(0.0)) * scene.body.radius_hint * material.Jinf) ** (1 / 3)
+        compliance = float(material(half_width / speed))
+        r0, r1 = solver.r0, solver.r1
+        n_along = (g.nx, g.ny)[axis]
+        behind = min(math.ceil(25 * speed * material.longest_time / cell), 4 * n_along)
+        pad = [(0, 0), (0, 0)]
+        pad[axis] = (behind, 0) if sign > 0 else (0, behind)
+        inside = [slice(None), slice(None)]
+        inside[axis] = slice(behind, None) if sign > 0 else slice(0, n_along)
+        extended = InfluenceOperator(g.dx, g.dy).window(g.nx + (behind if axis == 0 else 0),
+                                                          g.ny + (behind if axis == 1 else 0))
+
+        def displacement(field):  # A m on this rank's rows, m given on the extended grid
+            return extended(field)[tuple(inside)][r0:r1]
+
+        m = np.zeros((g.nx + (behind if axis == 0 else 0), g.ny + (behind if axis == 1 else 0)))
+        mixer, work = Anderson(), list(solver.work)
+        solution, delta = None, None
+        for _ in range(max_iterations):
+            height = profile + displacement(m)
+            warm = None if solution is None else solution.pressure
+            if scene.penetration is not None:
+                solution = solver.solve_penetration(height, compliance, float(scene.penetration(0.0)), warm)
+            else:
+                solution = solver.solve_load(height, compliance, float(scene.load(0.0)),
+                                             scene.body.radius_hint, delta, warm)
+            delta = solution.delta
+            p = np.vstack(comm.allgather(solution.pressure))
+            p = np.pad(p, pad)
+            target = memory(p, material, speed, cell, axis, sign) - (compliance - material.J0) * p
+            scale = compliance * float(p.max(initial=0.0))
+            change = float(np.abs(target - m).max(initial=0.0))
+            if change <= tol * scale:
+                m = target
+                break
+            m = mixer.next(m, target)
+        else:
+            raise SolverError(f"the steady solve did not converge within {max_iterations} iterations")
+        solution.iterations = solver.work[0] - work[0]
+        solution.applications = solver.work[1] - work[1]
+        self.pressure = solution.pressure
+        self._newest = None  # surface() is not kept for a steady solve (its wake lies beyond the grid)
+        record = self._diagnose(0, 0.0, sx, sy, solution, velocity, 0.0, clock.perf_counter() - start)
         self.records.append(record)
         return record
 
