@@ -103,7 +103,8 @@ def _show_progress(scene: Scene, r: StepRecord, wall: float) -> None:
     tm = scene.time
     done = (r.t / tm.end if tm.end else r.distance / tm.distance if tm.distance else 1.0) or 1e-12
     left = wall * (1 / done - 1) if done > 0 else math.nan
-    print(f"\rstep {r.step:6d}  t {r.t:.4g} s  distance {r.distance:.4g} m  force {r.force:.5g} N  "
+    print(f"\rstep {r.step:6d}  t {r.t:.4g} s  distance {r.distance:.4g} m  force {r.force:.5g} "
+          f"{'N/m' if scene.grid.line else 'N'}  "
           f"mu_r {r.mu_r:+.4e}  left ~{left:.0f} s   ", end="", file=sys.stderr, flush=True)
 
 

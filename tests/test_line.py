@@ -42,7 +42,7 @@ def line_raw(nx=128, extent=(-2e-3, 2e-3), load=1000.0, material=None, **section
 
 def first_step(raw: dict, comm) -> tuple[Simulation, object]:
     sim = Simulation(parse_scene(raw, source="test_line"), comm)
-    return sim, sim.step(0.0, 0.0)
+    return sim, next(sim.steps())
 
 
 def whole(sim) -> np.ndarray:
@@ -156,7 +156,7 @@ def test_heightmap_profile_is_a_cylinder_sampled(tmp_path, comm):
     raw = line_raw(body={"shape": "heightmap", "file": "profile.npy", "cell": dx / 4})
     scene = parse_scene(raw, base_dir=path)
     sim_map = Simulation(scene, comm)
-    rec_map = sim_map.step(0.0, 0.0)
+    rec_map = next(sim_map.steps())
     sim_cyl, rec_cyl = first_step(line_raw(), comm)
     assert np.abs(whole(sim_map) - whole(sim_cyl)).max() <= 1e-3 * rec_cyl.p_max
     bad = path / "map2d.npy"
@@ -220,3 +220,26 @@ def test_two_ranks_agree_with_one(comm, shared):
         scale = np.abs(series[name]).max() if name != "force_x" else np.abs(series["force"]).max()
         assert np.abs(two.series[name] - series[name]).max() <= 1e-9 * scale, name
     assert np.abs(two.pressure - pressure).max() <= 1e-9 * np.abs(pressure).max()
+
+
+def test_command_line_speaks_per_unit_length_and_refuses_a_penetration(comm, shared, capsys):
+    """`petroll run` of a line scene: the summary gives N/m and the contact width; a penetration is one
+    line `petroll: error:` naming the key and why, exit 2."""
+    from petroll.cli import main
+
+    if comm.rank == 0:
+        (shared / "line.toml").write_text('[grid]\nnx = 64\nx = [-2e-3, 2e-3]\n\n[material]\nmodel = "elastic"\n'
+                                          'E = 1e7\nnu = 0.3\n\n[body]\nshape = "cylinder"\nradius = 0.01\n\n'
+                                          '[motion]\nload = 1000.0\n')
+        text = (shared / "line.toml").read_text()
+        (shared / "bad.toml").write_text(text.replace("load = 1000.0", "penetration = 1e-5"))
+    comm.Barrier()
+    assert main(["run", str(shared / "line.toml"), "--out", str(shared / "out")]) == 0
+    out = capsys.readouterr().out
+    if comm.rank == 0:
+        assert "force 1000 N/m" in out and "contact width" in out and "m^2" not in out
+    assert main(["run", str(shared / "bad.toml"), "--out", str(shared / "bad")]) == 2
+    err = [line for line in capsys.readouterr().err.splitlines() if line.strip()]
+    if comm.rank == 0:
+        assert len(err) == 1 and err[0].startswith("petroll: error:") and "[motion] penetration" in err[0]
+        assert "datum" in err[0] and "N/m" in err[0]
