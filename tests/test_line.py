@@ -243,3 +243,12 @@ def test_command_line_speaks_per_unit_length_and_refuses_a_penetration(comm, sha
     if comm.rank == 0:
         assert len(err) == 1 and err[0].startswith("petroll: error:") and "[motion] penetration" in err[0]
         assert "datum" in err[0] and "N/m" in err[0]
+
+
+def test_steep_contact_warns_with_the_estimated_half_width():
+    """a/R = 0.4 (relaxed Hertz for the load per length): the small-slope warning names the half-width."""
+    from petroll.model.limits import PetrollWarning
+
+    load = math.pi * (0.4 * R) ** 2 / (4 * R * J)
+    with pytest.warns(PetrollWarning, match=r"half-width 0\.004 m \(line contact\)"):
+        parse_scene(line_raw(extent=(-0.01, 0.01), load=load))

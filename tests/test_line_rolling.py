@@ -212,6 +212,7 @@ def test_slow_rolling_limit_through_a_sweep(tmp_path):
     assert np.allclose(c["mu_r"] / c["mu_r_slow"], 1.0, atol=0.03)
     assert np.allclose(c["a"], A_INF * math.sqrt(J0 / JINF), rtol=1 / 8)  # the first step: J0's half-width
     assert np.all(c["steady"] == 1)
+    assert table.line and "force (N/m)" in table.csv.read_text().splitlines()[0]  # per unit length
 
 
 def test_wide_roller_mid_section_is_plane_strain(comm):

@@ -79,9 +79,10 @@ def check_scene(scene) -> None:
     value = scene.raw.get("motion", {}).get("penetration" if exact else "load")
     degrees = math.degrees(math.atan(slope))
     which = "the" if exact else "an estimated"
+    at = (f"an estimated largest half-width {math.sqrt(delta * scene.body.radius_hint):.3g} m (line contact)"
+          if scene.grid.line else f"{which} largest penetration {delta:.3g} m")
     reason = (f"the body's surface in the contact would slope up to {slope:.2g} ({degrees:.0f} degrees) at "
-              f"{which} largest penetration {delta:.3g} m; the half-space theory assumes small slopes (its "
-              "error grows like slope^2)")
+              f"{at}; the half-space theory assumes small slopes (its error grows like slope^2)")
     if slope > SLOPE_MAX and exact:
         raise SceneError(scene.source, key, value, f"too large: {reason}; allowed: slopes up to "
                          f"{SLOPE_MAX:g} (45 degrees): reduce the penetration")

@@ -291,7 +291,8 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "dt": Key("number > 0", "time step (or steps_per_cell); without [time]: one step at t = 0",
                   _positive, default=None, unit="s"),
         "steps_per_cell": Key("number > 0", "time step tied to the motion: dt = min(dx, dy) / (|V| "
-                              "steps_per_cell)", _positive, default=None),
+                              "steps_per_cell) (line contact: dx / (|V| steps_per_cell))", _positive,
+                              default=None),
         "end": Key("number > 0", "end time (one of end, distance)", _positive, default=None, unit="s"),
         "distance": Key("number > 0", "stop after the body has rolled this far along its path (one of end, "
                         "distance)", _positive, default=None, unit="m"),

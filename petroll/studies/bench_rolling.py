@@ -138,7 +138,7 @@ def _precision_run(base: Scene, integrator: str, spc: float, factor: float, comm
     scene = base.replace({"solver.integrator": integrator, "time.steps_per_cell": spc,
                           "grid.nx": int(round(g.nx * factor)), "grid.ny": int(round(g.ny * factor))})
     a = math.sqrt(scene.body.radius_hint * float(scene.penetration(0.0)))  # Hertz radius, m
-    cell = min(scene.grid.dx, scene.grid.dy)
+    cell = scene.grid.cell
     dt = cell / (spc * float(np.hypot(*scene.velocity(0.0))))
     row = dict(label=f"{integrator} a/dx {a / cell:.0f} spc {spc:g}", integrator=integrator,
                cells_per_radius=a / cell, steps_per_cell=spc, dt_s=dt, steps=0, run_s=math.nan,

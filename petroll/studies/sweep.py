@@ -102,6 +102,9 @@ COLUMNS: dict[str, tuple[str, str]] = {
 }
 """The table's columns: name -> (unit, meaning). One row per point, in the order of the values."""
 
+LINE_UNITS = {"force": "N/m", "area": "m", "force_J0": "N/m", "force_Jinf": "N/m"}
+"""The columns whose unit differs in a line-contact sweep (per unit length; area is the contact width)."""
+
 
 class SweepError(PetrollError):
     """A --vary specification or a sweep that cannot be run (one line: what is wrong, what is allowed)."""
@@ -236,6 +239,13 @@ class SweepTable:
     points: list[str]  # each point's directory, relative to the sweep directory
     directory: pathlib.Path
     computed: list[int] = field(default_factory=list)  # points run by this call (others: found finished)
+
+    @property
+    def line(self) -> bool:
+        """A line-contact (plane-strain) sweep: its scene's [grid] has no ny (units: LINE_UNITS)."""
+        import tomllib
+
+        return "ny" not in tomllib.loads(self.scene_text).get("grid", {})
 
     @property
     def csv(self) -> pathlib.Path:
@@ -410,7 +420,8 @@ def table_row(scene: Scene, results: Results, value: float) -> dict[str, float]:
 def write_table(table: SweepTable) -> None:
     """Write sweep.csv and sweep.h5 (each atomically). Call on one rank."""
     names = list(COLUMNS)
-    units = [table.unit if n == "value" else COLUMNS[n][0] for n in names]
+    line = LINE_UNITS if table.line else {}  # a line-contact sweep: per unit length
+    units = [table.unit if n == "value" else line.get(n, COLUMNS[n][0]) for n in names]
     header = ",".join(f"{table.key if n == 'value' else n} ({u})" for n, u in zip(names, units))
     lines = [header] + [",".join(f"{table.columns[n][i]:.10g}" for n in names)
                         for i in range(len(table.points))]
