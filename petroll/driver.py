@@ -46,7 +46,7 @@ def run(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, out: str | pathlib.Path |
     prepare_output(out, comm)
     sim = Simulation(scene, comm)
     g = scene.grid
-    results = ResultsFile(out / "results.h5", scene.text, g.x, g.y, comm, line=g.line)
+    results = ResultsFile(out / "results.h5", scene.text, g.x, g.y, comm, fields=scene.fields, line=g.line)
     if restart is not None:
         t, field_steps = restart.restore(sim)
         results.resume(run_directory(restart.path) / "results.h5", len(sim.records), field_steps)
@@ -67,7 +67,7 @@ def run(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, out: str | pathlib.Path |
         if progress and comm.rank == 0:
             _show_progress(scene, record, clock.perf_counter() - wall)
         if save or due or interrupted or stop_now:  # the results first: a checkpoint's fields are in them
-            results.append(sim.records, {"pressure": sim.pressure} if save else None, complete=stop_now,
+            results.append(sim.records, saved_fields(sim) if save else None, complete=stop_now,
                            describe=bool(due or interrupted or stop_now))
         if due or interrupted:
             path = write_checkpoint(checkpoint_dir(out), sim, sim.t, sim.dt_next, results.field_steps,
@@ -80,6 +80,15 @@ def run(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, out: str | pathlib.Path |
     if progress and comm.rank == 0:
         print(file=sys.stderr)
     return Results.open(results.path)
+
+
+def saved_fields(sim: Simulation) -> dict[str, np.ndarray]:
+    """The fields of ``[output] fields`` at the newest step, this rank's rows: pressure (Pa) and, when
+    asked, the surface displacement and the gap (m, from ``Simulation.surface``: one more convolution)."""
+    fields = {"pressure": sim.pressure}
+    if len(sim.scene.fields) > 1:
+        fields["displacement"], fields["gap"] = sim.surface()
+    return fields
 
 
 def prepare_output(out: pathlib.Path, comm: MPI.Comm) -> None:

@@ -23,7 +23,8 @@ MM = 1e3  # m -> mm
 
 def plot_results(results_dir: str | pathlib.Path, out_dir: str | pathlib.Path | None = None,
                  times: Sequence[float] | None = None) -> list[pathlib.Path]:
-    """Write pressure.png, patches.png and series.png for ``results_dir/results.h5``.
+    """Write pressure.png, patches.png and series.png for ``results_dir/results.h5``, and surface.png
+    when the run saved the surface displacement and gap ([output] fields).
 
     ``out_dir`` defaults to ``results_dir/plots``; ``times`` (s) picks the saved pressure fields nearest to
     those times for pressure.png (default: up to 4 spread over the run). Returns the written paths.
@@ -54,6 +55,10 @@ def plot_results(results_dir: str | pathlib.Path, out_dir: str | pathlib.Path | 
                          ("series.png", _series_figure(results, label))):
         target = out / name
         figure.savefig(target, dpi=120)
+        written.append(target)
+    if "displacement" in results.fields:
+        target = out / "surface.png"
+        _surface_figure(results, label).savefig(target, dpi=120)
         written.append(target)
     return written
 
@@ -147,6 +152,45 @@ def _pressure_figure(results: Results, picks: list[int], label: str):
     axes[0].legend(loc="upper left", fontsize=8, framealpha=0.7)
     figure.colorbar(image, ax=list(axes[:len(picks)]), label=f"contact pressure ({unit})", shrink=0.9)
     figure.suptitle(f"{label}: contact pressure (zoomed on the patch; material frame)")
+    return figure
+
+
+def _surface_figure(results: Results, label: str):
+    """The deformed surface along the track's centre line at the last saved step: the surface -w and the
+    body's surface Z - delta = gap - w (um, upwards; the undeformed surface at 0), and the pressure."""
+    k = len(results.field_steps) - 1
+    row = _row(results, results.field_steps[k])
+    sx, sy = float(results.series["sx"][row]), float(results.series["sy"][row])
+    j = int(np.argmin(np.abs(results.y - sy)))
+    w, gap = results.field("displacement")[k, :, j], results.field("gap")[k, :, j]
+    p = results.pressure[k, :, j]
+    x = results.x * MM
+    unit, scale = _pressure_unit(float(p.max(initial=0.0)))
+    figure = _figure(7.5, 4.5)
+    ax = figure.subplots()
+    um = 1e6
+    ax.plot(x, -w * um, color="C0", label="deformed surface, -w")
+    ax.plot(x, (gap - w) * um, color="0.3", linestyle="--", label="body, Z - delta")
+    ax.axhline(0.0, color="0.7", linewidth=0.8, label="undeformed surface")
+    loaded = np.flatnonzero(p > 0)
+    if loaded.size:
+        pad = max(3, loaded[-1] - loaded[0])
+        lo, hi = max(loaded[0] - pad, 0), min(loaded[-1] + pad, len(x) - 1)
+        ax.set_xlim(x[lo], x[hi])
+        shown = slice(lo, hi + 1)
+        ax.set_ylim(1.5 * min((-w[shown]).min(), 0.0) * um, max(((gap - w)[shown]).max() * um, 1e-300))
+    ax.set_xlabel("X (mm, material frame)")
+    ax.set_ylabel("height (um)")
+    ax.grid(alpha=0.3)
+    twin = ax.twinx()
+    twin.fill_between(x, p / scale, color="C3", alpha=0.25, linewidth=0, label="pressure")
+    twin.set_ylabel(f"contact pressure ({unit})")
+    twin.set_ylim(0, max(float(p.max(initial=0.0)) / scale, 1e-300) * 3)
+    lines = ax.get_legend_handles_labels()[0] + twin.get_legend_handles_labels()[0]
+    ax.legend(lines, [h.get_label() for h in lines], fontsize=8, loc="lower right")
+    where = "" if results.line else f" at Y = {results.y[j] * MM:.3g} mm"
+    ax.set_title(f"{label}: deformed surface{where}, step {int(results.field_steps[k])} "
+                 f"(body centre X = {sx * MM:.3g} mm)", fontsize=10)
     return figure
 
 

@@ -2,6 +2,7 @@
 inside and outside the contact, the gap's contact conditions on a Hertz step and on a rolling viscoelastic
 run (where the preceding displacement of the history is part of w)."""
 
+import h5py
 import numpy as np
 
 from petroll.model.scene import parse_scene
@@ -79,3 +80,53 @@ def test_rolling_gap_holds_the_contact_conditions_with_the_history(comm):
     compliance = sim.history.compliance(record.t - sim.records[-2].t)  # the step's J_eff
     own = gathered(comm, sim.solver.influence.window(40, 20)(compliance * sim.pressure))
     assert np.max(np.abs(own - w)[p > 0]) > 0.1 * scale
+
+
+def test_saved_displacement_and_gap_fields_in_results_xdmf_and_plot(comm, tmp_path):
+    """[output] fields = ["displacement", "gap"]: results.h5 holds fields/displacement and fields/gap (m,
+    the layout of fields/pressure, pressure saved too) equal to Hertz's closed form as in the test above
+    (the same tolerances), results.xdmf lists the three fields, and petroll plot draws surface.png."""
+    import xml.etree.ElementTree as ET
+
+    from petroll.driver import run
+    from petroll.plot import plot_results
+
+    out = comm.bcast(str(tmp_path) if comm.rank == 0 else None, root=0)
+    raw = hertz_sim(comm).scene.raw
+    raw["output"] = {"fields": ["gap", "displacement"]}
+    results = run(parse_scene(raw, source="test_surface"), comm, out)
+    assert results.fields == ("pressure", "displacement", "gap")
+    w, g, p = (results.field(name)[-1] for name in ("displacement", "gap", "pressure"))
+    assert w.shape == g.shape == p.shape == (49, 49)
+    x, y = np.meshgrid(results.x, results.y, indexing="ij")
+    r = np.hypot(x, y)
+    J = (1 - NU**2) / E
+    a = np.sqrt(R * DELTA)
+    exact = hertz_displacement(r, a, 2 * a / (np.pi * J * R), J)
+    inside = r <= a
+    assert np.max(np.abs(w - exact)[inside]) < 1e-3 * DELTA
+    assert np.max(np.abs(w - exact)[~inside]) < 2e-3 * DELTA
+    assert np.max(np.abs(g[p > 0])) < 1e-6 * DELTA and np.all(g[p == 0] > 0)
+    body = R - np.sqrt(R * R - r * r)  # the sphere's height above its lowest point
+    assert np.max(np.abs(g - (body + exact - DELTA))[p == 0]) < 1e-3 * DELTA
+    if comm.rank != 0:
+        return
+    with h5py.File(tmp_path / "results.h5", "r") as f:
+        assert f["fields/displacement"].attrs["units"] == f["fields/gap"].attrs["units"] == "m"
+    root = ET.parse(tmp_path / "results.xdmf").getroot()
+    names = [a.get("Name") for a in root.findall("./Domain/Grid/Grid")[-1].findall("Attribute")]
+    assert names == ["pressure", "displacement", "gap"]
+    written = plot_results(tmp_path)
+    assert tmp_path / "plots" / "surface.png" in written and (tmp_path / "plots" / "surface.png").stat().st_size > 0
+
+
+def test_unknown_output_field_is_refused_naming_the_key():
+    import pytest
+
+    from petroll.errors import SceneError
+
+    raw = {"grid": {"nx": 8, "ny": 8, "x": [-1e-3, 1e-3], "y": [-1e-3, 1e-3]},
+           "material": {"model": "elastic", "E": E, "nu": NU}, "body": {"shape": "sphere", "radius": R},
+           "motion": {"penetration": DELTA}, "output": {"fields": ["pressure", "strain"]}}
+    with pytest.raises(SceneError, match=r"\[output\] fields.*'displacement', 'gap'"):
+        parse_scene(raw, source="test_surface")

@@ -14,7 +14,7 @@ The file grows as the run goes (:class:`ResultsFile`): its datasets are resizabl
 and fields are appended, never rewritten, every rank writing its own rows of a field (parallel HDF5, or
 through rank 0: :mod:`petroll.io.hdf5`). Between appends the file is closed; ``steps_written`` and
 ``fields_written`` say how far it is valid and readers cut the datasets there. Next to it,
-``results.xdmf`` describes the saved pressure fields as a time series for ParaView (docs/checkpoints.md).
+``results.xdmf`` describes the saved fields as a time series for ParaView (docs/checkpoints.md).
 """
 
 from __future__ import annotations
@@ -141,6 +141,7 @@ class Results:
     scene_text: str
     complete: bool = True  # False: the run goes on (or was interrupted); the file holds steps_written steps
     line: bool = False  # a line-contact (plane-strain) run: series per unit length, pressure (n, nx, 1)
+    fields: tuple[str, ...] = ("pressure",)  # the saved fields in the file (keys of FIELD_UNITS)
 
     @classmethod
     def open(cls, path: str | pathlib.Path) -> "Results":
@@ -152,7 +153,8 @@ class Results:
             series = {name: f["series"][name][:n] for name in f["series"]}
             fields = f["fields"]
             return cls(path, series, fields["step"][:k], fields["x"][()], fields["y"][()], str(f.attrs["scene"]),
-                       bool(f.attrs.get("complete", True)), bool(f.attrs.get("line_contact", False)))
+                       bool(f.attrs.get("complete", True)), bool(f.attrs.get("line_contact", False)),
+                       tuple(name for name in FIELD_UNITS if name in fields))
 
     def field(self, name: str) -> np.ndarray:
         """The saved fields ``name`` (a key of FIELD_UNITS), (n_saved, nx, ny), read from the file."""
@@ -171,8 +173,10 @@ class Results:
         return steady_state(self.series, self.scene_text)
 
 
-FIELD_UNITS = {"pressure": "Pa"}
-"""The fields a run can save (name: unit), each as /fields/<name> (n_saved, nx, ny)."""
+FIELD_UNITS = {"pressure": "Pa", "displacement": "m", "gap": "m"}
+"""The fields a run can save (name: unit), each as /fields/<name> (n_saved, nx, ny): the contact pressure,
+the surface displacement (into the half-space; line contact: relative to the datum) and the gap between
+the body and the deformed surface ([output] fields)."""
 
 
 class ResultsFile:
@@ -307,7 +311,7 @@ class ResultsFile:
         if describe and self.comm.rank == 0:
             times = {int(r.step): float(r.t) for r in records}
             text = xdmf_text(self.path.name, len(self.x), len(self.y), self.field_steps,
-                             [times[s] for s in self.field_steps])
+                             [times[s] for s in self.field_steps], self.fields)
             self._guarded(lambda: atomic_write(self.path.with_suffix(".xdmf"),
                                                lambda tmp: tmp.write_text(text, encoding="utf-8")), local=True)
         if describe:
@@ -459,14 +463,16 @@ def cell_corners(x: np.ndarray, y: np.ndarray, i0: int = 0, i1: int | None = Non
     return np.stack([X.ravel(), Y.ravel()], axis=1)
 
 
-def xdmf_text(h5_name: str, nx: int, ny: int, field_steps: list[int], times: list[float]) -> str:
-    """XDMF 2 describing the saved pressure fields of ``h5_name`` (same directory) as a temporal collection
-    of structured grids over the HDF5 datasets: no data is copied. ParaView: File > Open results.xdmf."""
+def xdmf_text(h5_name: str, nx: int, ny: int, field_steps: list[int], times: list[float],
+              fields: tuple[str, ...] = ("pressure",)) -> str:
+    """XDMF 2 describing the saved ``fields`` of ``h5_name`` (same directory) as a temporal collection of
+    structured grids over the HDF5 datasets, one cell attribute per field: no data is copied.
+    ParaView: File > Open results.xdmf."""
     n = len(field_steps)
     corners = f"{(nx + 1) * (ny + 1)} 2"
     lines = ['<?xml version="1.0" ?>', '<!DOCTYPE Xdmf SYSTEM "Xdmf.dtd" []>',
              '<Xdmf Version="2.0">', "  <Domain>",
-             '    <Grid Name="pressure" GridType="Collection" CollectionType="Temporal">']
+             '    <Grid Name="fields" GridType="Collection" CollectionType="Temporal">']
     for k, (step, t) in enumerate(zip(field_steps, times)):
         lines += [
             f'      <Grid Name="step {int(step)}" GridType="Uniform">',
@@ -476,14 +482,17 @@ def xdmf_text(h5_name: str, nx: int, ny: int, field_steps: list[int], times: lis
             f'          <DataItem Dimensions="{corners}" NumberType="Float" Precision="8" Format="HDF">'
             f"{h5_name}:/mesh/xy</DataItem>",
             "        </Geometry>",
-            '        <Attribute Name="pressure" AttributeType="Scalar" Center="Cell">',
-            f'          <DataItem ItemType="HyperSlab" Dimensions="1 {nx} {ny}" Type="HyperSlab">',
-            f'            <DataItem Dimensions="3 3" Format="XML">{k} 0 0 1 1 1 1 {nx} {ny}</DataItem>',
-            f'            <DataItem Dimensions="{n} {nx} {ny}" NumberType="Float" Precision="8" Format="HDF">'
-            f"{h5_name}:/fields/pressure</DataItem>",
-            "          </DataItem>",
-            "        </Attribute>",
-            "      </Grid>",
         ]
+        for name in fields:
+            lines += [
+                f'        <Attribute Name="{name}" AttributeType="Scalar" Center="Cell">',
+                f'          <DataItem ItemType="HyperSlab" Dimensions="1 {nx} {ny}" Type="HyperSlab">',
+                f'            <DataItem Dimensions="3 3" Format="XML">{k} 0 0 1 1 1 1 {nx} {ny}</DataItem>',
+                f'            <DataItem Dimensions="{n} {nx} {ny}" NumberType="Float" Precision="8" Format="HDF">'
+                f"{h5_name}:/fields/{name}</DataItem>",
+                "          </DataItem>",
+                "        </Attribute>",
+            ]
+        lines.append("      </Grid>")
     lines += ["    </Grid>", "  </Domain>", "</Xdmf>", ""]
     return "\n".join(lines)

@@ -33,6 +33,9 @@ DEFAULT_TAO_TYPE = "pk"
 DEFAULT_STEADY = 1e-3
 """The [time] steady tolerance a sweep gives a scene that has none (docs/sweep.md)."""
 
+SAVED_FIELDS = ("pressure", "displacement", "gap")
+"""The fields a run can save at its saved steps ([output] fields; units in petroll.io.results.FIELD_UNITS)."""
+
 
 # -- key declarations -------------------------------------------------------------------------------------
 @dataclass(frozen=True)
@@ -128,6 +131,13 @@ def _choice(*options: str) -> Callable[[Any], str]:
         return value
 
     return check
+
+
+def _fields(value: Any) -> tuple[str, ...]:
+    """[output] fields: names of SAVED_FIELDS, pressure always saved (first), each once."""
+    if not isinstance(value, (list, tuple)) or not all(isinstance(v, str) and v in SAVED_FIELDS for v in value):
+        raise _Invalid("must be a list of field names among " + ", ".join(repr(f) for f in SAVED_FIELDS))
+    return ("pressure", *(f for f in SAVED_FIELDS[1:] if f in value))
 
 
 def _count0(value: Any) -> int:
@@ -325,6 +335,9 @@ SCHEMA: dict[str, dict[str, Key]] = {
                                 "steps and at the end (0: none; SIGTERM/SIGINT always write one; "
                                 "docs/checkpoints.md)", _count0, default=0),
         "keep": Key("integer", "number of newest checkpoints kept in DIR/checkpoints", _count, default=2),
+        "fields": Key("list of strings", "the fields saved at the saved steps: \"pressure\" (Pa, always saved), "
+                      "\"displacement\" (the surface's, m, into the half-space) and \"gap\" (m) "
+                      "(docs/results.md)", _fields, default=["pressure"]),
     },
 }
 """Every section and key of a version-1 scene. [body] also takes the keys of its shape (BODY_KEYS)."""
@@ -338,16 +351,6 @@ class Solver:
     integrator: str  # "relaxation", "exponential" or "paper"
     history_cutoff: float = 1e-9  # relative; see petroll/wake.py
 
-
-TAO_TYPES = ("tron", "pk", "gpcg", "bntr", "bncg", "blmvm", "bqnls", "bnls", "bntl")
-"""TAO's bound-constrained solvers that handle this QP (bqpip is left out: it needs finite upper bounds),
-and ``pk``, petroll's Polonsky-Keer conjugate gradient as a TAO Python type (petroll/solver/pk.py)."""
-
-DEFAULT_TAO_TYPE = "pk"
-"""Chosen by measurement: see docs/benchmarks.md."""
-
-DEFAULT_STEADY = 1e-3
-"""The [time] steady tolerance a sweep gives a scene that has none (docs/sweep.md)."""
 
 
 @dataclass(frozen=True)
@@ -383,6 +386,7 @@ class Scene:
     base_dir: pathlib.Path = field(repr=False)
     checkpoint_every: int = 0  # steps between checkpoints (0: none)
     keep: int = 2  # checkpoints kept
+    fields: tuple[str, ...] = ("pressure",)  # saved at the saved steps ([output] fields)
     shift_factor: float = 1.0  # a_T at [material] temperature: material's times / their values at T_ref
 
     def replace(self, changes: str | dict[str, Any], value: Any = None) -> "Scene":
@@ -480,6 +484,7 @@ def parse_scene(raw: dict, source: str = "<python>", base_dir: str | pathlib.Pat
                                 values["solver"]["history_cutoff"]),
                   output_dir=output_dir, every=values["output"]["every"], base_dir=base_dir,
                   checkpoint_every=values["output"]["checkpoint_every"], keep=values["output"]["keep"],
+                  fields=_fields(values["output"]["fields"]),
                   shift_factor=shift_factor)
     _check_contact_inside(scene)
     from petroll.model.limits import check_scene  # slopes beyond the linear theory: refused or warned
