@@ -188,7 +188,7 @@ def _surface_figure(results: Results, label: str):
     twin.set_ylim(0, max(float(p.max(initial=0.0)) / scale, 1e-300) * 3)
     lines = ax.get_legend_handles_labels()[0] + twin.get_legend_handles_labels()[0]
     ax.legend(lines, [h.get_label() for h in lines], fontsize=8, loc="lower right")
-    where = "" if results.line else f" at Y = {results.y[j] * MM:.3g} mm"
+    where = " (line contact: w relative to the datum)" if results.line else f" at Y = {results.y[j] * MM:.3g} mm"
     ax.set_title(f"{label}: deformed surface{where}, step {int(results.field_steps[k])} "
                  f"(body centre X = {sx * MM:.3g} mm)", fontsize=10)
     return figure
