@@ -629,3 +629,44 @@ def test_sigkill_at_random_moments_never_leaves_a_bad_checkpoint_or_results_file
             read_checkpoint(path, MPI.COMM_SELF)
         Results.open(out / "results.h5")
     assert kills >= 3
+
+
+# -- without parallel HDF5 --------------------------------------------------------------------------------
+def test_without_parallel_hdf5_rank_0_writes_the_same_files_and_restarts_bitwise(comm, shared, monkeypatch):
+    """The path taken when h5py has no MPI (PyPI's h5py): rank 0 alone opens the files and moves the other
+    ranks' rows in blocks (made 2 KiB here, so that every field takes several). Its results.h5 and
+    checkpoints hold what the parallel path's hold, bit for bit, and a run stopped and restarted through
+    it is the uninterrupted run. Under one rank both paths are rank 0's: the test bites under mpirun."""
+    from petroll.io import hdf5
+
+    scene = make_scene(raw_scene(PRONY, SINUSOIDAL, ("load", 0.1)))
+    reference = run(scene, comm, shared / "parallel")
+    monkeypatch.setattr(hdf5, "parallel_hdf5", lambda comm: False)
+    monkeypatch.setattr(hdf5, "BLOCK_BYTES", 2048)
+    through_root = run(scene, comm, shared / "rank0")
+    assert_identical(through_root, reference)
+    stop, on_step = interrupter(5, comm)
+    with pytest.raises(RunInterrupted) as info:
+        run(scene, comm, shared / "stopped", stop=stop, on_step=on_step)
+    restarted = run(scene, comm, shared / "stopped", restart=read_checkpoint(info.value.checkpoint, comm))
+    assert_identical(restarted, reference)
+
+    def datasets(path: pathlib.Path) -> dict:
+        found = {}
+        with h5py.File(path, "r") as f:
+            f.visititems(lambda name, item: found.__setitem__(name, item[()])
+                         if isinstance(item, h5py.Dataset) and name != "series/solve_time" else None)
+        return found
+
+    def same_files(a: pathlib.Path, b: pathlib.Path) -> None:
+        one, two = datasets(a), datasets(b)
+        assert sorted(one) == sorted(two)
+        for name in one:
+            assert np.array_equal(one[name], two[name]), name
+
+    def compare():
+        same_files(shared / "parallel" / "results.h5", shared / "rank0" / "results.h5")
+        for path in list_checkpoints(shared / "parallel" / "checkpoints"):
+            same_files(path, shared / "rank0" / "checkpoints" / path.name)
+
+    on_root(comm, compare)
