@@ -77,3 +77,43 @@ def test_importing_petroll_and_its_model_starts_neither_mpi_nor_petsc():
                           capture_output=True, text=True, timeout=60)
     assert done.returncode == 0, done.stderr
     assert done.stdout.strip() == "[]"
+
+
+def private(name: str) -> bool:
+    return name.startswith("_") and not (name.startswith("__") and name.endswith("__"))
+
+
+def test_no_private_name_is_imported_across_modules():
+    """No ``from petroll.x import _y`` (absolute or relative) and no ``x._y`` where ``x`` is an imported
+    petroll module: a name used by another module is public."""
+    used = []
+    for path in PACKAGE.rglob("*.py"):
+        me = module_name(path)
+        package = me if path.name == "__init__.py" else me.rpartition(".")[0]
+        modules = {}  # local name -> petroll module it is bound to
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Import):
+                for alias in node.names:
+                    if within(alias.name, "petroll"):
+                        modules[alias.asname or alias.name.partition(".")[0]] = alias.asname and alias.name
+            elif isinstance(node, ast.ImportFrom):
+                base = node.module or ""
+                if node.level:
+                    base = ".".join([*package.split(".")[: len(package.split(".")) - node.level + 1],
+                                     *([base] if base else [])])
+                if not within(base, "petroll"):
+                    continue
+                for alias in node.names:
+                    if private(alias.name) and base != me:
+                        used.append(f"{me}: from {base} import {alias.name}")
+                    modules[alias.asname or alias.name] = f"{base}.{alias.name}"
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Attribute) and private(node.attr):
+                chain, value = [], node.value
+                while isinstance(value, ast.Attribute):
+                    chain.insert(0, value.attr)
+                    value = value.value
+                if isinstance(value, ast.Name) and value.id in modules:
+                    used.append(f"{me}: {'.'.join([value.id, *chain, node.attr])}")
+    assert not used, used

@@ -7,7 +7,7 @@ cells over 3.2 contact radii, non-periodic), same tolerance, solved by petroll (
 side by side in one invocation (median of 3; set-up such as kernels excluded for all three). Writes
 ``peers.csv`` and ``peers.png`` (time against cells). The peers run in their own virtual environment,
 ``.venv-peers`` (created or completed on first use with pip: they need numpy 2, which must not enter
-petroll's environment), through the standalone scripts ``bench_tamaas.py`` and ``bench_contactmechanics.py``.
+petroll's environment), through the standalone scripts ``peers/tamaas.py`` and ``peers/contactmechanics.py``.
 
 ``petroll bench warm [--out DIR]``: the rolling sphere of runs/sphere.toml on square cells at a/dx = 16 (the
 Hertz radius over 16 cells), rolled one cell per step to steady state, with every step's QP started from
@@ -26,7 +26,6 @@ their ratios are meaningful on a noisy machine.
 
 from __future__ import annotations
 
-import csv
 import math
 import pathlib
 import statistics
@@ -41,6 +40,7 @@ from petroll.solver.contact import ContactSolver
 from petroll.errors import PetrollError
 from petroll.model.grid import Grid
 from petroll.solver.warm import DEPTH, WarmStart
+from petroll.studies.tables import new_figure, plot_lines, save_figure, write_table
 
 _R, _J, _DELTA = 0.01, 7.5e-8, 1e-5  # m, 1/Pa, m: a steel ball on rubber (E = 10 MPa, nu = 0.5)
 
@@ -76,7 +76,7 @@ def tao_types(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, repeats: int =
                                  applications=step.applications, seconds=f"{statistics.median(times):.4f}",
                                  force_error=f"{step.force / force - 1:+.2e}"))
     if comm.rank == 0:
-        _report(rows, out / "tao_types.csv")
+        write_table(rows, out / "tao_types.csv")
         _plot_tao(rows, out / "tao_types.png")
     rows += tao_types_rolling(out, comm)
     return rows
@@ -110,13 +110,13 @@ def tao_types_rolling(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD,
                          ms_per_step=f"{1e3 * np.mean([r.solve_time for r in warm]):.2f}",
                          force=f"{records[-1].force:.7g}"))
     if comm.rank == 0:
-        _report(rows, out / "tao_rolling.csv")
+        write_table(rows, out / "tao_rolling.csv")
     return rows
 
 
 def _plot_tao(rows: list[dict], path: pathlib.Path) -> None:
     """Operator applications of each type, cold and warm, one panel per grid (failed solves left out)."""
-    figure = _figure(10, 3.6)
+    figure = new_figure(10, 3.6)
     if figure is None:
         return
     grids = list(dict.fromkeys(r["cells"] for r in rows))
@@ -129,7 +129,7 @@ def _plot_tao(rows: list[dict], path: pathlib.Path) -> None:
         ax.set_xticks([i + 0.2 for i in range(len(TAO_TYPES))], TAO_TYPES, rotation=45)
         ax.set(yscale="log", ylabel="operator applications", title=f"Hertz step, {cells} cells")
         ax.legend()
-    _save(figure, path)
+    save_figure(figure, path)
 
 
 WARM_STARTS = {"cold": 0, "carried": 1, "extrapolated": DEPTH}  # name: solutions kept (WarmStart depth)
@@ -164,8 +164,8 @@ def warm_starts(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, cells_per_ra
                          ms_per_step=f"{1e3 * _median_total(per_step[name]) / len(apps):.2f}",
                          force=f"{records[-1].force:.7g}", mu_r=f"{records[-1].mu_r:.6g}"))
     if comm.rank == 0:
-        _report(rows, out / "warm.csv")
-        _plot_lines(series, out / "warm.png", "step", "operator applications",
+        write_table(rows, out / "warm.csv")
+        plot_lines(series, out / "warm.png", "step", "operator applications",
                     f"rolling sphere, a/dx = {cells_per_radius:g}, one cell per step")
     return rows
 
@@ -176,7 +176,7 @@ def _median_total(runs: list[list[float]]) -> float:
 
 
 PEERS_VENV = pathlib.Path(".venv-peers")
-PEERS = {"tamaas": "bench_tamaas.py", "contactmechanics": "bench_contactmechanics.py"}  # CSV prefix: script
+PEERS = {"tamaas": "tamaas.py", "contactmechanics": "contactmechanics.py"}  # CSV prefix: script in peers/
 _PEER_PACKAGES = {"tamaas": "tamaas", "ContactMechanics": "ContactMechanics"}  # import name: pip name
 
 
@@ -224,27 +224,28 @@ def peers(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, cells: tuple[int, 
                 row["ratio" if name == "tamaas" else f"ratio_{name}"] = f"{ours / run['seconds']:.2f}"
         rows.append(row)
     if comm.rank == 0:
-        _report(rows, out / "peers.csv")
+        write_table(rows, out / "peers.csv")
         _plot_peers(rows, out / "peers.png")
     return rows
 
 
 def _peer(python: str, script: str, args: list[str], repeats: int) -> dict:
     """Run a peer script ``repeats`` times; its first JSON answer with the median time in s."""
+    import importlib.resources
     import json
     import subprocess
 
     runs = []
     for _ in range(repeats):
-        done = subprocess.run([python, str(pathlib.Path(__file__).with_name(script)), *args],
-                              capture_output=True, text=True, check=True)
+        with importlib.resources.as_file(importlib.resources.files("petroll.studies.peers") / script) as path:
+            done = subprocess.run([python, str(path), *args], capture_output=True, text=True, check=True)
         runs.append(json.loads(done.stdout.strip().splitlines()[-1]))
     return dict(runs[0], seconds=statistics.median(r["seconds"] for r in runs))
 
 
 def _plot_peers(rows: list[dict], path: pathlib.Path) -> None:
     """Log-log plot of the solve time (s) against the number of cells N^2, one line per solver."""
-    figure = _figure(5, 4)
+    figure = new_figure(5, 4)
     if figure is None:
         return
     ax = figure.subplots()
@@ -256,7 +257,7 @@ def _plot_peers(rows: list[dict], path: pathlib.Path) -> None:
     ax.set_xticks([], minor=True)
     ax.set(xlabel="cells", ylabel="solve time (s)", title="Hertz step, load control, tol 1e-8")
     ax.legend()
-    _save(figure, path)
+    save_figure(figure, path)
 
 
 def _peers_python() -> str:
@@ -277,56 +278,3 @@ def _peers_python() -> str:
               file=sys.stderr)
         subprocess.run([str(python), "-m", "pip", "install", "-q", *missing], check=True)
     return str(python)
-
-
-def _report(rows: list[dict], path: pathlib.Path, show: bool = True) -> None:
-    """Write the rows as CSV to ``path`` and (``show``) print them as a table."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with open(path, "w", newline="") as fh:
-        writer = csv.DictWriter(fh, fieldnames=list(rows[0]))
-        writer.writeheader()
-        writer.writerows(rows)
-    if show:
-        _print_table(rows)
-
-
-def _print_table(rows: list[dict]) -> None:
-    names = list(rows[0])
-    widths = [max(len(n), *(len(str(r[n])) for r in rows)) for n in names]
-    print(" | ".join(n.ljust(w) for n, w in zip(names, widths)))
-    print("-|-".join("-" * w for w in widths))
-    for r in rows:
-        print(" | ".join(str(r[n]).ljust(w) for n, w in zip(names, widths)))
-
-
-def _plot_lines(series: dict[str, list], path: pathlib.Path, xlabel: str, ylabel: str, title: str) -> None:
-    """One line per entry of ``series`` (values against their index + 1) in a PNG."""
-    figure = _figure(6, 4)
-    if figure is None:
-        return
-    ax = figure.subplots()
-    for label, values in series.items():
-        ax.plot(range(1, len(values) + 1), values, label=label)
-    ax.set(xlabel=xlabel, ylabel=ylabel, title=title)
-    ax.legend()
-    _save(figure, path)
-
-
-def _figure(width: float, height: float):
-    """A matplotlib Figure on the Agg canvas (inches), or None with one line printed if matplotlib is
-    missing."""
-    try:
-        from matplotlib.backends.backend_agg import FigureCanvasAgg
-        from matplotlib.figure import Figure
-    except ImportError:
-        print("petroll bench: matplotlib is not installed: no PNG (pip install matplotlib)")
-        return None
-    figure = Figure(figsize=(width, height), layout="constrained")
-    FigureCanvasAgg(figure)
-    return figure
-
-
-def _save(figure, path: pathlib.Path) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    figure.savefig(path, dpi=110)
-    print(f"petroll bench: wrote {path}")

@@ -31,7 +31,7 @@ import numpy as np
 from mpi4py import MPI
 
 from petroll.errors import PetrollError
-from petroll.studies.bench import _figure, _report, _save
+from petroll.studies.tables import new_figure, save_figure, write_table
 
 SIDES = (1024, 2048, 4096)
 RANKS = (1, 2, 4)
@@ -102,7 +102,7 @@ def memory(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, sides: tuple[int,
         one = next((s for s in rows if s["side"] == r["side"] and s["ranks"] == 1), None)
         r["per_rank_vs_1"] = (r["mean_mib"] - r["fixed_mib"]) * r["ranks"] / (one["mean_mib"] - one["fixed_mib"]) \
             if one else float("nan")
-    _report([dict(r, step_s=f"{r['step_s']:.3f}", rank0_mib=f"{r['rank0_mib']:.0f}",
+    write_table([dict(r, step_s=f"{r['step_s']:.3f}", rank0_mib=f"{r['rank0_mib']:.0f}",
                   mean_mib=f"{r['mean_mib']:.0f}", max_mib=f"{r['max_mib']:.0f}",
                   rank0_over_mean=f"{r['rank0_over_mean']:.3f}", fixed_mib=f"{r['fixed_mib']:.0f}",
                   run_mib=f"{r['run_mib']:.0f}", per_rank_vs_1=f"{r['per_rank_vs_1']:.3f}",
@@ -112,7 +112,7 @@ def memory(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, sides: tuple[int,
 
 
 def _plot_memory(rows: list[dict], path: pathlib.Path) -> None:
-    figure = _figure(10, 4.2)
+    figure = new_figure(10, 4.2)
     if figure is None:
         return
     left, right = figure.subplots(1, 2)
@@ -128,7 +128,7 @@ def _plot_memory(rows: list[dict], path: pathlib.Path) -> None:
     right.set(xlabel="grid cells", ylabel="wall time per step (s)", title="time per rolling step")
     left.legend(fontsize=7)
     right.legend(fontsize=8)
-    _save(figure, path)
+    save_figure(figure, path)
 
 
 # -- results.h5 appends ----------------------------------------------------------------------------------
@@ -175,9 +175,9 @@ def append(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, side: int = 512, 
         first, last = rows[0]["median_ms"], rows[-1]["median_ms"]
         print(f"bench append: median {first:.2f} ms per append over the first {block} steps, {last:.2f} ms "
               f"over the last {block} (ratio {last / first:.2f}); file {size / 2**20:.1f} MiB")
-        _report([dict(r, median_ms=f"{r['median_ms']:.3f}", max_ms=f"{r['max_ms']:.3f}") for r in rows],
+        write_table([dict(r, median_ms=f"{r['median_ms']:.3f}", max_ms=f"{r['max_ms']:.3f}") for r in rows],
                 out / "append.csv")
-        figure = _figure(6, 4)
+        figure = new_figure(6, 4)
         if figure is not None:
             ax = figure.subplots()
             ax.plot(np.arange(steps), 1e3 * np.array(seconds), ",", alpha=0.5, label="each append")
@@ -186,7 +186,7 @@ def append(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, side: int = 512, 
             ax.set(xlabel="step (appends so far)", ylabel="append time (ms)", ylim=(0, None),
                    title=f"results.h5: one {side}x{side} field per step, {comm.size} rank(s)")
             ax.legend()
-            _save(figure, out / "append.png")
+            save_figure(figure, out / "append.png")
     return rows
 
 

@@ -53,7 +53,7 @@ import time
 import numpy as np
 from mpi4py import MPI
 
-from petroll.studies.bench import _figure, _report, _save
+from petroll.studies.tables import new_figure, save_figure, write_table
 from petroll.errors import PetrollError
 from petroll.model.scene import Scene, load_scene, shipped_scene
 from petroll.driver import run
@@ -121,9 +121,9 @@ def precision(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD,
                         relation=_ratio_relation(paper["relation"], expo["relation"]),
                         seconds=paper["seconds"] / expo["seconds"], between="ratio of the times"))
     if comm.rank == 0:
-        _report([_precision_display(r) for r in runs], out / "precision.csv")
+        write_table([_precision_display(r) for r in runs], out / "precision.csv")
         print()
-        _report([dict(s, target=f"{s['target']:g}", seconds=f"{s['seconds']:.3f}") for s in summary],
+        write_table([dict(s, target=f"{s['target']:g}", seconds=f"{s['seconds']:.3f}") for s in summary],
                 out / "precision_summary.csv")
         _plot_precision(runs, target, out / "precision.png")
     return runs, summary
@@ -218,7 +218,7 @@ def _precision_display(r: dict) -> dict:
 
 
 def _plot_precision(runs: list[dict], target: float, path: pathlib.Path) -> None:
-    figure = _figure(11, 4.8)
+    figure = new_figure(11, 4.8)
     if figure is None:
         return
     ref = next(r for r in runs if r["kind"] == "dt reference" and r["note"])
@@ -246,7 +246,7 @@ def _plot_precision(runs: list[dict], target: float, path: pathlib.Path) -> None
     figure.suptitle(f"runs/sphere.toml: dt ladders against the same grid's relaxation at spc "
                     f"{ref['steps_per_cell']:g}; grid line against a/dx {grid_ref['cells_per_radius']:.0f}",
                     fontsize=9)
-    _save(figure, path)
+    save_figure(figure, path)
 
 
 # -- cost growth --------------------------------------------------------------------------------------------
@@ -379,12 +379,12 @@ def growth(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD,
                   track_applications=float(np.median(apps[last]) / np.median(apps[first])),
                   rss_per_cell=(rows[-1]["peak_rss_mib"] - rss0) * 2**20 / rows[-1]["cells"])
     if comm.rank == 0:
-        _report([dict(r, cells=f"{r['cells']:.0f}", step_s=f"{r['step_s']:.4f}",
+        write_table([dict(r, cells=f"{r['cells']:.0f}", step_s=f"{r['step_s']:.4f}",
                       applications=f"{r['applications']:.0f}", application_s=f"{r['application_s']:.2e}",
                       convolution_share=f"{r['convolution_share']:.0%}",
                       peak_rss_mib=f"{r['peak_rss_mib']:.0f}")
                  for r in rows], out / "growth.csv")
-        _report(track, out / "growth_track.csv", show=False)
+        write_table(track, out / "growth_track.csv", show=False)
         print(f"\ntime per step ~ cells^{exponent:.2f} (per application: cells^{application_exponent:.2f}); "
               f"cells log(cells) over the same range ~ cells^{nlogn:.2f}")
         print(f"peak RSS grew by {result['rss_per_cell']:.0f} bytes per window cell (at {windows[-1]}^2)")
@@ -408,7 +408,7 @@ def _peak_rss_mib(comm: MPI.Comm) -> float:
 
 
 def _plot_growth(result: dict, path: pathlib.Path) -> None:
-    figure = _figure(11, 4.4)
+    figure = new_figure(11, 4.4)
     if figure is None:
         return
     left, right = figure.subplots(1, 2)
@@ -435,7 +435,7 @@ def _plot_growth(result: dict, path: pathlib.Path) -> None:
     right.set_title(f"long track, SLS: median of the last steps / of the second run's = "
                     f"{result['flatness']:.3f}", fontsize=9)
     right.grid(True, alpha=0.3)
-    _save(figure, path)
+    save_figure(figure, path)
 
 
 # -- what each saving is worth ------------------------------------------------------------------------------
@@ -493,7 +493,7 @@ def skips(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, track_cells: int =
         row["factor"] = f"{row['without_s'] / row['with_s']:.2f}"
         row["with_s"], row["without_s"] = f"{row['with_s']:.3g}", f"{row['without_s']:.3g}"
     if comm.rank == 0:
-        _report(rows, out / "skips.csv")
+        write_table(rows, out / "skips.csv")
     return rows
 
 
@@ -560,7 +560,7 @@ def mpi_scaling(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, windows: tup
                              speedup=t[k0] / t[k], efficiency=t[k0] * k0 / (k * t[k]),
                              force=first["forces"][-1], force_difference=difference, mu_r=first["mu_r"]))
     if comm.rank == 0:
-        _report([dict(r, cells=f"{r['cells']:.0f}", step_s=f"{r['step_s']:.4f}",
+        write_table([dict(r, cells=f"{r['cells']:.0f}", step_s=f"{r['step_s']:.4f}",
                       applications=f"{r['applications']:.0f}", speedup=f"{r['speedup']:.2f}",
                       convolution_share=f"{r['convolution_share']:.0%}", efficiency=f"{r['efficiency']:.0%}",
                       force=f"{r['force']:.10g}", force_difference=f"{r['force_difference']:.1e}",
@@ -584,7 +584,7 @@ def _mpirun_steps(k: int, windows: tuple[int, ...], steps: int, skip: int) -> li
 
 
 def _plot_mpi(rows: list[dict], path: pathlib.Path) -> None:
-    figure = _figure(5.5, 4.2)
+    figure = new_figure(5.5, 4.2)
     if figure is None:
         return
     ax = figure.subplots()
@@ -600,7 +600,7 @@ def _plot_mpi(rows: list[dict], path: pathlib.Path) -> None:
     ax.set_title("median warm step (dotted: ideal)", fontsize=9)
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=8)
-    _save(figure, path)
+    save_figure(figure, path)
 
 
 if __name__ == "__main__":  # the child of ``bench mpi --ranks``: WINDOWS STEPS SKIP, one JSON line on rank 0

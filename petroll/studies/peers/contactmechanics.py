@@ -4,9 +4,9 @@ Run by the benchmark with the Python of ``.venv-peers`` (which also holds Tamaas
 numpy 2, which must not enter petroll's own environment). Imports no petroll. Prints one JSON line: cells,
 seconds, force error, max pressure error / p0, iterations.
 
-    python bench_contactmechanics.py CELLS TOL R E NU DELTA WIDTH_IN_A
+    python contactmechanics.py CELLS TOL R E NU DELTA WIDTH_IN_A
 
-Problem and conventions, as in bench_tamaas.py and petroll: N x N cells of side dx = WIDTH * a / N centred
+Problem and conventions, as in tamaas.py and petroll: N x N cells of side dx = WIDTH * a / N centred
 on the sphere, heights at the cell centres, load control at the Hertz force. ``FreeFFTElasticHalfSpace``
 takes the contact modulus E* = E / (1 - nu^2) and the physical size of the N x N surface, and pads to
 2N x 2N itself (non-periodic, Hockney); its Green's function is that of a uniform pressure on each cell, as

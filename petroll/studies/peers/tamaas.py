@@ -4,7 +4,7 @@ Run by the benchmark with the Python of a separate virtual environment holding t
 (benchmark-only: it needs numpy 2, which must not enter petroll's own environment). Imports no petroll.
 Prints one JSON line: cells, seconds, force error, max pressure error / p0.
 
-    python bench_tamaas.py CELLS TOL R E NU DELTA WIDTH_IN_A
+    python tamaas.py CELLS TOL R E NU DELTA WIDTH_IN_A
 """
 
 import json
