@@ -8,9 +8,7 @@ that rank 0 chose and broadcast. Tests that start processes are marked ``serial`
 
 import copy
 import math
-import os
 import pathlib
-import subprocess
 import tomllib
 
 import h5py
@@ -24,7 +22,6 @@ from petroll.model.scene import SCHEMA, Scene, load_scene, parse_scene
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 SPHERE = ROOT / "runs" / "hertz.toml"
-PETROLL = ROOT / ".venv" / "bin" / "petroll"
 
 
 def default_raw() -> dict:
@@ -51,23 +48,6 @@ def assert_scene_error(exc: SceneError, source: str, key: str, value_repr: str, 
     for fragment in (allowed,) if isinstance(allowed, str) else allowed:
         assert fragment in exc.allowed, message
     assert "\n" not in message
-
-
-@pytest.fixture
-def shared_dir(tmp_path, comm):
-    """A directory that every rank agrees on (rank 0's tmp_path)."""
-    return pathlib.Path(comm.bcast(str(tmp_path) if comm.rank == 0 else None, root=0))
-
-
-def child_env() -> dict:
-    env = dict(os.environ)
-    env.update(OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1", PYTHONDONTWRITEBYTECODE="1")
-    return env
-
-
-def petroll(*args: str, cwd: pathlib.Path) -> subprocess.CompletedProcess:
-    return subprocess.run([str(PETROLL), *args], cwd=cwd, env=child_env(), capture_output=True, text=True,
-                          timeout=120)
 
 
 def write_toml(path: pathlib.Path, raw: dict) -> None:
@@ -243,7 +223,7 @@ CLI_CASES = [
 
 @pytest.mark.serial
 @pytest.mark.parametrize("mutate, key", [c[1:] for c in CLI_CASES], ids=[c[0] for c in CLI_CASES])
-def test_cli_bad_scene_one_line_exit_2_output_untouched(tmp_path, mutate, key):
+def test_cli_bad_scene_one_line_exit_2_output_untouched(tmp_path, mutate, key, cli):
     raw = default_raw()
     mutate(raw)
     scene = tmp_path / "BAD.toml"
@@ -253,7 +233,7 @@ def test_cli_bad_scene_one_line_exit_2_output_untouched(tmp_path, mutate, key):
     keep = out / "results.h5"
     keep.write_bytes(b"an earlier result")
     stamp = keep.stat().st_mtime_ns
-    proc = petroll("run", str(scene), "--out", str(out), cwd=tmp_path)
+    proc = cli("run", str(scene), "--out", str(out), cwd=tmp_path)
     assert proc.returncode == 2, proc.stderr
     lines = [line for line in proc.stderr.splitlines() if line.strip()]
     assert len(lines) == 1, proc.stderr
@@ -272,11 +252,11 @@ def test_cli_bad_scene_one_line_exit_2_output_untouched(tmp_path, mutate, key):
     ("syntax.toml", b"[grid\n", "(syntax)"),
     ("latin1.toml", b"# caf\xe9\n", "(file)"),
 ])
-def test_cli_unreadable_scene_one_line_exit_2(tmp_path, name, content, key):
+def test_cli_unreadable_scene_one_line_exit_2(tmp_path, name, content, key, cli):
     scene = tmp_path / name
     if content is not None:
         scene.write_bytes(content)
-    proc = petroll("run", str(scene), "--out", str(tmp_path / "out"), cwd=tmp_path)
+    proc = cli("run", str(scene), "--out", str(tmp_path / "out"), cwd=tmp_path)
     assert proc.returncode == 2, proc.stderr
     lines = [line for line in proc.stderr.splitlines() if line.strip()]
     assert len(lines) == 1, proc.stderr
@@ -286,8 +266,8 @@ def test_cli_unreadable_scene_one_line_exit_2(tmp_path, name, content, key):
 
 
 @pytest.mark.serial
-def test_cli_unknown_option_fails_without_traceback(tmp_path):
-    proc = petroll("run", str(SPHERE), "--out", str(tmp_path / "out"), "--bogus", cwd=tmp_path)
+def test_cli_unknown_option_fails_without_traceback(tmp_path, cli):
+    proc = cli("run", str(SPHERE), "--out", str(tmp_path / "out"), "--bogus", cwd=tmp_path)
     assert proc.returncode != 0
     assert "--bogus" in proc.stderr
     assert "Traceback" not in proc.stderr + proc.stdout
@@ -296,9 +276,9 @@ def test_cli_unknown_option_fails_without_traceback(tmp_path):
 
 # -- 4. the happy path through the command line --------------------------------------------------------------
 @pytest.mark.serial
-def test_cli_run_default_scene_writes_results_matching_hertz(tmp_path):
+def test_cli_run_default_scene_writes_results_matching_hertz(tmp_path, cli):
     out = tmp_path / "out"
-    proc = petroll("run", str(SPHERE), "--out", str(out), cwd=tmp_path)
+    proc = cli("run", str(SPHERE), "--out", str(out), cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr
     assert "Traceback" not in proc.stderr + proc.stdout
     raw = default_raw()

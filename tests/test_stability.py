@@ -4,7 +4,6 @@ smoothness, clear refusals); here each fast case must come out ok or refused as 
 integrators' holding test, the relaxation series and the command."""
 
 import math
-import pathlib
 
 import numpy as np
 import pytest
@@ -134,22 +133,21 @@ def test_a_relaxation_history_rebuilds_its_displacement_when_its_state_is_set():
 
 
 # -- the command -------------------------------------------------------------------------------------------
-def test_stability_command_writes_the_map_and_fails_on_a_failed_run(comm, tmp_path, monkeypatch, capsys):
+def test_stability_command_writes_the_map_and_fails_on_a_failed_run(comm, monkeypatch, capsys, shared_dir):
     from petroll.cli import main
 
-    out = pathlib.Path(comm.bcast(str(tmp_path) if comm.rank == 0 else None, root=0))
     keep = [c for c in FAST if c.name.startswith("held penetration, dt = 0.01 T")]
     monkeypatch.setattr(stability, "cases", lambda: keep)
     monkeypatch.setattr(stability, "refinement", lambda comm, fast: [])
     monkeypatch.setattr(stability, "scaling", lambda comm, fast: [])
-    assert main(["stability", "--fast", "--out", str(out / "ok")]) == 0
+    assert main(["stability", "--fast", "--shared_dir", str(shared_dir / "ok")]) == 0
     if comm.rank == 0:
-        text = (out / "ok" / "stability.md").read_text()
+        text = (shared_dir / "ok" / "stability.md").read_text()
         assert "held penetration, dt = 0.01 T | ok |" in text and "1 runs: 1 ok" in text
-        assert (out / "ok" / "stability.csv").read_text().startswith("axis,case,status")
+        assert (shared_dir / "ok" / "stability.csv").read_text().startswith("axis,case,status")
     broken = [stability.Case("dt", "expects a refusal that does not come", keep[0].raw, fast=True,
                               refuse=("never",))]
     monkeypatch.setattr(stability, "cases", lambda: broken)
-    assert main(["stability", "--fast", "--out", str(out / "bad")]) == 1
+    assert main(["stability", "--fast", "--shared_dir", str(shared_dir / "bad")]) == 1
     if comm.rank == 0:
         assert "petroll: FAIL dt / expects a refusal" in capsys.readouterr().out

@@ -218,24 +218,18 @@ def test_maxwell_series_converts_exactly_to_its_creep_series():
         assert integral == pytest.approx(1.0, abs=2e-4)
 
 
-def shared_dir(comm, tmp_path):
-    return comm.bcast(str(tmp_path) if comm.rank == 0 else None, root=0)
-
-
-def test_tabulated_creep_function_matches_its_prony_original(comm, tmp_path):
+def test_tabulated_creep_function_matches_its_prony_original(comm, shared_dir):
     """A CSV table of the SLS creep compliance D(t), run with the hereditary sum, reproduces the Prony
     recursion of the same scheme to the table's interpolation error."""
-    import pathlib
 
-    folder = pathlib.Path(shared_dir(comm, tmp_path))
     sls = mat.sls(E0, EINF, NU, tau_relax=TAU_RELAX)
     t = np.linspace(0.0, 1.0, 20001)
     if comm.rank == 0:
-        np.savetxt(folder / "creep.csv", np.column_stack([t, sls(t) / (1 - NU**2)]), delimiter=",",
+        np.savetxt(shared_dir / "creep.csv", np.column_stack([t, sls(t) / (1 - NU**2)]), delimiter=",",
                    header="t (s), D (1/Pa)")
     comm.Barrier()
     time = {"dt": TAU_RELAX / 4, "end": 2 * TAU_RELAX}
-    table = {"model": "tabulated", "file": str(folder / "creep.csv"), "quantity": "D", "nu": NU}
+    table = {"model": "tabulated", "file": str(shared_dir / "creep.csv"), "quantity": "D", "nu": NU}
     tabulated = run_series(scene(time=time, **table), comm)
     prony = run_series(scene(time=time, solver={"integrator": "paper"}), comm)
     assert tabulated.scene.solver.integrator == "paper"
@@ -248,12 +242,11 @@ def test_tabulated_creep_function_matches_its_prony_original(comm, tmp_path):
     ([[0.5, 1e-7], [1.0, 2e-7]], "t increasing from 0"),
     ([[0.0, -1e-7], [1.0, 2e-7]], "values > 0"),
 ])
-def test_bad_creep_tables_are_refused(comm, tmp_path, rows, allowed):
-    import pathlib
+def test_bad_creep_tables_are_refused(comm, rows, allowed, shared_dir):
 
     from petroll.errors import SceneError
 
-    path = pathlib.Path(shared_dir(comm, tmp_path)) / "bad.csv"
+    path = shared_dir / "bad.csv"
     if comm.rank == 0:
         np.savetxt(path, np.array(rows), delimiter=",")
     comm.Barrier()
@@ -271,15 +264,15 @@ def test_tabulated_velocity_equals_the_constant_one(comm):
         assert b.force == pytest.approx(a.force, rel=1e-9)
 
 
-def test_the_transient_reaches_a_steady_state(comm, tmp_path):
+def test_the_transient_reaches_a_steady_state(comm, shared_dir):
     """With [time] steady the run stops early, at values a much longer run confirms to that tolerance."""
     from petroll.driver import run
 
-    folder = shared_dir(comm, tmp_path)
     kwargs = dict(motion={"velocity": [0.01, 0.0], "penetration": 2e-5}, length=3e-3, n=40)
-    long = run(scene(time={"steps_per_cell": 1, "distance": 3e-3}, **kwargs), comm, f"{folder}/long").series
+    long = run(scene(time={"steps_per_cell": 1, "distance": 3e-3}, **kwargs), comm,
+               shared_dir / "long").series
     early = run(scene(time={"steps_per_cell": 1, "distance": 3e-3, "steady": 1e-3}, **kwargs), comm,
-                f"{folder}/steady").series
+                shared_dir / "steady").series
     assert early["distance"][-1] < 0.8 * long["distance"][-1]
     assert early["force"][-1] == pytest.approx(long["force"][-1], rel=2e-3)
     assert early["mu_r"][-1] * early["force"][-1] == pytest.approx(long["mu_r"][-1] * long["force"][-1],
