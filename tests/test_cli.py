@@ -47,3 +47,12 @@ def test_pk_on_the_command_line_and_its_view(tmp_path, cli):
     off = cli("run", scene, "--out", "off", "-petroll_pc_circulant", "0", "-petroll_tao_view", cwd=tmp_path)
     assert off.returncode == 0, off.stderr
     assert "preconditioner: none" in off.stdout and "CirculantInverse" not in off.stdout
+
+
+def test_quick_is_refused_beside_benchmarks_other_than_warm(comm, capsys):
+    from petroll.cli import main
+
+    assert main(["bench", "tao", "--quick"]) == 2
+    if comm.rank == 0:
+        err = capsys.readouterr().err
+        assert err == "petroll: error: petroll bench tao: --quick applies to petroll bench warm only\n"

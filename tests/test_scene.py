@@ -9,6 +9,7 @@ that rank 0 chose and broadcast. Tests that start processes are marked ``serial`
 import copy
 import math
 import pathlib
+import re
 import tomllib
 
 import h5py
@@ -344,6 +345,25 @@ def test_docs_scene_md_is_the_generated_reference():
     from petroll.model.reference import scene_reference
 
     assert (ROOT / "docs" / "scene.md").read_text(encoding="utf-8") == scene_reference()
+
+
+def test_the_reference_shows_each_default_as_the_toml_that_gives_it():
+    """Every default in the reference's tables, parsed as TOML and given in a scene, is the key's value when
+    the key is left out (checked through the key's own conversion)."""
+    from petroll.model.reference import scene_reference
+
+    shown = {}
+    for section in re.split(r"^## ", scene_reference(), flags=re.M)[1:]:
+        name = section.split("]")[0].strip("[")
+        for key, default in re.findall(r"^\| `(\w+)` \| [^|]+ \| [^|]+ \| `([^`]+)` \|", section, flags=re.M):
+            shown[name, key] = tomllib.loads(f"v = {default}")["v"]
+    declared = {(s, k): spec for s, keys in SCHEMA.items() for k, spec in keys.items()
+                if spec.default not in (None, MISSING)}
+    assert set(shown) == set(declared)
+    for (section, key), value in shown.items():
+        spec = declared[section, key]
+        assert value == spec.default and repr(spec.check(value)) == repr(spec.check(spec.default)), key
+    assert shown["motion", "velocity"] == [0.0, 0.0] and shown["solver", "tao_type"] == DEFAULT_TAO_TYPE
 
 
 # -- 7. Scene.replace ----------------------------------------------------------------------------------------

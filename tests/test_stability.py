@@ -140,7 +140,7 @@ def test_stability_command_writes_the_map_and_fails_on_a_failed_run(comm, monkey
     monkeypatch.setattr(stability, "cases", lambda: keep)
     monkeypatch.setattr(stability, "refinement", lambda comm, fast: [])
     monkeypatch.setattr(stability, "scaling", lambda comm, fast: [])
-    assert main(["stability", "--fast", "--shared_dir", str(shared_dir / "ok")]) == 0
+    assert main(["stability", "--fast", "--out", str(shared_dir / "ok")]) == 0
     if comm.rank == 0:
         text = (shared_dir / "ok" / "stability.md").read_text()
         assert "held penetration, dt = 0.01 T | ok |" in text and "1 runs: 1 ok" in text
@@ -148,6 +148,6 @@ def test_stability_command_writes_the_map_and_fails_on_a_failed_run(comm, monkey
     broken = [stability.Case("dt", "expects a refusal that does not come", keep[0].raw, fast=True,
                               refuse=("never",))]
     monkeypatch.setattr(stability, "cases", lambda: broken)
-    assert main(["stability", "--fast", "--shared_dir", str(shared_dir / "bad")]) == 1
+    assert main(["stability", "--fast", "--out", str(shared_dir / "bad")]) == 1
     if comm.rank == 0:
         assert "petroll: FAIL dt / expects a refusal" in capsys.readouterr().out

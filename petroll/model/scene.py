@@ -45,7 +45,7 @@ class Key:
     kind: str
     doc: str
     check: Callable[[Any], Any]
-    default: Any = MISSING  # MISSING: required
+    default: Any = MISSING  # as written in TOML (checked like a given value); None: not set; MISSING: required
     unit: str = "-"
 
 
@@ -283,13 +283,13 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "shape": Key("string", "body shape: " + ", ".join(BODY_KEYS) + " (its own keys: see below)",
                      _choice(*BODY_KEYS)),
         "position": Key("[x, y]", "position of the body's reference point at t = 0", _point,
-                        default=(0.0, 0.0), unit="m"),
+                        default=[0.0, 0.0], unit="m"),
     },
     "motion": {
         "velocity": Key("[vx, vy] or program", "velocity of the body over the half-space (its path s(t) "
                         "starts at [body] position); line contact: along X only, a number, a program of "
                         "numbers, or [vx, 0]", _program(vector=True, positive=False),
-                        default=motion.Constant(np.zeros(2)), unit="m/s"),
+                        default=[0.0, 0.0], unit="m/s"),
         "penetration": Key("number or program", "penetration delta of the body's lowest point below the "
                            "undeformed surface (displacement control; exactly one of penetration, load; not in line "
                            "contact)",
@@ -547,7 +547,7 @@ def _read_section(raw: dict, name: str, source: str) -> dict:
         if key not in table:
             if spec.default is MISSING:
                 raise SceneError(source, f"[{name}] {key}", MISSING, f"required: {spec.doc} ({spec.unit})")
-            values[key] = spec.default
+            values[key] = None if spec.default is None else spec.check(spec.default)
             continue
         try:
             values[key] = spec.check(table[key])
@@ -678,18 +678,24 @@ def dumps(raw: dict) -> str:
     lines = []
     for section, table in raw.items():
         lines.append(f"[{section}]")
-        lines += [f"{key} = {_toml_value(value)}" for key, value in table.items()]
+        lines += [f"{key} = {toml_value(value)}" for key, value in table.items()]
         lines.append("")
     return "\n".join(lines)
 
 
-def _toml_value(value: Any) -> str:
-    if isinstance(value, bool):
+def toml_value(value: Any) -> str:
+    """``value`` written as a TOML value: bool, int, float, str, list or tuple (array), dict (inline table),
+    numpy scalars and arrays too. petroll's one TOML writer (with :func:`dumps`)."""
+    if isinstance(value, np.ndarray):
+        value = value.tolist()
+    if isinstance(value, (bool, np.bool_)):
         return "true" if value else "false"
     if isinstance(value, str):
         return '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
     if isinstance(value, (list, tuple)):
-        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
+        return "[" + ", ".join(toml_value(v) for v in value) + "]"
     if isinstance(value, dict):
-        return "{" + ", ".join(f"{k} = {_toml_value(v)}" for k, v in value.items()) + "}"
-    return repr(value)
+        return "{" + ", ".join(f"{k} = {toml_value(v)}" for k, v in value.items()) + "}"
+    if isinstance(value, (int, np.integer)):
+        return str(int(value))
+    return repr(float(value))
