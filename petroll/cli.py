@@ -79,7 +79,8 @@ def _parser() -> argparse.ArgumentParser:
     bench.add_argument("--sides", type=_ranks, help="memory only: grid sides (cells) to measure, e.g. "
                        "1024,2048,4096 (the default)")
     bench.add_argument("--quick", action="store_true", help="warm only: a coarse grid (a/dx = 6) and one "
-                       "repeat, in seconds: shows that the benchmark runs (e.g. from an install), measures nothing")
+                       "repeat, in seconds: shows that the benchmark runs (e.g. from an install); measures "
+                       "nothing")
     sweep = verbs.add_parser("sweep", help="run a scene over values of one key to steady state; table and "
                              "plot in DIR (docs/sweep.md); run again to resume")
     sweep.add_argument("scene", help="scene file (TOML)")

@@ -45,7 +45,7 @@ class Key:
     kind: str
     doc: str
     check: Callable[[Any], Any]
-    default: Any = MISSING  # as written in TOML (checked like a given value); None: not set; MISSING: required
+    default: Any = MISSING  # as written in TOML, checked like a given value; None: unset; MISSING: required
     unit: str = "-"
 
 
