@@ -1,7 +1,7 @@
 """Tests run serially and under `mpirun -n 2` (scripts/test.sh). Collective tests use ``comm``: under
 mpirun every rank runs every test, and comparisons against COMM_SELF check rank-count independence.
-Shared fixtures: ``comm``, ``shared_dir`` (one directory for all ranks) and ``cli`` (the command
-line in a child process)."""
+Shared fixtures: ``comm``, ``shared_dir`` (one directory for all ranks), ``cli`` (the command line in
+a child process) and ``cli_main`` (in this process)."""
 
 import os
 import pathlib
@@ -51,6 +51,23 @@ class PetrollCommand:
 @pytest.fixture
 def cli() -> PetrollCommand:
     return PetrollCommand()
+
+
+@pytest.fixture
+def cli_main(capsys):
+    """``petroll ARGS`` in this process (``petroll.cli.main``, argparse's exits included), called with the
+    list of arguments: (exit status, stdout, stderr)."""
+    from petroll.cli import main
+
+    def call(argv: list) -> tuple:
+        try:
+            code = main(argv)
+        except SystemExit as exc:  # argparse
+            code = exc.code
+        captured = capsys.readouterr()
+        return code, captured.out, captured.err
+
+    return call
 
 
 def pytest_collection_modifyitems(config, items):

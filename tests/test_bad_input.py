@@ -132,16 +132,6 @@ def test_extreme_but_valid_numbers_parse_or_are_refused_quickly(changes):
 
 
 # -- scenes as TOML text through the command line (in-process) ------------------------------------------
-def _cli(argv, capsys):
-    from petroll.cli import main
-
-    try:
-        code = main(argv)
-    except SystemExit as exc:  # argparse
-        code = exc.code
-    captured = capsys.readouterr()
-    return code, captured.out, captured.err
-
 
 def _prepare(tmp_path: pathlib.Path):
     out = tmp_path / "out"
@@ -203,14 +193,14 @@ def _toml(raw: dict) -> str:
 @settings(max_examples=150, deadline=None, derandomize=True,
           suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
 @given(texts)
-def test_malformed_scene_files_fail_with_one_line_and_keep_the_output(tmp_path, capsys, text):
+def test_malformed_scene_files_fail_with_one_line_and_keep_the_output(tmp_path, cli_main, text):
     scene = tmp_path / "FUZZ.toml"
     if isinstance(text, bytes):
         scene.write_bytes(text)
     else:
         scene.write_text(text, encoding="utf-8", errors="surrogatepass")
     out = _prepare(tmp_path)
-    code, stdout, err = _cli(["run", str(scene), "--out", str(out), "--quiet"], capsys)
+    code, stdout, err = cli_main(["run", str(scene), "--out", str(out), "--quiet"])
     event(f"exit status {code}")
     if code == 0:
         assert (out / "results.h5").read_bytes()[:4] == b"\x89HDF" and "Traceback" not in err
@@ -233,7 +223,7 @@ tokens = st.one_of(
 @settings(max_examples=150, deadline=None, derandomize=True,
           suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
 @given(st.lists(tokens, max_size=5))
-def test_malformed_command_lines_fail_with_one_line(tmp_path, capsys, monkeypatch, argv):
+def test_malformed_command_lines_fail_with_one_line(tmp_path, cli_main, monkeypatch, argv):
     import tempfile
 
     work = pathlib.Path(tempfile.mkdtemp(dir=tmp_path))  # one directory per example
@@ -242,7 +232,7 @@ def test_malformed_command_lines_fail_with_one_line(tmp_path, capsys, monkeypatc
     (work / "runs" / "hertz.toml").write_text(_toml(BASE))
     (work / "DIR").mkdir()
     (work / "DIR" / "results.h5").write_bytes(b"an earlier result")
-    code, stdout, err = _cli(argv, capsys)
+    code, stdout, err = cli_main(argv)
     event(f"exit status {code}")
     assert "Traceback" not in err + stdout
     assert (work / "DIR" / "results.h5").read_bytes() == b"an earlier result" or "run" in argv

@@ -100,8 +100,12 @@ def test_default_scene_loads_with_the_files_values():
 
 # -- 2. invalid scenes, in memory ----------------------------------------------------------------------------
 def _set(section, key, value):
+    """Set [section] key = value, or (key None) the whole section to value."""
     def mutate(raw):
-        raw.setdefault(section, {})[key] = value
+        if key is None:
+            raw[section] = value
+        else:
+            raw.setdefault(section, {})[key] = value
 
     return mutate
 
@@ -133,6 +137,16 @@ INVALID = [
     ("x-short", _set("grid", "x", [0]), "[grid] x", "[0]", "must be a pair [min, max]"),
     ("radius-negative", _set("body", "radius", -1), "[body] radius", "-1", "> 0"),
     ("nu-too-large", _set("material", "nu", 0.7), "[material] nu", "0.7", "-1 < nu <= 0.5"),
+    # E0/Einf beyond 1e7: J0 = Jinf - dJ would keep fewer digits than the solver's tolerance (1e30 left none)
+    ("sls-ratio", _set("material", None, {"model": "sls", "E0": 1e30, "Einf": 2e6, "nu": 0.5,
+                                          "tau_relax": 0.01}),
+     "[material] E0", "1e+30", ("gives E0/Einf = 5e+23", "E0/Einf <= 1e+07")),
+    ("maxwell-ratio", _set("material", None, {"model": "prony", "series": "maxwell", "Einf": 1.0, "nu": 0.5,
+                                               "moduli": [8e6, 1.2e7], "times": [1.0, 2.0]}),
+     "[material] moduli", "[8000000.0, 12000000.0]", "gives E0/Einf = 2e+07"),
+    ("kelvin-no-J0", _set("material", None, {"model": "prony", "series": "kelvin", "Einf": 2e6, "nu": 0.5,
+                                              "compliances": [3e-7, 3e-7], "times": [1.0, 2.0]}),
+     "[material] compliances", "[3e-07, 3e-07]", "the compliances must sum to less than 1/Einf"),
     ("penetration-and-load", _set("motion", "load", 0.1), "[motion] penetration / load",
      "{'penetration': 2e-05, 'load': 0.1}", "exactly one of penetration"),
     ("neither-penetration-nor-load", _drop("motion", "penetration"), "[motion] penetration / load",

@@ -9,7 +9,6 @@ import numpy as np
 import pytest
 
 import petroll
-from petroll.cli import main
 from petroll.model.scene import dumps
 from petroll.studies.sweep import (COLUMNS, DEFAULT_STEADY, SweepError, SweepInterrupted, SweepTable, Vary,
                            parse_vary, point_scene, sweep)
@@ -158,23 +157,15 @@ def test_an_interrupted_sweep_resumes_its_point_from_the_checkpoint(comm, shared
     assert np.array_equal(resumed.columns["mu_r"], whole.columns["mu_r"])
 
 
-def _cli(argv, capsys):
-    try:
-        code = main(argv)
-    except SystemExit as exc:  # argparse
-        code = exc.code
-    captured = capsys.readouterr()
-    return code, captured.out, captured.err
 
-
-def test_the_sweep_command_runs_and_refuses_bad_specs_in_one_line(comm, capsys, shared_dir):
+def test_the_sweep_command_runs_and_refuses_bad_specs_in_one_line(comm, capsys, cli_main, shared_dir):
     if comm.rank == 0:
         (shared_dir / "scene.toml").write_text(dumps(RAW_X), encoding="utf-8")
     comm.Barrier()
     scene = str(shared_dir / "scene.toml")
     capsys.readouterr()
-    code, out, err = _cli(["sweep", scene, "--vary", "motion.velocity=0.005,0.01", "--out",
-                           str(shared_dir / "cli"), "--quiet"], capsys)
+    code, out, err = cli_main(["sweep", scene, "--vary", "motion.velocity=0.005,0.01", "--out",
+                           str(shared_dir / "cli"), "--quiet"])
     assert code == 0, err
     if comm.rank == 0:
         assert out.count("petroll: point ") == 2 and "sweep of motion.velocity over 2 values (2 run" in out
@@ -189,7 +180,7 @@ def test_the_sweep_command_runs_and_refuses_bad_specs_in_one_line(comm, capsys, 
                                                                          "times"),
         ([], "petroll: error: the following arguments are required: --vary"),
     ]:
-        code, out, err = _cli(["sweep", scene, "--out", str(shared_dir / "bad"), *argv], capsys)
+        code, out, err = cli_main(["sweep", scene, "--out", str(shared_dir / "bad"), *argv])
         assert code == 2
         if comm.rank == 0:
             lines = [line for line in err.splitlines() if line.strip()]

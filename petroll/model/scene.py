@@ -249,8 +249,8 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "nu": Key("number", "Poisson's ratio, -1 < nu <= 0.5 (all models; with quantity = \"J\" unused)",
                   _poisson, default=None),
         "E": Key("number > 0", "Young's modulus (elastic)", _positive, default=None, unit="Pa"),
-        "E0": Key("number > 0", "instantaneous Young's modulus (sls), E0 >= Einf", _positive, default=None,
-                  unit="Pa"),
+        "E0": Key("number > 0", "instantaneous Young's modulus (sls), Einf <= E0 <= 1e7 Einf", _positive,
+                  default=None, unit="Pa"),
         "Einf": Key("number > 0", "relaxed (long-time) Young's modulus (sls, prony)", _positive,
                     default=None, unit="Pa"),
         "tau_creep": Key("number > 0", "retardation time of the creep compliance (sls; or tau_relax)",
@@ -585,6 +585,7 @@ def _material(values: dict, table: dict, base_dir: pathlib.Path, source: str):
         if v["E0"] < v["Einf"]:
             raise SceneError(source, "[material] E0", v["E0"], f"must be >= Einf = {v['Einf']:g} (Pa): "
                              "the instantaneous modulus is the larger")
+        _check_stiffness_ratio(v["E0"] / v["Einf"], "[material] E0", v["E0"], source)
         return materials.sls(v["E0"], v["Einf"], v["nu"], v["tau_creep"], v["tau_relax"])
     if model == "prony":
         terms = "compliances" if v["series"] == "kelvin" else "moduli"
@@ -595,9 +596,31 @@ def _material(values: dict, table: dict, base_dir: pathlib.Path, source: str):
         if v[terms] is None or len(v[terms]) != len(v["times"]):
             raise SceneError(source, f"[material] {terms}", table.get(terms, MISSING),
                              f"required: one value per entry of times ({len(v['times'])})")
+        if terms == "moduli":
+            ratio = 1.0 + sum(v["moduli"]) / v["Einf"]
+        else:
+            rest = 1.0 / v["Einf"] - math.fsum(v["compliances"])  # D(0), 1/Pa
+            ratio = 1.0 / (v["Einf"] * rest) if rest > 0 else math.inf
+        _check_stiffness_ratio(ratio, f"[material] {terms}", table[terms], source)
         build = materials.kelvin if terms == "compliances" else materials.maxwell
         return build(v["Einf"], v["nu"], v[terms], v["times"])
     return _tabulated_material(v, base_dir, source)
+
+
+MAX_STIFFNESS_RATIO = 1e7
+"""The largest E0/Einf = Jinf/J0 of a Prony material: J0 = Jinf - sum dJ then keeps its digits to about
+2e-9 (1e7 x the float's 2.2e-16), below the solver's default tolerance."""
+
+
+def _check_stiffness_ratio(ratio: float, key: str, value: Any, source: str) -> None:
+    """SceneError unless the instantaneous over the relaxed modulus, E0/Einf (inf: the creep compliances
+    leave no instantaneous one), is at most MAX_STIFFNESS_RATIO."""
+    if ratio <= MAX_STIFFNESS_RATIO:
+        return
+    what = ("leaves no instantaneous compliance (the compliances must sum to less than 1/Einf)"
+            if ratio == math.inf and key.endswith("compliances") else f"gives E0/Einf = {ratio:.3g}")
+    raise SceneError(source, key, value, f"{what}; allowed: E0/Einf <= {MAX_STIFFNESS_RATIO:g}, beyond which "
+                     "J0 = Jinf - sum dJ loses its digits in double precision")
 
 
 def _temperature(values: dict, table: dict, material, source: str):
