@@ -31,7 +31,7 @@ from petroll.errors import SolverError
 from petroll.model.grid import Grid
 from petroll.model.scene import DEFAULT_TAO_TYPE, TAO_TYPES
 from petroll.solver.partition import RowPartition, move_rows
-from petroll.solver.influence import influence_operator, shell_matrix
+from petroll.solver.influence import influence_operator, shell_matrix, spare_cores
 from petroll.solver.pk import PK_PYTHON_TYPE, PolonskyKeer, tao_reasons
 from petroll.solver.precondition import CirculantInverse
 
@@ -57,7 +57,8 @@ class ContactSolver:
     """Solves contact steps on ``grid`` (rows split over ``comm``) with TAO, options prefix ``prefix``.
 
     Command-line options with that prefix (``-petroll_tao_type tron``, ``-petroll_tao_monitor``, ...)
-    override the scene's settings; they never reach other solvers.
+    override the scene's settings; they never reach other solvers. ``-<prefix>fft_workers N``: FFT threads
+    per rank (default: the rank's share of its node's cores, :func:`petroll.solver.influence.spare_cores`).
     """
 
     def __init__(self, grid: Grid, comm: MPI.Comm, tao_type: str = DEFAULT_TAO_TYPE, tol: float = 1e-8,
@@ -68,7 +69,10 @@ class ContactSolver:
         options = PETSc.Options(prefix)  # read once here and when a window shape's TAO is built
         self.tao_type, self.max_iterations = self._resolve_type(tao_type, prefix, options), max_iterations
         self.precondition = options.getBool("pc_circulant", precondition)
-        self.influence = influence_operator(grid, comm)
+        workers = options.getInt("fft_workers", spare_cores(comm))
+        if workers < 1:
+            raise SolverError(f"-{prefix}fft_workers {workers}: the FFT threads per rank must be >= 1")
+        self.influence = influence_operator(grid, comm, workers)
         self.rows = RowPartition(grid.nx, comm.size)
         self.r0, self.r1 = self.rows.range(comm.rank)
         self.work = [0, 0]  # TAO iterations and operator applications of every QP solved so far
