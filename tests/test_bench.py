@@ -121,3 +121,17 @@ def test_append_bench_times_every_append(tmp_path):
     rows = append(tmp_path, side=16, steps=30, block=10)
     assert [r["steps"] for r in rows] == ["0-9", "10-19", "20-29"]
     assert all(0 < r["median_ms"] <= r["max_ms"] for r in rows)
+
+
+def test_peers_bench_converges_each_solver_to_the_reference(tmp_path):
+    """petroll alone (the peers need their own environment): the tolerance chosen is one whose pressure
+    is within the target of the 1e-12 reference, tighter than the loosest tried."""
+    from petroll.studies.bench import PEER_TOLERANCES, peers
+
+    rows = peers(tmp_path, cells=(24,), repeats=1, target=1e-8, solvers=("petroll",))
+    assert len(rows) == 1
+    row = rows[0]
+    assert row["solver"] == "petroll" and float(row["difference"]) <= 1e-8
+    assert float(row["tol"]) in PEER_TOLERANCES and float(row["tol"]) < PEER_TOLERANCES[0]  # 1e-6 is too loose
+    assert float(row["cold_s"]) > float(row["warm_s"]) > 0 and row["cold_ratio"] == "1.000"
+    assert (tmp_path / "peers.csv").exists() and (tmp_path / "peers.png").stat().st_size > 0

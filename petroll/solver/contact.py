@@ -25,6 +25,7 @@ import weakref
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.fft
 from mpi4py import MPI
 
 from petroll.errors import SolverError
@@ -243,7 +244,8 @@ class ContactSolver:
                               "enlarge [grid] x or reduce the load")
 
     def _window(self, candidates: np.ndarray) -> tuple[int, int, int, int] | None:
-        """Bounding box [i0, i1) x [j0, j1) of the candidate cells over all ranks; None when there are none."""
+        """Bounding box [i0, i1) x [j0, j1) of the candidate cells over all ranks, grown to fast FFT lengths
+        (:func:`_fast_range`); None when there are no candidates."""
         rows = np.flatnonzero(candidates.any(axis=1)) + self.r0
         cols = np.flatnonzero(candidates.any(axis=0))
         big = self.grid.nx + self.grid.ny
@@ -255,15 +257,14 @@ class ContactSolver:
             return None
         i0, j0, i1, j1 = int(lo[0]), int(lo[1]), int(hi[0]) + 1, int(hi[1]) + 1
         g = self.grid
-        if g.line:  # the window may span the grid: only the solved contact must stay inside (solve_load)
-            return i0, i1, j0, j1
-        if i0 == 0 or j0 == 0 or i1 == g.nx or j1 == g.ny:
+        if not g.line and (i0 == 0 or j0 == 0 or i1 == g.nx or j1 == g.ny):
+            # (a line contact's window may span the grid: only the solved contact must stay inside)
             raise SolverError(
                 f"[grid]: the contact region (cells where the body interferes with the surface, X in "
                 f"[{g.x0 + i0 * g.dx:g}, {g.x0 + i1 * g.dx:g}], Y in [{g.y0 + j0 * g.dy:g}, "
                 f"{g.y0 + j1 * g.dy:g}]) reaches the grid edge; enlarge [grid] x and y or reduce the "
                 f"penetration or load")
-        return i0, i1, j0, j1
+        return (*_fast_range(i0, i1, g.nx, real=False), *_fast_range(j0, j1, g.ny, real=True))
 
 
 def hertz_penetration(grid: Grid, compliance: float, load: float, radius: float) -> float:
@@ -375,6 +376,18 @@ _LIVE: weakref.WeakSet[WindowQP] = weakref.WeakSet()
 def _destroy_live() -> None:
     for qp in list(_LIVE):
         qp.destroy()
+
+
+def _fast_range(i0: int, i1: int, n: int, real: bool) -> tuple[int, int]:
+    """[i0, i1) grown about its centre, within [0, n), to a length scipy.fft transforms fast (``real``: a
+    real transform's), where one fits: the window's preconditioner transforms it unpadded. The QP stays
+    exact on a larger box (its extra cells have no interference, so no pressure)."""
+    m = i1 - i0
+    length = scipy.fft.next_fast_len(m, real=real)
+    if length > n:
+        return i0, i1
+    a = min(max(0, i0 - (length - m) // 2), n - length)
+    return a, a + length
 
 
 def _clip(rows: tuple[int, int], i0: int, i1: int) -> tuple[int, int]:

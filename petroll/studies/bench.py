@@ -1,13 +1,13 @@
 """Benchmarks that print tables and write CSV files (never timed unit tests).
 
 ``petroll bench peers [--out DIR]``: the elastic Hertz step under load control on the same grids (N x N
-cells over 3.2 contact radii, non-periodic), same tolerance, solved by petroll (``pk``), by Tamaas
-(``PolonskyKeerRey`` with its non-periodic ``dcfft`` operator) and by ContactMechanics
-(``constrained_conjugate_gradients`` on a ``FreeFFTElasticHalfSpace``), each checked against Hertz, timed
-side by side in one invocation (median of 3; set-up such as kernels excluded for all three). Writes
-``peers.csv`` and ``peers.png`` (time against cells). The peers run in their own virtual environment,
-``.venv-peers`` (created or completed on first use with pip: they need numpy 2, which must not enter
-petroll's environment), through the standalone scripts ``peers/tamaas.py`` and ``peers/contactmechanics.py``.
+cells over 3.2 contact radii, non-periodic), solved by petroll (``pk``), by Tamaas (``PolonskyKeerRey``
+with its non-periodic ``dcfft`` operator) and by ContactMechanics (``constrained_conjugate_gradients`` on a
+``FreeFFTElasticHalfSpace``), timed the same two ways (whole process cold; second solve in process), each
+converged to within 1e-6 (relative L2) of a reference solved to 1e-12 on the same grid (:func:`peers`).
+Writes ``peers.csv`` and ``peers.png``. The peers run in their own virtual environment, ``.venv-peers``
+(created or completed on first use with pip: they need numpy 2, which must not enter petroll's
+environment); every solver runs through its script ``peers/solve_<name>.py``.
 
 ``petroll bench warm [--out DIR]``: the rolling sphere of runs/sphere.toml on square cells at a/dx = 16 (the
 Hertz radius over 16 cells), rolled one cell per step to steady state, with every step's QP started from
@@ -176,87 +176,103 @@ def _median_total(runs: list[list[float]]) -> float:
 
 
 PEERS_VENV = pathlib.Path(".venv-peers")
-PEERS = {"tamaas": "tamaas.py", "contactmechanics": "contactmechanics.py"}  # CSV prefix: script in peers/
+PEERS = ("petroll", "tamaas", "contactmechanics")
+"""The solvers ``petroll bench peers`` times, each by its script ``peers/solve_<name>.py``."""
 _PEER_PACKAGES = {"tamaas": "tamaas", "ContactMechanics": "ContactMechanics"}  # import name: pip name
+PEER_TOLERANCES = (1e-6, 3e-7, 1e-7, 3e-8, 1e-8, 3e-9, 1e-9)
+"""The tolerances tried, loosest first, until a solver's pressure is within the target of the reference."""
 
 
 def peers(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, cells: tuple[int, ...] = (128, 256, 512),
-          tol: float = 1e-8, repeats: int = 3) -> list[dict]:
-    """petroll against Tamaas and ContactMechanics on the Hertz step (rank 0 runs the peers).
+          repeats: int = 3, target: float = 1e-6, solvers: tuple[str, ...] = PEERS) -> list[dict]:
+    """petroll, Tamaas and ContactMechanics on the Hertz step under load control, timed like for like.
 
-    Times in s (median of ``repeats`` solves, kernels built before timing), pressure error = max |p - p_Hertz|
-    / p0 over the cell centres, force error = F / F_Hertz - 1. Columns ``ratio`` (petroll / Tamaas, the
-    original name) and ``ratio_contactmechanics`` (petroll / ContactMechanics): < 1 means petroll is faster.
-    Writes ``out/peers.csv`` and ``out/peers.png``.
+    Every solver runs through its script (``peers/solve_<name>.py``; petroll's with this Python, the peers'
+    with .venv-peers'), which solves from p = 0, saves the pressure, then solves again from p = 0 in the
+    same process. ``cold_s``: the whole process (interpreter, imports, set-up, first solve), timed here;
+    ``warm_s``: the second solve, timed by the script. Each solver's tolerance is the loosest of
+    PEER_TOLERANCES whose pressure lies within ``target`` (relative L2) of a reference solved on the same
+    grid by petroll to tol 1e-12 (``difference``): all are equally converged. Medians of ``repeats`` runs;
+    ratios petroll / solver (< 1: petroll faster). Rank 0 runs the scripts; writes ``out/peers.csv`` and
+    ``out/peers.png``.
     """
-    width = 3.2  # grid side in contact radii
-    nu, E = 0.5, 1e7
-    J = (1 - nu**2) / E
-    a = math.sqrt(_R * _DELTA)
-    force = 4 * math.sqrt(_R) * _DELTA**1.5 / (3 * J)
-    p0 = 2 * math.sqrt(_DELTA / _R) / (math.pi * J)
-    python = _peers_python() if comm.rank == 0 else None
+    rows = _peer_rows(out, cells, repeats, target, solvers) if comm.rank == 0 else None
+    return comm.bcast(rows)
+
+
+def _peer_rows(out: pathlib.Path, cells, repeats: int, target: float, solvers) -> list[dict]:
+    import sys
+    import tempfile
+
+    width, nu, E = 3.2, 0.5, 1e7  # grid side in contact radii; rubber
+    python = {name: sys.executable for name in solvers}
+    if set(solvers) - {"petroll"}:
+        python.update(dict.fromkeys(set(solvers) - {"petroll"}, _peers_python()))
     rows = []
-    for n in cells:
-        grid = Grid(n, n, -width * a / 2, width * a / 2, -width * a / 2, width * a / 2)
-        solver = ContactSolver(grid, comm, tao_type="pk", tol=tol)
-        height = Sphere(_R).height(grid.x[solver.r0 : solver.r1, None], grid.y[None, :])
-        solver.solve_load(height, J, force, _R)  # untimed: builds the kernels of the windows it uses, as
-        # the peers build theirs in set-up (each timed solve below starts from p = 0 all the same)
-        times = []
-        for _ in range(repeats):
-            t0 = time.perf_counter()
-            step = solver.solve_load(height, J, force, _R)
-            times.append(time.perf_counter() - t0)
-        r = np.hypot(grid.x[solver.r0 : solver.r1, None], grid.y[None, :])
-        hertz = p0 * np.sqrt(np.clip(1 - r**2 / a**2, 0, None))
-        error = comm.allreduce(float(np.abs(step.pressure - hertz).max()), op=MPI.MAX) / p0
-        ours = statistics.median(times)
-        row = dict(cells=f"{n}x{n}", petroll_s=f"{ours:.3f}", petroll_pressure_error=f"{error:.3e}",
-                   petroll_force_error=f"{step.force / force - 1:+.1e}")
-        if comm.rank == 0:
-            args = [str(v) for v in (n, tol, _R, E, nu, _DELTA, width)]
-            for name, script in PEERS.items():
-                run = _peer(python, script, args, repeats)
-                row.update({f"{name}_s": f"{run['seconds']:.3f}",
-                            f"{name}_pressure_error": f"{run['pressure_error']:.3e}",
-                            f"{name}_force_error": f"{run['force_error']:+.1e}"})
-                row["ratio" if name == "tamaas" else f"ratio_{name}"] = f"{ours / run['seconds']:.2f}"
-        rows.append(row)
-    if comm.rank == 0:
-        write_table(rows, out / "peers.csv")
-        _plot_peers(rows, out / "peers.png")
+    with tempfile.TemporaryDirectory() as scratch:
+        field = pathlib.Path(scratch) / "pressure.npy"
+        for n in cells:
+            args = [str(v) for v in (n, 1e-12, _R, E, nu, _DELTA, width)]
+            _peer(sys.executable, "petroll", args, field)
+            reference = np.load(field)
+            scale = np.linalg.norm(reference)
+            done = {}
+            for name in solvers:
+                for tol in PEER_TOLERANCES:
+                    args[1] = f"{tol:g}"
+                    runs = [_peer(python[name], name, args, field)]
+                    difference = float(np.linalg.norm(np.load(field) - reference) / scale)
+                    if difference <= target:
+                        break
+                runs += [_peer(python[name], name, args, field) for _ in range(repeats - 1)]
+                done[name] = dict(cells=f"{n}x{n}", solver=name, tol=f"{tol:g}", difference=f"{difference:.1e}",
+                                  cold_s=statistics.median(r["cold_s"] for r in runs),
+                                  warm_s=statistics.median(r["warm_s"] for r in runs),
+                                  force_error=f"{runs[0]['force_error']:+.1e}")
+            for row in done.values():
+                if "petroll" in done:
+                    row["cold_ratio"] = f"{done['petroll']['cold_s'] / row['cold_s']:.3f}"
+                    row["warm_ratio"] = f"{done['petroll']['warm_s'] / row['warm_s']:.3f}"
+                rows.append(row)
+    for row in rows:
+        row["cold_s"], row["warm_s"] = f"{row['cold_s']:.3f}", f"{row['warm_s']:.4f}"
+    write_table(rows, out / "peers.csv")
+    _plot_peers(rows, out / "peers.png")
     return rows
 
 
-def _peer(python: str, script: str, args: list[str], repeats: int) -> dict:
-    """Run a peer script ``repeats`` times; its first JSON answer with the median time in s."""
+def _peer(python: str, name: str, args: list[str], field: pathlib.Path) -> dict:
+    """One whole run of ``peers/solve_<name>.py``: its JSON answer, with the process's wall time as cold_s."""
     import importlib.resources
     import json
     import subprocess
 
-    runs = []
-    for _ in range(repeats):
-        with importlib.resources.as_file(importlib.resources.files("petroll.studies.peers") / script) as path:
-            done = subprocess.run([python, str(path), *args], capture_output=True, text=True, check=True)
-        runs.append(json.loads(done.stdout.strip().splitlines()[-1]))
-    return dict(runs[0], seconds=statistics.median(r["seconds"] for r in runs))
+    script = importlib.resources.files("petroll.studies.peers") / f"solve_{name}.py"
+    with importlib.resources.as_file(script) as path:
+        start = time.perf_counter()
+        done = subprocess.run([python, str(path), *args, str(field)], capture_output=True, text=True)
+        seconds = time.perf_counter() - start
+    if done.returncode:
+        raise PetrollError(f"bench peers: {name} failed: {(done.stderr or done.stdout).strip().splitlines()[-1:]}")
+    return dict(json.loads(done.stdout.strip().splitlines()[-1]), cold_s=seconds)
 
 
 def _plot_peers(rows: list[dict], path: pathlib.Path) -> None:
-    """Log-log plot of the solve time (s) against the number of cells N^2, one line per solver."""
-    figure = new_figure(5, 4)
+    """Log-log plots of the cold and warm times (s) against the number of cells, one line per solver."""
+    figure = new_figure(9, 4)
     if figure is None:
         return
-    ax = figure.subplots()
-    cells = [int(r["cells"].split("x")[0]) ** 2 for r in rows]
-    for key, label in (("petroll_s", "petroll (pk)"), ("tamaas_s", "Tamaas"),
-                       ("contactmechanics_s", "ContactMechanics")):
-        ax.loglog(cells, [float(r[key]) for r in rows], "o-", label=label)
-    ax.set_xticks(cells, [r["cells"] for r in rows], minor=False)
-    ax.set_xticks([], minor=True)
-    ax.set(xlabel="cells", ylabel="solve time (s)", title="Hertz step, load control, tol 1e-8")
-    ax.legend()
+    grids = list(dict.fromkeys(r["cells"] for r in rows))
+    cells = [int(g.split("x")[0]) ** 2 for g in grids]
+    for ax, key in zip(figure.subplots(1, 2), ("cold_s", "warm_s")):
+        for name in dict.fromkeys(r["solver"] for r in rows):
+            ax.loglog(cells, [float(r[key]) for g in grids for r in rows if r["cells"] == g and r["solver"] == name],
+                      "o-", label=name)
+        ax.set_xticks(cells, grids, minor=False)
+        ax.set_xticks([], minor=True)
+        ax.set(xlabel="cells", ylabel=f"{key[:-2]} time (s)",
+               title={"cold_s": "whole process, cold", "warm_s": "second solve, in process"}[key])
+        ax.legend()
     save_figure(figure, path)
 
 
