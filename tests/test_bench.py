@@ -96,7 +96,9 @@ def test_tao_types_on_the_rolling_scene_agree(tmp_path):
 
     rows = tao_types_rolling(tmp_path, distance=0.3e-3)
     forces = [float(r["force"]) for r in rows]  # a failed type would not parse
-    assert len(rows) == 9 and max(forces) / min(forces) - 1 < 1e-6  # every solver, the same answer
+    assert len(rows) == 15 and max(forces) / min(forces) - 1 < 1e-6  # every solver and PC, the same answer
+    assert [r["pc"] for r in rows if r["tao_type"] == "tron"] == ["circulant", "none"]
+    assert [r["pc"] for r in rows if r["tao_type"] == "bncg"] == ["-"]
     assert all(int(r["steps"]) == rows[0]["steps"] for r in rows)
     assert (tmp_path / "tao_rolling.csv").exists()
 

@@ -36,7 +36,7 @@ from mpi4py import MPI
 
 from petroll.model.bodies import Sphere
 from petroll.model.scene import TAO_TYPES
-from petroll.solver.contact import ContactSolver
+from petroll.solver.contact import KRYLOV_TYPES, ContactSolver
 from petroll.errors import PetrollError
 from petroll.model.grid import Grid
 from petroll.solver.warm import DEPTH, WarmStart
@@ -55,8 +55,8 @@ def tao_types(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, repeats: int =
         half = 1.6 * a
         n = int(round(2 * half / (a / ratio)))
         grid = Grid(n, n, -half, half, -half, half)
-        for kind in TAO_TYPES:
-            solver = ContactSolver(grid, comm, tao_type=kind, tol=1e-8)
+        for kind, pc in _tao_variants():
+            solver = ContactSolver(grid, comm, tao_type=kind, tol=1e-8, precondition=pc == "circulant")
             height = Sphere(_R).height(grid.x[solver.r0 : solver.r1, None], grid.y[None, :])
             for start in ("cold", "warm"):
                 times = []
@@ -69,11 +69,12 @@ def tao_types(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, repeats: int =
                         step = solver.solve_penetration(height, _J, _DELTA, warm)
                         times.append(time.perf_counter() - t0)
                 except PetrollError as exc:
-                    rows.append(dict(cells=f"{n}x{n}", tao_type=kind, start=start, iterations="-",
+                    rows.append(dict(cells=f"{n}x{n}", tao_type=kind, pc=pc, start=start, iterations="-",
                                      applications="-", seconds="-", force_error=f"failed: {exc}"))
                     continue
-                rows.append(dict(cells=f"{n}x{n}", tao_type=kind, start=start, iterations=step.iterations,
-                                 applications=step.applications, seconds=f"{statistics.median(times):.4f}",
+                rows.append(dict(cells=f"{n}x{n}", tao_type=kind, pc=pc, start=start,
+                                 iterations=step.iterations, applications=step.applications,
+                                 seconds=f"{statistics.median(times):.4f}",
                                  force_error=f"{step.force / force - 1:+.2e}"))
     if comm.rank == 0:
         write_table(rows, out / "tao_types.csv")
@@ -94,17 +95,18 @@ def tao_types_rolling(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD,
     if distance is not None:
         scene = scene.replace("time.distance", distance)
     rows = []
-    for kind in TAO_TYPES:
+    for kind, pc in _tao_variants():
         sim = Simulation(scene.replace("solver.tao_type", kind), comm)
+        sim.solver.precondition = pc == "circulant"  # read when each window's TAO is built
         try:
             records = list(sim.steps())
         except PetrollError as exc:
             done = len(sim.records)
-            rows.append(dict(tao_type=kind, steps=done, iterations="-", applications="-",
+            rows.append(dict(tao_type=kind, pc=pc, steps=done, iterations="-", applications="-",
                              ms_per_step="-", force=f"failed at step {done}: {exc}"))
             continue
         warm = records[1:]
-        rows.append(dict(tao_type=kind, steps=len(records),
+        rows.append(dict(tao_type=kind, pc=pc, steps=len(records),
                          iterations=f"{np.mean([r.iterations for r in warm]):.1f}",
                          applications=f"{np.mean([r.applications for r in warm]):.1f}",
                          ms_per_step=f"{1e3 * np.mean([r.solve_time for r in warm]):.2f}",
@@ -114,19 +116,29 @@ def tao_types_rolling(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD,
     return rows
 
 
+def _tao_variants() -> list[tuple[str, str]]:
+    """(TAO type, PC) pairs measured: every type, those that run a KSP on the Hessian with the
+    inverse-circulant PC and without (``none``); the others have none to set (``-``)."""
+    return [(kind, pc) for kind in TAO_TYPES
+            for pc in (("circulant", "none") if kind in KRYLOV_TYPES else ("-",))]
+
+
 def _plot_tao(rows: list[dict], path: pathlib.Path) -> None:
-    """Operator applications of each type, cold and warm, one panel per grid (failed solves left out)."""
-    figure = new_figure(10, 3.6)
+    """Operator applications of each type (and PC), cold and warm, one panel per grid (failed solves left
+    out)."""
+    figure = new_figure(12, 3.8)
     if figure is None:
         return
+    variants = _tao_variants()
+    labels = [kind if pc in ("-", "circulant") else f"{kind}, no PC" for kind, pc in variants]
     grids = list(dict.fromkeys(r["cells"] for r in rows))
     for ax, cells in zip(figure.subplots(1, len(grids), squeeze=False)[0], grids):
         for k, start in enumerate(("cold", "warm")):
             done = [r for r in rows
                     if r["cells"] == cells and r["start"] == start and r["applications"] != "-"]
-            ax.bar([TAO_TYPES.index(r["tao_type"]) + 0.4 * k for r in done],
+            ax.bar([variants.index((r["tao_type"], r["pc"])) + 0.4 * k for r in done],
                    [r["applications"] for r in done], width=0.4, label=start)
-        ax.set_xticks([i + 0.2 for i in range(len(TAO_TYPES))], TAO_TYPES, rotation=45)
+        ax.set_xticks([i + 0.2 for i in range(len(variants))], labels, rotation=60, fontsize=7)
         ax.set(yscale="log", ylabel="operator applications", title=f"Hertz step, {cells} cells")
         ax.legend()
     save_figure(figure, path)
