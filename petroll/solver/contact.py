@@ -436,7 +436,7 @@ class WindowQP:
                               f"iterations{'; ' + why if why else ''}); try another -{self.prefix}tao_type, "
                               f"a larger [solver] tol or -{self.prefix}tao_max_it")
         multiplier = 0.0
-        if self.pk:  # pk ends on a freshly computed gradient, left in TAO's gradient vector
+        if self.pk:  # pk ends on the gradient at the solution, left in TAO's gradient vector
             self.tao.getGradient()[0].copy(self.gap)
             multiplier = self.tao.getPythonContext().multiplier
             self.gap.shift(-multiplier)

@@ -7,7 +7,7 @@ on the free variables (strictly between their bounds), projection onto the bound
 variables at a bound whose gradient points into the box put back with a steepest-descent step (which,
 like any change of the free set, restarts the conjugacy). f and its gradient come from TAO's
 objective-gradient routine, H t from TAO's Hessian matrix: the type works for any such QP set up on a TAO.
-It ends with TAO's gradient vector holding the gradient at the solution, freshly computed.
+It ends with TAO's gradient vector holding the gradient at the solution (see Cost for its round-off).
 
 Preconditioned by the PC of the TAO's KSP (KSP type ``preonly``: one PC application per iteration,
 restricted to the free variables; PC type ``none`` by default, options prefix the TAO's). petroll's
@@ -18,7 +18,9 @@ contact solver sets it to the inverse circulant of the window's kernel
 Cost: one Hessian application per iteration plus one objective-gradient evaluation; once the free set
 stops changing (no variable clipped or put back) the gradient and f are updated exactly for a quadratic
 (g - tau H d, f - tau g.d + tau^2 d.Hd / 2) instead, so late iterations cost one application; the
-gradient is recomputed at least every ``-tao_pk_refresh`` (25) iterations against round-off.
+gradient is recomputed at least every ``-tao_pk_refresh`` (25) iterations, so that an updated gradient
+differs from a fresh one by round-off only (about 1e-15 of its scale, far below any useful gatol): the
+stop is judged on it, with no confirming evaluation (which would cost one application per solve).
 
 Load control (Polonsky & Keer's force-controlled form): with ``total`` set on the context, the solve also
 holds sum x = total (bounds must then be x >= 0, no upper bound). Its multiplier lambda (the mean gradient
@@ -28,11 +30,11 @@ put back are followed by a rescaling x <- x total / sum x. It is left in ``multi
 vector holds g, and g - lambda is the gradient of the Lagrangian.
 
 Reports to TAO's monitors each iteration the true objective f and, as the residual, the projected
-gradient x - P(x - (g - lambda)) (P the projection onto the bounds) in the max norm; stops when it is <= gatol
-(checked on a freshly computed gradient): CONVERGED_GATOL. Other reasons: DIVERGED_MAXITS (the iteration
-limit), DIVERGED_MAXFCN (the objective-gradient evaluation limit), DIVERGED_NAN (a non-finite f or
-gradient), DIVERGED_USER (a search direction of zero or negative curvature, d^T H d <= 0: H is not
-positive definite; the context's ``breakdown`` says so in words).
+gradient x - P(x - (g - lambda)) (P the projection onto the bounds) in the max norm; stops when it is
+<= gatol: CONVERGED_GATOL. Other reasons: DIVERGED_MAXITS (the iteration limit), DIVERGED_MAXFCN (the
+objective-gradient evaluation limit), DIVERGED_NAN (a non-finite f or gradient), DIVERGED_USER (a search
+direction of zero or negative curvature, d^T H d <= 0: H is not positive definite; the context's
+``breakdown`` says so in words).
 """
 
 from __future__ import annotations
@@ -147,16 +149,13 @@ class PolonskyKeer:
             return tao.computeObjectiveGradient(x, g)
 
         f = evaluate()
-        fresh, conjugate, previous_gz, its, step = True, False, 1.0, 0, 0.0
+        conjugate, previous_gz, its, step = False, 1.0, 0, 0.0
         while True:
             xa = x.array_r
             lam = shift(xa, g.array_r)
             ga = g.array_r - lam
             projected = xa - np.clip(xa - ga, lo, hi)
             res = comm.allreduce(float(np.abs(projected).max(initial=0.0)), op=MPI.MAX)
-            if res <= gatol and not fresh:
-                f, fresh = evaluate(), True  # confirm on an exact gradient
-                continue
             tao.setIterationNumber(its)
             tao.monitor(its, f, res, 0.0, step)
             if not (np.isfinite(f) and np.isfinite(res)):
@@ -209,11 +208,10 @@ class PolonskyKeer:
             x.setArray(new)
             conjugate = not (changed or steepest)
             if changed or its % self.refresh == 0:
-                f, fresh = evaluate(), True
+                f = evaluate()
             else:  # exact for a quadratic and an unchanged free set, up to round-off
                 f += -step * gd + 0.5 * step * step * dhd
                 g.axpy(-step, hd)
-                fresh = False
         self.multiplier = lam
         tao.setIterationNumber(its)
         tao.setConvergedReason(reason)
