@@ -137,3 +137,15 @@ def test_peers_bench_converges_each_solver_to_the_reference(tmp_path):
     assert float(row["tol"]) in PEER_TOLERANCES and float(row["tol"]) < PEER_TOLERANCES[0]  # 1e-6 is too loose
     assert float(row["cold_s"]) > float(row["warm_s"]) > 0 and row["cold_ratio"] == "1.000"
     assert (tmp_path / "peers.csv").exists() and (tmp_path / "peers.png").stat().st_size > 0
+
+
+def test_load_control_bench_finds_the_same_penetration(tmp_path):
+    from petroll.studies.bench import load_control
+
+    rows = load_control(tmp_path, cells=48)
+    assert [r["tao_type"] for r in rows] == ["pk", "tron"]
+    for row in rows:
+        assert abs(float(row["delta_error"])) < 1e-6  # the force of delta gives delta back
+        assert float(row["ratio"]) == pytest.approx(row["load_applications"] / row["displacement_applications"],
+                                                   abs=0.006)
+    assert (tmp_path / "tao_load.csv").exists()

@@ -17,11 +17,13 @@ per step (all warm steps, and the last 20, at steady state), time per step, and 
 (the guess changes the cost, not the answer). Writes warm.csv and warm.png (applications per step).
 
 ``petroll bench tao [--out DIR]``: every TAO type on the elastic Hertz step (sphere, displacement control)
-at two resolutions, cold (from p = 0) and warm (from the solution at a 1 % smaller penetration): TAO
-iterations, operator applications, median wall time of repeated solves, and the force error against Hertz.
-Then every type on the default rolling scene (runs/sphere.toml to steady state): iterations,
-applications and time per step (tao_rolling.csv). All types are measured side by side in one run, so
-their ratios are meaningful on a noisy machine.
+at two resolutions, cold (from p = 0) and warm (from the solution at a 1 % smaller penetration), the types
+that run a KSP on the Hessian with the inverse-circulant PC and without: TAO iterations, operator
+applications, median wall time of repeated solves, and the force error against Hertz (tao_types.csv).
+Then load control against displacement control (tao_load.csv, :func:`load_control`), and every type and
+PC on the default rolling scene (runs/sphere.toml to steady state): iterations, applications and time
+per step (tao_rolling.csv). All are measured side by side in one run, so their ratios are meaningful on
+a noisy machine.
 """
 
 from __future__ import annotations
@@ -79,7 +81,32 @@ def tao_types(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, repeats: int =
     if comm.rank == 0:
         write_table(rows, out / "tao_types.csv")
         _plot_tao(rows, out / "tao_types.png")
+    rows += load_control(out, comm)
     rows += tao_types_rolling(out, comm)
+    return rows
+
+
+def load_control(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, cells: int = 256,
+                 types: tuple[str, ...] = ("pk", "tron")) -> list[dict]:
+    """The cost of load control against displacement control on the Hertz step (N x N cells over 3.2
+    contact radii, cold): operator applications of ``solve_penetration`` at delta and of ``solve_load`` at
+    the force it found, their ratio, and the penetration found (relative to delta). pk holds the force
+    inside its QP; TAO's own types run the secant on the penetration. Writes ``out/tao_load.csv``."""
+    a = math.sqrt(_R * _DELTA)
+    grid = Grid(cells, cells, -1.6 * a, 1.6 * a, -1.6 * a, 1.6 * a)
+    rows = []
+    for kind in types:
+        solver = ContactSolver(grid, comm, tao_type=kind, tol=1e-8)
+        height = Sphere(_R).height(grid.x[solver.r0 : solver.r1, None], grid.y[None, :])
+        shifted = ContactSolver(grid, comm, tao_type=kind, tol=1e-8)  # its own kernels and TAOs: both cold
+        by_delta = solver.solve_penetration(height, _J, _DELTA)
+        by_load = shifted.solve_load(height, _J, by_delta.force, _R)
+        rows.append(dict(cells=f"{cells}x{cells}", tao_type=kind, displacement_applications=by_delta.applications,
+                         load_applications=by_load.applications,
+                         ratio=f"{by_load.applications / by_delta.applications:.2f}",
+                         delta_error=f"{by_load.delta / _DELTA - 1:+.1e}"))
+    if comm.rank == 0:
+        write_table(rows, out / "tao_load.csv")
     return rows
 
 
