@@ -182,7 +182,8 @@ class ContactSolver:
         local = np.unravel_index(np.argmin(height), height.shape) if height.size else (0, 0)
         value = float(height[local]) if height.size else np.inf
         _, rank = self.comm.allreduce((value, self.comm.rank), op=MPI.MINLOC)
-        centre = self.comm.bcast((g.x[self.r0 + local[0]], g.y[local[1]]), root=rank)
+        centre = self.comm.bcast((g.x[self.r0 + local[0]], g.y[local[1]]) if rank == self.comm.rank else None,
+                                 root=rank)
         x = g.x[self.r0 : self.r1, None] - centre[0]
         if g.line:
             a = math.sqrt(4 * load * radius * compliance / math.pi)
