@@ -13,7 +13,7 @@ Preconditioned by the PC of the TAO's KSP (KSP type ``preonly``: one PC applicat
 restricted to the free variables; PC type ``none`` by default, options prefix the TAO's). petroll's
 contact solver sets it to the inverse circulant of the window's kernel
 (:class:`petroll.solver.precondition.CirculantInverse`), so the iteration count hardly grows with the grid
-(Hertz, load control: 29 against 123 iterations at 512^2 cells; docs/benchmarks.md).
+(Hertz at 154^2 cells, cold: 30 against 72 applications without it; docs/benchmarks.md).
 
 Cost: one Hessian application per iteration plus one objective-gradient evaluation; once the free set
 stops changing (no variable clipped or put back) the gradient and f are updated exactly for a quadratic

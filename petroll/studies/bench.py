@@ -114,7 +114,8 @@ def tao_types_rolling(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD,
                       distance: float | None = None) -> list[dict]:
     """Every TAO type on the default rolling scene (runs/sphere.toml, to steady state or ``distance`` m):
     TAO iterations, operator applications and wall time per step (means over the steps after the first),
-    and the last step's force; writes ``out/tao_rolling.csv``."""
+    the applications per step over the last 20 (steady rolling), and the last step's force; writes
+    ``out/tao_rolling.csv``."""
     from petroll.model.scene import load_scene, shipped_scene
     from petroll.solver.simulation import Simulation
 
@@ -136,6 +137,7 @@ def tao_types_rolling(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD,
         rows.append(dict(tao_type=kind, pc=pc, steps=len(records),
                          iterations=f"{np.mean([r.iterations for r in warm]):.1f}",
                          applications=f"{np.mean([r.applications for r in warm]):.1f}",
+                         apps_last_20=f"{np.mean([r.applications for r in warm[-20:]]):.1f}",
                          ms_per_step=f"{1e3 * np.mean([r.solve_time for r in warm]):.2f}",
                          force=f"{records[-1].force:.7g}"))
     if comm.rank == 0:
