@@ -56,3 +56,24 @@ def test_pk_on_the_command_line_and_its_view(tmp_path):
     off = petroll("run", scene, "--out", "off", "-petroll_pc_circulant", "0", "-petroll_tao_view", cwd=tmp_path)
     assert off.returncode == 0, off.stderr
     assert "preconditioner: none" in off.stdout and "CirculantInverse" not in off.stdout
+
+
+@pytest.mark.serial
+def test_fft_workers_on_the_command_line(tmp_path):
+    """-petroll_fft_workers 2 runs (same answer as the default) and exits promptly (its kept TAO objects
+    destroyed before PETSc finalises); 0 is one clear line."""
+    import time
+
+    import h5py
+
+    scene = str(ROOT / "runs" / "hertz.toml")
+    start = time.perf_counter()
+    two = petroll("run", scene, "--out", "two", "-petroll_fft_workers", "2", cwd=tmp_path)
+    assert two.returncode == 0, two.stderr
+    assert time.perf_counter() - start < 60
+    one = petroll("run", scene, "--out", "one", "-petroll_fft_workers", "1", cwd=tmp_path)
+    with h5py.File(tmp_path / "one" / "results.h5") as a, h5py.File(tmp_path / "two" / "results.h5") as b:
+        assert abs(a["series/force"][-1] / b["series/force"][-1] - 1) < 1e-12
+    bad = petroll("run", scene, "--out", "bad", "-petroll_fft_workers", "0", cwd=tmp_path)
+    assert bad.returncode == 2 and "Traceback" not in bad.stderr
+    assert bad.stderr.strip() == "petroll: error: -petroll_fft_workers 0: the FFT threads per rank must be >= 1"
