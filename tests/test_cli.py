@@ -56,3 +56,24 @@ def test_quick_is_refused_beside_benchmarks_other_than_warm(comm, capsys):
     if comm.rank == 0:
         err = capsys.readouterr().err
         assert err == "petroll: error: petroll bench tao: --quick applies to petroll bench warm only\n"
+
+
+@pytest.mark.serial
+def test_fft_workers_on_the_command_line(tmp_path, cli):
+    """-petroll_fft_workers 2 runs (same answer as the default) and exits promptly (its kept TAO objects
+    destroyed before PETSc finalises); 0 is one clear line."""
+    import time
+
+    import h5py
+
+    scene = str(ROOT / "runs" / "hertz.toml")
+    start = time.perf_counter()
+    two = cli("run", scene, "--out", "two", "-petroll_fft_workers", "2", cwd=tmp_path)
+    assert two.returncode == 0, two.stderr
+    assert time.perf_counter() - start < 60
+    one = cli("run", scene, "--out", "one", "-petroll_fft_workers", "1", cwd=tmp_path)
+    with h5py.File(tmp_path / "one" / "results.h5") as a, h5py.File(tmp_path / "two" / "results.h5") as b:
+        assert abs(a["series/force"][-1] / b["series/force"][-1] - 1) < 1e-12
+    bad = cli("run", scene, "--out", "bad", "-petroll_fft_workers", "0", cwd=tmp_path)
+    assert bad.returncode == 2 and "Traceback" not in bad.stderr
+    assert bad.stderr.strip() == "petroll: error: -petroll_fft_workers 0: the FFT threads per rank must be >= 1"
