@@ -31,7 +31,8 @@ from petroll.errors import SolverError
 from petroll.model.grid import Grid
 from petroll.model.scene import DEFAULT_TAO_TYPE, TAO_TYPES
 from petroll.solver.partition import RowPartition, move_rows
-from petroll.solver.influence import influence_operator, shell_matrix
+from petroll.solver.influence import shell_matrix
+from petroll.solver.layer import material_operator
 from petroll.solver.pk import PK_PYTHON_TYPE, PolonskyKeer, tao_reasons
 from petroll.solver.precondition import CirculantInverse
 
@@ -61,14 +62,17 @@ class ContactSolver:
     """
 
     def __init__(self, grid: Grid, comm: MPI.Comm, tao_type: str = DEFAULT_TAO_TYPE, tol: float = 1e-8,
-                 prefix: str = "petroll_", max_iterations: int = 10000, precondition: bool = True):
+                 prefix: str = "petroll_", max_iterations: int = 10000, precondition: bool = True,
+                 layer=None):
         from petsc4py import PETSc
 
         self.grid, self.comm, self.tol, self.prefix = grid, comm, tol, prefix
         options = PETSc.Options(prefix)  # read once here and when a window shape's TAO is built
         self.tao_type, self.max_iterations = self._resolve_type(tao_type, prefix, options), max_iterations
         self.precondition = options.getBool("pc_circulant", precondition)
-        self.influence = influence_operator(grid, comm)
+        self.influence = material_operator(grid, comm, layer)
+        # a layer's surface bulges around a load: cells this far beyond the QP's window are checked
+        self.margin = 0 if layer is None else max(4, math.ceil(2 * layer.thickness / grid.dx))
         self.rows = RowPartition(grid.nx, comm.size)
         self.r0, self.r1 = self.rows.range(comm.rank)
         self.work = [0, 0]  # TAO iterations and operator applications of every QP solved so far
@@ -164,9 +168,49 @@ class ContactSolver:
 
     # -- the QP -----------------------------------------------------------------------------------------
     def _solve_qp(self, interference: np.ndarray, compliance: float, warm: np.ndarray | None):
+        """The QP on the window of the cells that can touch. With all coefficients positive those are the
+        cells of positive interference (exact). A layer's surface bulges up around a load, so cells beyond
+        them can touch too: the window then also covers the warm start's contact, and after each solve the
+        gap is checked on the window grown by ``margin`` cells; cells found touching (gap below -tol of
+        the largest interference) join the window and the QP is solved again."""
+        candidates = interference > 0
+        if (not self.influence.positive and warm is not None
+                and self.comm.allreduce(bool(candidates.any()), op=MPI.LOR)):
+            candidates |= warm > 0
+        its = applications = 0
+        while True:
+            pressure, n, apps, residual, window = self._solve_window(interference, compliance, warm,
+                                                                     candidates)
+            its, applications = its + n, applications + apps
+            if self.influence.positive or window == (0, 0, 0, 0):
+                return pressure, its, applications, residual, window
+            touching = self._touching(pressure, interference, compliance, window)
+            if not self.comm.allreduce(bool(touching.any()), op=MPI.LOR):
+                return pressure, its, applications, residual, window
+            candidates = candidates | touching
+            warm = pressure
+
+    def _touching(self, pressure: np.ndarray, interference: np.ndarray, compliance: float,
+                  window: tuple[int, int, int, int]) -> np.ndarray:
+        """Cells outside ``window`` but within ``margin`` cells of it whose gap J A p - interference is
+        below -tol times the largest interference (this rank's rows; booleans)."""
+        g, m = self.grid, self.margin
+        i0, i1, j0, j1 = window
+        box = (max(i0 - m, 0), min(i1 + m, g.nx), max(j0 - m, 0), min(j1 + m, g.ny))
+        w_ref = self.comm.allreduce(float(interference.max(initial=0.0)), op=MPI.MAX)
+        gap = compliance * self.convolve_box(pressure, box) - interference
+        inside = np.zeros(self.local_shape, dtype=bool)
+        rows = slice(max(box[0], self.r0) - self.r0, max(min(box[1], self.r1), self.r0) - self.r0)
+        inside[rows, box[2]:box[3]] = True
+        rows = slice(max(i0, self.r0) - self.r0, max(min(i1, self.r1), self.r0) - self.r0)
+        inside[rows, j0:j1] = False
+        return inside & (gap < -self.tol * w_ref)
+
+    def _solve_window(self, interference: np.ndarray, compliance: float, warm: np.ndarray | None,
+                      candidates: np.ndarray):
         grid, comm = self.grid, self.comm
         pressure = np.zeros(self.local_shape)
-        window = self._window(interference > 0)
+        window = self._window(candidates)
         if window is None:
             return pressure, 0, 0, 0.0, (0, 0, 0, 0)
         i0, i1, j0, j1 = window

@@ -250,9 +250,10 @@ class InfluenceOperator:
     """Largest Love table kept (8 MiB)."""
 
     def __init__(self, dx: float, dy: float, comm: MPI.Comm = MPI.COMM_SELF,
-                 coefficients: Callable[[int, int], np.ndarray] | None = None):
+                 coefficients: Callable[[int, int], np.ndarray] | None = None, positive: bool = True):
         self.dx, self.dy, self.comm = dx, dy, comm
         self.love = coefficients is None
+        self.positive = positive  # every coefficient > 0 (a layer's are not: its surface bulges)
         self.coefficients = coefficients or (lambda nx, ny: love_coefficients(nx, ny, dx, dy))
         self._table = self.coefficients(1, 1)
         self._windows: dict[tuple[int, int], Convolution] = {}
@@ -276,14 +277,14 @@ class InfluenceOperator:
         return conv
 
     def row_sum_bound(self, nx: int, ny: int) -> float:
-        """An upper bound of every row sum of A on an nx x ny block: sum_k A_ik <= this (unit compliance),
-        i.e. the largest displacement a unit field on every cell can cause: the sum over all offsets
-        |di| < nx, |dj| < ny. For Love's coefficients that is the displacement at the centre of a
+        """An upper bound of every row sum of |A| on an nx x ny block: sum_k |A_ik| <= this (unit
+        compliance), i.e. the largest displacement a field of unit magnitude can cause: the sum over all
+        offsets |di| < nx, |dj| < ny. For Love's coefficients that is the displacement at the centre of a
         (2 nx - 1) dx x (2 ny - 1) dy rectangle under unit pressure: Love's formula, no table."""
         if self.love:
             return float(rectangle_displacement(0.0, 0.0, (2 * nx - 1) * self.dx / 2,
                                                 (2 * ny - 1) * self.dy / 2))
-        t = self.table_rows(nx, ny)(np.arange(nx))
+        t = np.abs(self.table_rows(nx, ny)(np.arange(nx)))
         return float(4 * t.sum() - 2 * t[0, :].sum() - 2 * t[:, 0].sum() + t[0, 0])
 
     def table_rows(self, nx: int, ny: int) -> Callable[[np.ndarray], np.ndarray]:
@@ -301,7 +302,8 @@ class InfluenceOperator:
 
 def influence_operator(grid: Grid, comm: MPI.Comm = MPI.COMM_SELF) -> InfluenceOperator:
     """The influence operator of ``grid``: Love's rectangles, or for a line-contact grid the plane-strain
-    strip kernel with the grid's datum (:func:`strip_coefficients`; the table is (nx, 1))."""
+    strip kernel with the grid's datum (:func:`strip_coefficients`; the table is (nx, 1)). A layer's:
+    :func:`petroll.solver.layer.material_operator`."""
     if not grid.line:
         return InfluenceOperator(grid.dx, grid.dy, comm)
     dx, datum = grid.dx, grid.datum

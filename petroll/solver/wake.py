@@ -11,8 +11,9 @@ track's length:
   on a 1000-cell track), so the default cutoff 1e-9 bounds the change at about 1e-8 of the penetration,
   the default tolerance's level; with a tighter [solver] tol lower the cutoff too. A cutoff of 0 keeps
   every non-zero cell (exact).
-* targets: cells the body can touch. A > 0, so u >= -S max(-v, 0) everywhere; a cell whose rigid
-  interference reach - Z is below that bound cannot be in contact at a penetration <= reach (exact).
+* targets: cells the body can touch. A > 0, so u >= -S max(-v, 0) everywhere (a layer's A has negative
+  coefficients too: then u >= -S max|v|, S the row sum of |A|); a cell whose rigid interference
+  reach - Z is below that bound cannot be in contact at a penetration <= reach (exact).
 
 u is computed on the bounding box of both (its sides rounded up to multiples of ``QUANTUM`` cells, so
 that few kernel shapes are built) and is zero outside it, where no cell can touch.
@@ -44,6 +45,8 @@ class Wake:
         extremes = np.array([np.abs(v).max(initial=0.0), (-v).max(initial=0.0)])
         comm.Allreduce(MPI.IN_PLACE, extremes, op=MPI.MAX)
         largest, negative = extremes
+        if not self.solver.influence.positive:
+            negative = largest
         if largest == 0:
             return np.zeros_like(v)
         with np.errstate(invalid="ignore"):  # inf - inf where a body has no surface: never needed there

@@ -1,0 +1,200 @@
+"""A layer on a rigid base ([material] layer): its response function against an independent solution of
+the Navier equations, its coefficients against the uniform-load compliance, sphere indentation against its
+thick and thin limits and against an axisymmetric Hankel-transform solution (a second algorithm: rings,
+elliptic integrals, an active set), Lee-Radok on a layer, and line contact."""
+
+import math
+
+import numpy as np
+import pytest
+import scipy.linalg
+from mpi4py import MPI
+from scipy.special import ellipe, ellipk, j0, j1
+
+from petroll.errors import SceneError
+from petroll.model.materials import Layer
+from petroll.model.scene import parse_scene
+from petroll.solver.layer import layer_coefficients, layer_strip_coefficients, response, thin_compliance
+from petroll.solver.partition import gather_field
+from petroll.solver.simulation import Simulation
+
+R, E, DELTA = 0.01, 10e6, 2e-5
+A_HERTZ = math.sqrt(R * DELTA)
+
+
+def transfer_matrix_compliance(k: float, h: float, nu: float, base: str) -> float:
+    """Surface displacement per unit pressure of the mode cos(k x) (E = 1) from the first-order Navier
+    system y' = M y, y = (U, W, T, S) (displacements and tractions of the mode; z down), integrated over
+    the layer by a matrix exponential: top T = 0, S = -1; bottom W = 0 and U = 0 (bonded) or T = 0."""
+    mu = 1 / (2 * (1 + nu))
+    m = np.array([[0, k, 1 / mu, 0],
+                  [-nu / (1 - nu) * k, 0, 0, (1 - 2 * nu) / (2 * mu * (1 - nu))],
+                  [2 * mu * k * k / (1 - nu), 0, 0, k * nu / (1 - nu)],
+                  [0, 0, -k, 0]])
+    t = scipy.linalg.expm(m * h)
+    rows = [1, 0] if base == "bonded" else [1, 2]
+    return float(np.linalg.solve(t[rows][:, :2], t[rows][:, 3])[1])
+
+
+@pytest.mark.parametrize("base", ["bonded", "frictionless"])
+@pytest.mark.parametrize("nu", [0.0, 0.3, 0.5])
+def test_response_is_the_navier_solution(nu, base):
+    for u in (0.01, 0.3, 1.0, 3.0, 8.0):
+        k = 1.7
+        closed = 2 * (1 - nu**2) / k * float(response(u, nu, base))
+        assert closed == pytest.approx(transfer_matrix_compliance(k, u / k, nu, base), rel=1e-9, abs=1e-15)
+    assert float(response(400.0, nu, base)) == pytest.approx(1.0, rel=1e-14)  # no overflow: the half-space
+
+
+@pytest.mark.parametrize("nu, base", [(0.3, "bonded"), (0.5, "bonded"), (0.3, "frictionless")])
+def test_coefficients_sum_to_the_uniform_load_compliance(nu, base):
+    """sum_k A_ik over a grid much larger than h = the displacement under a uniform unit pressure,
+    2 h L'(0) (0 for an incompressible bonded layer), to 1e-7 of the diagonal; line contact too."""
+    layer, dx = Layer(1.0, base, nu), 0.25
+    a = layer_coefficients(400, 400, dx, dx, layer)
+    total = 4 * a.sum() - 2 * a[0].sum() - 2 * a[:, 0].sum() + a[0, 0]
+    assert abs(total - thin_compliance(layer)) <= 1e-7 * a[0, 0]
+    strip = layer_strip_coefficients(400, dx, 7.0, layer)
+    assert abs(2 * strip.sum() - strip[0] - thin_compliance(layer)) <= 1e-7 * strip[0]
+    assert np.allclose(layer_strip_coefficients(400, dx, 50.0, layer), strip, rtol=0, atol=1e-12)
+
+
+def sphere(comm, layer=None, n=64, half=0.8e-3, nu=0.5, material=None, **extra):
+    m = material or {"model": "elastic", "E": E, "nu": nu}
+    raw = {"grid": {"nx": n, "ny": n, "x": [-half, half], "y": [-half, half]},
+           "material": {**m, **({"layer": layer} if layer else {})},
+           "body": {"shape": "sphere", "radius": R}, "motion": {"penetration": DELTA},
+           "solver": {"tol": 1e-9}, **extra}
+    sim = Simulation(parse_scene(raw, source="test"), comm)
+    records = list(sim.steps())
+    return sim, records, gather_field(sim.pressure, n, comm)
+
+
+def test_a_thick_layer_is_the_half_space(comm):
+    _, [plain], p0 = sphere(comm)
+    for base in ("bonded", "frictionless"):
+        _, [thick], p = sphere(comm, {"thickness": 1e5 * A_HERTZ, "base": base})
+        assert thick.force == pytest.approx(plain.force, rel=1e-4)
+        if comm.rank == 0:
+            assert np.abs(p - p0).max() <= 1e-4 * p0.max()
+
+
+def grid_points(sim):
+    g = sim.scene.grid
+    return np.meshgrid(g.x, g.y, indexing="ij")
+
+
+@pytest.mark.parametrize("base", ["bonded", "frictionless"])
+def test_a_thin_compressible_layer_is_the_winkler_foundation(comm, base):
+    """h = a/40: p = (delta - r^2/2R)/(J W), W = 2 h L'(0) (the uniaxial-strain modulus for bonded, J h for
+    frictionless): force to 0.2 %, pressure to 0.5 % of its peak (1/(J W) differs by 60 % between bases)."""
+    nu, a = 0.3, math.sqrt(2 * R * DELTA)
+    sim, [rec], p = sphere(comm, {"thickness": a / 40, "base": base}, half=1.2 * a, nu=nu)
+    winkler = (1 - nu**2) / E * thin_compliance(sim.scene.layer)
+    assert rec.force == pytest.approx(math.pi * R * DELTA**2 / winkler, rel=2e-3)
+    if comm.rank == 0:
+        x, y = grid_points(sim)
+        expected = np.maximum(DELTA - (x * x + y * y) / (2 * R), 0) / winkler
+        assert np.abs(p - expected).max() <= 5e-3 * expected.max()
+
+
+def test_a_thin_incompressible_bonded_layer_tends_to_its_thin_limit(comm):
+    """Thin-layer limit (w = -(h^3/E) lap p; Johnson, Contact Mechanics, sec. 5.9): a^2 = 4 R delta,
+    p = E (a^2 - r^2)^2/(32 R h^3), F = (2 pi/3) E R^2 delta^3/h^3. At h = a/10 and a/20 (h = 2.5 dx
+    both), force and pressure approach it at second order: errors 18 % and 4.5 % (a half-space is 1000x off)."""
+    a = math.sqrt(4 * R * DELTA)
+    errors = []
+    for ratio, n in ((0.1, 64), (0.05, 128)):
+        h = ratio * a
+        sim, [rec], p = sphere(comm, {"thickness": h, "base": "bonded"}, n=n, half=1.3 * a)
+        force = 2 * math.pi / 3 * E * R**2 * DELTA**3 / h**3
+        errors.append(abs(rec.force / force - 1))
+        if comm.rank == 0:
+            x, y = grid_points(sim)
+            expected = E * np.maximum(a * a - x * x - y * y, 0) ** 2 / (32 * R * h**3)
+            assert np.abs(p - expected).max() <= 1.3 * errors[-1] * expected.max()
+    assert errors[1] < 0.06 and errors[0] / errors[1] > 3
+
+
+def hankel_sphere(h: float, nu: float, base: str, r_max: float, n: int = 800):
+    """An independent axisymmetric solution: pressure constant on n rings of [0, r_max], displacement at
+    the ring midpoints = the half-space's (uniform disks: elliptic integrals, Johnson Eq. 3.29) plus the
+    layer's correction as a Hankel transform, 2 int (L - 1) P_i(k) J0(k r) dk, P_i the ring's order-0
+    Hankel transform; the contact radius by an active set on the rings. Returns (radii, p, force)."""
+    compliance = (1 - nu**2) / E
+    edges = np.linspace(0, r_max, n + 1)
+    mid = 0.5 * (edges[1:] + edges[:-1])
+
+    def disk(r, b):
+        out, inside = np.empty_like(r), r <= b
+        out[inside] = 4 * b / np.pi * ellipe((r[inside] / b) ** 2)
+        m = (b / r[~inside]) ** 2
+        out[~inside] = 4 * r[~inside] / np.pi * (ellipe(m) - (1 - m) * ellipk(m))
+        return out
+
+    matrix = np.empty((n, n))
+    for i in range(n):
+        matrix[:, i] = disk(mid, edges[i + 1]) - (disk(mid, edges[i]) if i else 0)
+    x, w = np.polynomial.legendre.leggauss(12)
+    starts = np.arange(0, 40, 0.1)
+    u, wu = (starts[:, None] + 0.05 * (x + 1)).ravel(), np.tile(0.05 * w, len(starts))
+    k = u / h
+    rings = (edges[1:, None] * j1(k * edges[1:, None]) - edges[:-1, None] * j1(k * edges[:-1, None])) / k
+    matrix += 2 * (j0(np.outer(mid, k)) * (wu / h * (response(u, nu, base) - 1))) @ rings.T
+    target = DELTA - mid**2 / (2 * R)
+    m = int(np.sum(target > 0))
+    for _ in range(n):
+        p = np.linalg.solve(matrix[:m, :m], target[:m]) / compliance
+        gap = compliance * matrix[:, :m] @ p - target
+        if p[-1] < 0:
+            m -= 1
+        elif m < n and gap[m] < -1e-12 * DELTA:
+            m += 1
+        else:
+            break
+    return mid[:m], p, float(p @ (np.pi * (edges[1 : m + 1] ** 2 - edges[:m] ** 2)))
+
+
+@pytest.mark.parametrize("ratio, base", [(0.25, "bonded"), (1.0, "bonded"), (4.0, "bonded"),
+                                         (1.0, "frictionless")])
+def test_sphere_on_a_layer_matches_the_hankel_transform_solution(comm, ratio, base):
+    """nu = 0.5, h/a = 0.25, 1, 4 (a the Hertz radius): force to 0.3 % (the layer changes it by 1.4 to 96x)
+    and pressure inside 0.9 of the contact radius to 0.5 % of its peak, on a 64 x 64 grid (18 cells over a)."""
+    h = ratio * A_HERTZ
+    sim, [rec], p = sphere(comm, {"thickness": h, "base": base})
+    radii, ring_p, force = hankel_sphere(h, 0.5, base, 3 * A_HERTZ)
+    assert rec.force == pytest.approx(force, rel=3e-3)
+    if comm.rank == 0:
+        x, y = grid_points(sim)
+        r = np.hypot(x, y)
+        expected = np.interp(r, radii, ring_p, right=0.0)
+        inner = r < 0.9 * radii[-1]  # the edge cells are the grid's error, not the layer's
+        assert np.abs(p - expected)[inner].max() <= 5e-3 * expected.max()
+
+
+@pytest.mark.parametrize("layer, key, allowed", [
+    ({"thickness": -1e-3, "base": "bonded"}, "[material] layer", "thickness = -0.001 must be a finite number > 0"),
+    ({"thickness": 1e-3, "base": "glued"}, "[material] layer", "base = 'glued' must be one of: 'bonded', "
+                                                              "'frictionless'"),
+    ({"thickness": 1e-3}, "[material] layer", "must be an inline table {thickness"),
+    (5e-3, "[material] layer", "must be an inline table {thickness"),
+])
+def test_bad_layers_are_refused(layer, key, allowed):
+    raw = {"grid": {"nx": 8, "ny": 8, "x": [-1e-3, 1e-3], "y": [-1e-3, 1e-3]},
+           "material": {"model": "elastic", "E": E, "nu": 0.5, "layer": layer},
+           "body": {"shape": "sphere", "radius": R}, "motion": {"penetration": 1e-6}}
+    with pytest.raises(SceneError) as error:
+        parse_scene(raw, source="test")
+    assert key in str(error.value) and allowed in str(error.value)
+
+
+def test_a_layer_needs_nu(tmp_path):
+    (tmp_path / "j.csv").write_text("0, 1e-7\n1, 2e-7\n")
+    raw = {"grid": {"nx": 8, "ny": 8, "x": [-1e-3, 1e-3], "y": [-1e-3, 1e-3]},
+           "material": {"model": "tabulated", "file": "j.csv", "quantity": "J",
+                        "layer": {"thickness": 1e-3, "base": "bonded"}},
+           "body": {"shape": "sphere", "radius": R}, "motion": {"penetration": 1e-6}}
+    with pytest.raises(SceneError, match=r"\[material\] nu.*required with \[material\] layer"):
+        parse_scene(raw, source="test", base_dir=tmp_path)
+    raw["material"]["nu"] = 0.5
+    assert parse_scene(raw, source="test", base_dir=tmp_path).layer == Layer(1e-3, "bonded", 0.5)
