@@ -109,6 +109,8 @@ def test_a_thin_incompressible_bonded_layer_tends_to_its_thin_limit(comm):
         sim, [rec], p = sphere(comm, {"thickness": h, "base": "bonded"}, n=n, half=1.3 * a)
         force = 2 * math.pi / 3 * E * R**2 * DELTA**3 / h**3
         errors.append(abs(rec.force / force - 1))
+        gap = sim.surface()[1]  # the contact reaches 1.41x the interference radius: no cell beyond it touches
+        assert comm.allreduce(float(gap.min()), op=MPI.MIN) >= -1e-8 * DELTA
         if comm.rank == 0:
             x, y = grid_points(sim)
             expected = E * np.maximum(a * a - x * x - y * y, 0) ** 2 / (32 * R * h**3)
