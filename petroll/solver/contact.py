@@ -71,6 +71,7 @@ class ContactSolver:
         self.tao_type, self.max_iterations = self._resolve_type(tao_type, prefix, options), max_iterations
         self.precondition = options.getBool("pc_circulant", precondition)
         self.influence = material_operator(grid, comm, layer)
+        self.lift = self.influence.lift_bound(grid.nx, grid.ny)  # upward displacement per unit pressure
         self.rows = RowPartition(grid.nx, comm.size)
         self.r0, self.r1 = self.rows.range(comm.rank)
         self.work = [0, 0]  # TAO iterations and operator applications of every QP solved so far
@@ -197,18 +198,24 @@ class ContactSolver:
     def _touching(self, pressure: np.ndarray, interference: np.ndarray, compliance: float,
                   window: tuple[int, int, int, int]) -> np.ndarray:
         """Cells outside ``window`` but within ``MARGIN`` cells of it whose gap J A p - interference is
-        below -tol times the largest interference (this rank's rows; booleans)."""
+        below -tol times the largest interference (this rank's rows; booleans). No convolution when the
+        surface's largest possible lift, J max(p) ``lift``, cannot close the ring's gaps."""
         g, m = self.grid, self.MARGIN
         i0, i1, j0, j1 = window
         box = (max(i0 - m, 0), min(i1 + m, g.nx), max(j0 - m, 0), min(j1 + m, g.ny))
-        w_ref = self.comm.allreduce(float(interference.max(initial=0.0)), op=MPI.MAX)
-        gap = compliance * self.convolve_box(pressure, box) - interference
-        inside = np.zeros(self.local_shape, dtype=bool)
+        ring = np.zeros(self.local_shape, dtype=bool)
         rows = slice(max(box[0], self.r0) - self.r0, max(min(box[1], self.r1), self.r0) - self.r0)
-        inside[rows, box[2]:box[3]] = True
+        ring[rows, box[2]:box[3]] = True
         rows = slice(max(i0, self.r0) - self.r0, max(min(i1, self.r1), self.r0) - self.r0)
-        inside[rows, j0:j1] = False
-        return inside & (gap < -self.tol * w_ref)
+        ring[rows, j0:j1] = False
+        extremes = np.array([interference.max(initial=0.0), np.max(interference, where=ring, initial=-np.inf),
+                             pressure.max(initial=0.0)])
+        self.comm.Allreduce(MPI.IN_PLACE, extremes, op=MPI.MAX)
+        w_ref, closest, p_max = extremes
+        if closest + compliance * p_max * self.lift < -self.tol * w_ref:
+            return np.zeros(self.local_shape, dtype=bool)
+        gap = compliance * self.convolve_box(pressure, box) - interference
+        return ring & (gap < -self.tol * w_ref)
 
     def _solve_window(self, interference: np.ndarray, compliance: float, warm: np.ndarray | None,
                       candidates: np.ndarray):

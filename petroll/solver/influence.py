@@ -284,7 +284,18 @@ class InfluenceOperator:
         if self.love:
             return float(rectangle_displacement(0.0, 0.0, (2 * nx - 1) * self.dx / 2,
                                                 (2 * ny - 1) * self.dy / 2))
-        t = np.abs(self.table_rows(nx, ny)(np.arange(nx)))
+        return self._offsets_sum(np.abs(self.table_rows(nx, ny)(np.arange(nx))))
+
+    def lift_bound(self, nx: int, ny: int) -> float:
+        """The sum of -A over the offsets |di| < nx, |dj| < ny where A < 0 (unit compliance): the most a
+        field of unit magnitude can lift a cell's surface (0 for positive coefficients)."""
+        if self.positive:
+            return 0.0
+        return self._offsets_sum(np.maximum(-self.table_rows(nx, ny)(np.arange(nx)), 0.0))
+
+    @staticmethod
+    def _offsets_sum(t: np.ndarray) -> float:
+        """The sum over all signed offsets of a table given for offsets >= 0 (even in both)."""
         return float(4 * t.sum() - 2 * t[0, :].sum() - 2 * t[:, 0].sum() + t[0, 0])
 
     def table_rows(self, nx: int, ny: int) -> Callable[[np.ndarray], np.ndarray]:
