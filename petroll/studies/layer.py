@@ -141,7 +141,7 @@ BENCH_CASES = (("sphere.toml", math.sqrt(0.01 * 20e-6), ((4.0, "bonded"), (1.0, 
 1 mm for the idler) and the (thickness, base) pairs."""
 
 
-def bench(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, repeats: int = 3) -> list[dict]:
+def bench(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, repeats: int = 5) -> list[dict]:
     """Per-step cost of each layer case against its half-space scene, every step after the sudden start
     (which builds the kernels) to the steady state: CPU seconds per step (this process; the least of
     ``repeats`` runs, interleaved with the half-space's so that a loaded machine affects both alike),
