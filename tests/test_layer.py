@@ -267,3 +267,14 @@ def test_rolling_on_a_thin_frictionless_layer_is_the_winkler_bed_of_the_conveyor
     winkler = winkler_rolling(scene.material, 0.0, 1e-4, scene.body.radius_hint, 4.0, 4000.0)
     assert petroll["delta"] == pytest.approx(winkler["delta"], rel=5e-3)
     assert petroll["mu_r"] == pytest.approx(winkler["mu_r"], rel=0.02)
+
+
+def test_the_layer_benchmark_measures_every_case_against_its_half_space(comm, tmp_path):
+    from petroll.studies.layer import bench
+
+    idler = (("conveyor-idler.toml", 1e-3, ((6.0, "bonded"),)),)
+    rows = bench(tmp_path, comm, repeats=1, cases=idler)
+    assert [r["case"] for r in rows] == ["half-space", "h = 6 mm bonded"] and rows[0]["ratio"] == "1.00"
+    assert all(float(r["applications_per_step"]) > 0 for r in rows)
+    if comm.rank == 0:
+        assert (tmp_path / "layer-bench.csv").read_text().count("\n") == 3

@@ -141,16 +141,18 @@ BENCH_CASES = (("sphere.toml", math.sqrt(0.01 * 20e-6), ((4.0, "bonded"), (1.0, 
 1 mm for the idler) and the (thickness, base) pairs."""
 
 
-def bench(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, repeats: int = 5) -> list[dict]:
+def bench(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, repeats: int = 5,
+          cases=BENCH_CASES) -> list[dict]:
     """Per-step cost of each layer case against its half-space scene, every step after the sudden start
     (which builds the kernels) to the steady state: CPU seconds per step (this process; the least of
     ``repeats`` runs, interleaved with the half-space's so that a loaded machine affects both alike),
-    TAO iterations and operator applications per step. Writes ``layer-bench.csv``."""
+    TAO iterations and operator applications per step. Writes ``layer-bench.csv``. ``cases``: as
+    :data:`BENCH_CASES`."""
     rows = []
-    for name, unit, cases in BENCH_CASES:
+    for name, unit, layers in cases:
         scene = load_scene(shipped_scene(name))
         variants = {"half-space": scene.replace("material.layer", None)}
-        for h, base in cases:
+        for h, base in layers:
             variants[f"h = {h:g} {'a' if unit < 1e-3 else 'mm'} {base}"] = scene.replace(
                 "material.layer", {"thickness": h * unit, "base": base})
         cost = {k: math.inf for k in variants}
