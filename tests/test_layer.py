@@ -293,3 +293,13 @@ def test_the_direct_steady_solve_on_a_layer_is_the_transient_rolled_to_steady_st
     direct = Simulation(scene, comm).solve_steady()
     assert direct.force == pytest.approx(transient.force, rel=1e-3)
     assert direct.mu_r == pytest.approx(transient.mu_r, rel=5e-3)
+
+
+def test_a_layer_much_thinner_than_the_cells_is_warned_about():
+    from petroll.model.limits import PetrollWarning
+
+    raw = {"grid": {"nx": 8, "ny": 8, "x": [-1e-3, 1e-3], "y": [-1e-3, 1e-3]},
+           "material": {"model": "elastic", "E": E, "nu": 0.5, "layer": {"thickness": 1e-5, "base": "bonded"}},
+           "body": {"shape": "sphere", "radius": R}, "motion": {"penetration": 1e-6}}
+    with pytest.warns(PetrollWarning, match=r"\[material\] layer: thickness 1e-05 m is below 1/16"):
+        parse_scene(raw, source="test")

@@ -37,9 +37,11 @@ kernel: the point loads' field is (2/pi)[(2/3) ln(x^2 + c^2) - (1/6) ln(x^2 + 4c
 constant, integrated over the strip exactly, and the remainder is a cosine transform (far field
 -2 c^4/(pi x^4)).
 
-Accuracy (measured, tests/test_layer.py and docs/layer.md): the sum of a cell's coefficients over a large
-grid equals the layer's uniform-load compliance 2 h L'(0) to 1e-9 relative; the coefficients agree with a
-twice finer table and a q + 8 rule to 1e-9 of the diagonal for h >= dx, 1e-6 for h = dx/4.
+Accuracy (measured, tests/test_layer.py and docs/layer.md): the sum of a cell's coefficients over a
+100 h grid equals the layer's uniform-load compliance 2 h L'(0) to 3e-8 relative; the coefficients agree
+with a twice finer table to 2e-12 of the diagonal, with a q + 8 rule to 5e-10 for h >= dx and 2e-8 for
+h = dx/4, and with a 128-point rule to 2e-8 for h = dx/10 (6e-7 for nu = 0.5 bonded); a scene with h
+below dx/16 is warned about (petroll.model.limits).
 """
 
 from __future__ import annotations
@@ -126,7 +128,7 @@ def _remainder_at(s: np.ndarray, nu: float, base: str, line: bool) -> np.ndarray
 
 def quadrature_points(cell: float, thickness: float) -> int:
     """Points per axis of the Gauss rule over a cell of side ``cell`` for the remainder (scale h)."""
-    return int(min(32, max(4, math.ceil(4 * cell / thickness) + 3)))
+    return int(min(64, max(4, math.ceil(4 * cell / thickness) + 3)))
 
 
 def rectangle_potential(x, y, a: float, b: float, z: float):
