@@ -99,7 +99,7 @@ def test_a_thin_compressible_layer_is_the_winkler_foundation(comm, base):
 
 
 def test_a_thin_incompressible_bonded_layer_tends_to_its_thin_limit(comm):
-    """Thin-layer limit (w = -(h^3/E) lap p; Johnson, Contact Mechanics, sec. 5.9): a^2 = 4 R delta,
+    """Thin-layer limit (w = -(h^3/E) lap p, derived in docs/layer.md): a^2 = 4 R delta,
     p = E (a^2 - r^2)^2/(32 R h^3), F = (2 pi/3) E R^2 delta^3/h^3. At h = a/10 and a/20 (h = 2.5 dx
     both), force and pressure approach it at second order: errors 18 % and 4.5 % (a half-space is 1000x off)."""
     a = math.sqrt(4 * R * DELTA)
