@@ -101,7 +101,8 @@ def test_a_thin_compressible_layer_is_the_winkler_foundation(comm, base):
 def test_a_thin_incompressible_bonded_layer_tends_to_its_thin_limit(comm):
     """Thin-layer limit (w = -(h^3/E) lap p, derived in docs/layer.md): a^2 = 4 R delta,
     p = E (a^2 - r^2)^2/(32 R h^3), F = (2 pi/3) E R^2 delta^3/h^3. At h = a/10 and a/20 (h = 2.5 dx
-    both), force and pressure approach it at second order: errors 18 % and 4.5 % (a half-space is 1000x off)."""
+    both), force and pressure approach it at second order: errors 18 % and 4.5 % (a half-space is 1000x
+    off)."""
     a = math.sqrt(4 * R * DELTA)
     errors = []
     for ratio, n in ((0.1, 64), (0.05, 128)):
@@ -161,7 +162,8 @@ def hankel_sphere(h: float, nu: float, base: str, r_max: float, n: int = 800):
                                          (1.0, "frictionless")])
 def test_sphere_on_a_layer_matches_the_hankel_transform_solution(comm, ratio, base):
     """nu = 0.5, h/a = 0.25, 1, 4 (a the Hertz radius): force to 0.3 % (the layer changes it by 1.4 to 96x)
-    and pressure inside 0.9 of the contact radius to 0.5 % of its peak, on a 64 x 64 grid (18 cells over a)."""
+    and pressure inside 0.9 of the contact radius to 0.5 % of its peak, on a 64 x 64 grid (18 cells over
+    a)."""
     h = ratio * A_HERTZ
     sim, [rec], p = sphere(comm, {"thickness": h, "base": base})
     radii, ring_p, force = hankel_sphere(h, 0.5, base, 3 * A_HERTZ)
@@ -175,7 +177,8 @@ def test_sphere_on_a_layer_matches_the_hankel_transform_solution(comm, ratio, ba
 
 
 @pytest.mark.parametrize("layer, key, allowed", [
-    ({"thickness": -1e-3, "base": "bonded"}, "[material] layer", "thickness = -0.001 must be a finite number > 0"),
+    ({"thickness": -1e-3, "base": "bonded"}, "[material] layer",
+     "thickness = -0.001 must be a finite number > 0"),
     ({"thickness": 1e-3, "base": "glued"}, "[material] layer", "base = 'glued' must be one of: 'bonded', "
                                                               "'frictionless'"),
     ({"thickness": 1e-3}, "[material] layer", "must be an inline table {thickness"),
@@ -299,7 +302,8 @@ def test_a_layer_much_thinner_than_the_cells_is_warned_about():
     from petroll.model.limits import PetrollWarning
 
     raw = {"grid": {"nx": 8, "ny": 8, "x": [-1e-3, 1e-3], "y": [-1e-3, 1e-3]},
-           "material": {"model": "elastic", "E": E, "nu": 0.5, "layer": {"thickness": 1e-5, "base": "bonded"}},
+           "material": {"model": "elastic", "E": E, "nu": 0.5,
+                        "layer": {"thickness": 1e-5, "base": "bonded"}},
            "body": {"shape": "sphere", "radius": R}, "motion": {"penetration": 1e-6}}
     with pytest.warns(PetrollWarning, match=r"\[material\] layer: thickness 1e-05 m is below 1/16"):
         parse_scene(raw, source="test")

@@ -390,9 +390,9 @@ def _prune(path: pathlib.Path, keep: int) -> None:
 
 
 def fingerprint(scene) -> str:
-    """A digest of the material (and its layer) and of the body's heights on the grid: what a restart must find unchanged
-    even when it comes from files ([material] file, [body] file) that the scene text only names. The
-    heights are computed and hashed a block of rows at a time (no whole-grid array)."""
+    """A digest of the material (and its layer) and of the body's heights on the grid: what a restart must
+    find unchanged even when it comes from files ([material] file, [body] file) that the scene text only
+    names. The heights are computed and hashed a block of rows at a time (no whole-grid array)."""
     g = scene.grid
     h = hashlib.sha256(repr(scene.material).encode())
     if scene.layer is not None:

@@ -7,7 +7,8 @@ Poisson's ratio nu, thickness h) whose bottom is held by a rigid base displaces 
 
 with the dimensionless layer function L(u) (u = |k| h; L -> 1 as u -> inf: the half-space):
 
-    bonded base:        L(u) = (2 kappa sinh 2u - 4u) / (2 kappa cosh 2u + 1 + kappa^2 + 4u^2),  kappa = 3 - 4 nu
+    bonded base:        L(u) = (2 kappa sinh 2u - 4u) / (2 kappa cosh 2u + 1 + kappa^2 + 4u^2),
+                        kappa = 3 - 4 nu
     frictionless base:  L(u) = (cosh 2u - 1) / (sinh 2u + 2u)
 
 (Vorovich, Aleksandrov and Babeshko, *Non-classical mixed problems of the theory of elasticity*, 1974;
