@@ -7,7 +7,8 @@ and the Winkler model is solved in its steady state directly (:func:`winkler_rol
 
     .venv/bin/python -m petroll.studies.layer [--out docs/img/layer] [--fast]
 
-which writes ``layer.csv`` and ``rolling-resistance.png``, ``contact.png`` in the output directory.
+which writes ``layer.csv`` and ``rolling-resistance.png``, ``contact.png``, ``pressure.png`` in the output
+directory.
 
 ``petroll bench layer [--out DIR]`` (:func:`bench`): the cost per step of layer scenes against the same
 half-space scene (the performance goal: at most 1.3x), on runs/sphere.toml and runs/conveyor-idler.toml.
@@ -45,7 +46,8 @@ def winkler_rolling(material, nu: float, thickness: float, radius: float, speed:
     relaxation series from :func:`petroll.model.materials.relaxation_series` times 1 - nu^2),
     w = delta - x^2/(2R) its compression from the front edge x = sqrt(2 R delta) until sigma falls to 0
     behind. Returns the penetration delta (m), the resisting force F_x = int sigma x/R dx (N/m), mu_r =
-    F_x/load, and the front and rear edges (m, relative to the axis). This is the model of the conveyor
+    F_x/load, the front and rear edges (m, relative to the axis), and the contact's "x" (m, relative to
+    the axis) and "pressure" sigma (Pa). This is the model of the conveyor
     literature (a Winkler foundation of viscoelastic springs of modulus E/h: Jonkers 1980, Lodewijks 1996)
     as petroll solves it; their closed forms were not checked here."""
     ginf, dg, theta = relaxation_series(material)
@@ -68,7 +70,7 @@ def winkler_rolling(material, nu: float, thickness: float, radius: float, speed:
         last = ends[0] + 1 if len(ends) else len(x)
         xs, ss = x[:last], np.maximum(sigma[:last], 0)
         force = float(np.trapz(ss, -xs))
-        return force, float(np.trapz(ss * xs / radius, -xs)), front, float(xs[-1])
+        return force, float(np.trapz(ss * xs / radius, -xs)), front, float(xs[-1]), xs, ss
 
     lo, hi = 0.0, 1e-6
     while solve(hi)[0] < load:
@@ -77,17 +79,20 @@ def winkler_rolling(material, nu: float, thickness: float, radius: float, speed:
         mid = 0.5 * (lo + hi)
         lo, hi = (mid, hi) if solve(mid)[0] < load else (lo, mid)
     delta = 0.5 * (lo + hi)
-    force, force_x, front, rear = solve(delta)
-    return {"delta": delta, "force_x": force_x, "mu_r": force_x / force, "lead": front, "trail": rear}
+    force, force_x, front, rear, x, sigma = solve(delta)
+    return {"delta": delta, "force_x": force_x, "mu_r": force_x / force, "lead": front, "trail": rear,
+            "x": x, "pressure": sigma}
 
 
 def steady(scene, comm: MPI.Comm) -> dict:
-    """The last record of a run to its steady state ([time] steady) as a dict."""
+    """The last record of a line-contact run to its steady state ([time] steady) as a dict, with its
+    pressure "pressure" (Pa, every cell) at "x" (m, relative to the body)."""
     sim = Simulation(scene, comm)
     records = list(sim.steps())
     r = records[-1]
     return {"delta": r.delta, "force_x": r.force_x, "mu_r": r.mu_r, "lead": r.lead, "trail": r.trail,
-            "steps": len(records), "seconds": sum(x.solve_time for x in records)}
+            "steps": len(records), "seconds": sum(x.solve_time for x in records),
+            "x": scene.grid.x - r.sx, "pressure": np.concatenate(comm.allgather(sim.pressure[:, 0]))}
 
 
 def sweep(comm: MPI.Comm = MPI.COMM_WORLD, thicknesses=THICKNESSES, path=None) -> list[dict]:
@@ -177,6 +182,34 @@ def bench(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, repeats: int = 5,
     return rows
 
 
+def profiles(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, path=None) -> None:
+    """pressure.png: the steady pressure under the idler on its own cover (the scene's thickness), bonded
+    and frictionless, on the half-space and on the Winkler bed."""
+    scene = load_scene(path or shipped_scene("conveyor-idler.toml"))
+    h = scene.layer.thickness
+    curves = {f"layer bonded, h = {h * 1e3:g} mm": steady(
+                  scene.replace("material.layer", {"thickness": h, "base": "bonded"}), comm),
+              f"layer frictionless, h = {h * 1e3:g} mm": steady(
+                  scene.replace("material.layer", {"thickness": h, "base": "frictionless"}), comm),
+              "half-space": steady(scene.replace("material.layer", None), comm),
+              "winkler E/h": winkler_rolling(scene.material, scene.layer.nu, h, scene.body.radius_hint,
+                                             float(scene.velocity(0.0)[0]), float(scene.load(0.0)))}
+    fig = new_figure(6.0, 4.0) if comm.rank == 0 else None
+    if fig is None:
+        return
+    ax = fig.add_subplot()
+    for label, c in curves.items():
+        ax.plot(np.asarray(c["x"]) * 1e3, np.asarray(c["pressure"]) / 1e6, "--" if "winkler" in label else "-",
+                label=label)
+    ax.set_xlim(-8, 8)
+    ax.set_xlabel("x relative to the idler's axis (mm; rolling towards +x)")
+    ax.set_ylabel("pressure (MPa)")
+    ax.grid(True, alpha=0.3)
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(out / "pressure.png", dpi=110)
+
+
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(prog="python -m petroll.studies.layer",
                                      description=__doc__.split("\n\n")[0])
@@ -188,6 +221,7 @@ def main(argv=None) -> None:
     if MPI.COMM_WORLD.rank == 0:
         write_table(rows, out / "layer.csv")
         figures(rows, out)
+    profiles(out)
 
 
 if __name__ == "__main__":
