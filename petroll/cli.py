@@ -64,7 +64,7 @@ def _parser() -> argparse.ArgumentParser:
     stability.add_argument("--out", default="results/stability", help="directory for stability.csv and .md")
     bench = verbs.add_parser("bench", help="run a benchmark, print its table and write CSV (docs/benchmarks.md)")
     bench.add_argument("which", choices=["tao", "warm", "skips", "peers", "precision", "growth", "mpi", "memory",
-                                         "append"],
+                                         "append", "layer"],
                        help="tao: every TAO type on the Hertz step; warm: operator applications per rolling "
                        "step for each first guess; skips: each saving on and off; peers: petroll against Tamaas and "
                        "ContactMechanics on the Hertz step; precision: error against run time of the "
@@ -72,7 +72,8 @@ def _parser() -> argparse.ArgumentParser:
                        "step against the contact window's cells, and along a long track; mpi: time per "
                        "rolling step against the rank count; memory: peak memory of every rank against the "
                        "grid's cells at 1, 2 and 4 ranks (--ranks); append: results.h5 writing time per "
-                       "saved step over 1000 steps")
+                       "saved step over 1000 steps; layer: cost per step of layer scenes against the "
+                       "half-space (docs/layer.md)")
     bench.add_argument("--out", default="results/bench", help="directory for the CSV (and PNG) files")
     bench.add_argument("--ranks", type=_ranks, help="mpi and memory only: rank counts to run side by side as "
                        "mpirun children, e.g. 1,2 (default: mpi: the current communicator only; memory: 1,2,4)")
@@ -349,6 +350,7 @@ def _main(args: argparse.Namespace, comm) -> int:
         import pathlib
 
         from petroll.studies import bench, bench_rolling
+        from petroll.studies.layer import bench as layer_bench
         from petroll.errors import PetrollError
 
         if args.ranks is not None and args.which not in ("mpi", "memory"):
@@ -373,7 +375,7 @@ def _main(args: argparse.Namespace, comm) -> int:
         else:
             {"tao": bench.tao_types, "warm": bench.warm_starts, "peers": bench.peers,
              "precision": bench_rolling.precision, "growth": bench_rolling.growth,
-             "skips": bench_rolling.skips}[args.which](out, comm)
+             "skips": bench_rolling.skips, "layer": layer_bench}[args.which](out, comm)
         return 0
     if args.verb == "sweep":
         from petroll.studies.sweep import command

@@ -390,11 +390,13 @@ def _prune(path: pathlib.Path, keep: int) -> None:
 
 
 def fingerprint(scene) -> str:
-    """A digest of the material and of the body's heights on the grid: what a restart must find unchanged
-    even when it comes from files ([material] file, [body] file) that the scene text only names. The
-    heights are computed and hashed a block of rows at a time (no whole-grid array)."""
+    """A digest of the material (and its layer) and of the body's heights on the grid: what a restart must
+    find unchanged even when it comes from files ([material] file, [body] file) that the scene text only
+    names. The heights are computed and hashed a block of rows at a time (no whole-grid array)."""
     g = scene.grid
     h = hashlib.sha256(repr(scene.material).encode())
+    if scene.layer is not None:
+        h.update(repr(scene.layer).encode())
     block = chunk_rows(g.ny)
     for i in range(0, g.nx, block):
         x = g.x[i : i + block, None] - scene.position[0]

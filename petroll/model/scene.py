@@ -226,11 +226,29 @@ def _shift(value: Any):
 TEMPERATURE_KEYS = {"temperature", "shift"}
 """[material] keys of time-temperature superposition, taken by every model with material times."""
 
+LAYER_FORM = '{thickness = h (m, > 0), base = "bonded" or "frictionless"}'
+"""What [material] layer may be written as."""
+
+
+def _layer(value: Any) -> tuple[float, str]:
+    """[material] layer: (thickness, base); nu is added once the model's keys are known."""
+    if not isinstance(value, dict) or set(value) != {"thickness", "base"}:
+        raise _Invalid(f"must be an inline table {LAYER_FORM}")
+    try:
+        thickness = _positive(value["thickness"])
+    except _Invalid:
+        raise _Invalid(f"thickness = {value['thickness']!r} must be a finite number > 0 (m); allowed: "
+                       f"{LAYER_FORM}") from None
+    if value["base"] not in materials.LAYER_BASES:
+        raise _Invalid(f"base = {value['base']!r} must be one of: "
+                       + ", ".join(repr(b) for b in materials.LAYER_BASES) + f"; allowed: {LAYER_FORM}")
+    return thickness, value["base"]
+
 MODEL_KEYS: dict[str, tuple[set[str], set[str]]] = {
-    "elastic": ({"E", "nu"}, set()),
-    "sls": ({"E0", "Einf", "nu"}, {"tau_creep", "tau_relax"} | TEMPERATURE_KEYS),
-    "prony": ({"series", "Einf", "nu", "times"}, {"compliances", "moduli"} | TEMPERATURE_KEYS),
-    "tabulated": ({"file", "quantity"}, {"nu"} | TEMPERATURE_KEYS),
+    "elastic": ({"E", "nu"}, {"layer"}),
+    "sls": ({"E0", "Einf", "nu"}, {"tau_creep", "tau_relax", "layer"} | TEMPERATURE_KEYS),
+    "prony": ({"series", "Einf", "nu", "times"}, {"compliances", "moduli", "layer"} | TEMPERATURE_KEYS),
+    "tabulated": ({"file", "quantity"}, {"nu", "layer"} | TEMPERATURE_KEYS),
 }
 """Per model: the [material] keys it requires, and those it may take."""
 
@@ -278,6 +296,10 @@ SCHEMA: dict[str, dict[str, Key]] = {
                      'C2 (K), T_ref (K)}: log10 a_T = -C1 (T - T_ref)/(C2 + T - T_ref), or {law = '
                      '"arrhenius", Ea (J/mol), T_ref (K)}: ln a_T = (Ea/R)(1/T - 1/T_ref), R = 8.314462618 '
                      'J/(mol K)', _shift, default=None),
+        "layer": Key("inline table", "the material is a layer of this thickness on a rigid base, its bottom "
+                     'bonded to it or sliding freely on it: {thickness = h (m), base = "bonded" or '
+                     '"frictionless"} (all models; needs nu; absent: a half-space; docs/layer.md)', _layer,
+                     default=None),
     },
     "body": {
         "shape": Key("string", "body shape: " + ", ".join(BODY_KEYS) + " (its own keys: see below)",
@@ -388,6 +410,7 @@ class Scene:
     keep: int = 2  # checkpoints kept
     fields: tuple[str, ...] = ("pressure",)  # saved at the saved steps ([output] fields)
     shift_factor: float = 1.0  # a_T at [material] temperature: material's times / their values at T_ref
+    layer: materials.Layer | None = None  # [material] layer: a layer on a rigid base (None: a half-space)
 
     def replace(self, changes: str | dict[str, Any], value: Any = None) -> "Scene":
         """A copy with keys changed, validated again: ``scene.replace("motion.penetration", 3e-5)`` or,
@@ -485,7 +508,8 @@ def parse_scene(raw: dict, source: str = "<python>", base_dir: str | pathlib.Pat
                   output_dir=output_dir, every=values["output"]["every"], base_dir=base_dir,
                   checkpoint_every=values["output"]["checkpoint_every"], keep=values["output"]["keep"],
                   fields=_fields(values["output"]["fields"]),
-                  shift_factor=shift_factor)
+                  shift_factor=shift_factor,
+                  layer=_material_layer(values["material"], raw.get("material", {}), source))
     _check_contact_inside(scene)
     from petroll.model.limits import check_scene  # slopes beyond the linear theory: refused or warned
 
@@ -605,6 +629,16 @@ def _material(values: dict, table: dict, base_dir: pathlib.Path, source: str):
         build = materials.kelvin if terms == "compliances" else materials.maxwell
         return build(v["Einf"], v["nu"], v[terms], v["times"])
     return _tabulated_material(v, base_dir, source)
+
+
+def _material_layer(values: dict, table: dict, source: str) -> materials.Layer | None:
+    """The [material] layer with the material's nu (required with a layer, even for quantity = "J")."""
+    if values["layer"] is None:
+        return None
+    if values["nu"] is None:
+        raise SceneError(source, "[material] nu", MISSING, "required with [material] layer: the layer's "
+                         "response depends on Poisson's ratio (-1 < nu <= 0.5)")
+    return materials.Layer(*values["layer"], values["nu"])
 
 
 MAX_STIFFNESS_RATIO = 1e7

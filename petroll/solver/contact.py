@@ -34,7 +34,8 @@ from petroll.errors import SolverError
 from petroll.model.grid import Grid
 from petroll.model.scene import DEFAULT_TAO_TYPE, TAO_TYPES
 from petroll.solver.partition import RowPartition, move_rows
-from petroll.solver.influence import influence_operator, shell_matrix, spare_cores
+from petroll.solver.influence import shell_matrix, spare_cores
+from petroll.solver.layer import material_operator
 from petroll.solver.pk import PK_PYTHON_TYPE, PolonskyKeer, tao_reasons
 from petroll.solver.precondition import CirculantInverse
 
@@ -65,7 +66,8 @@ class ContactSolver:
     """
 
     def __init__(self, grid: Grid, comm: MPI.Comm, tao_type: str = DEFAULT_TAO_TYPE, tol: float = 1e-8,
-                 prefix: str = "petroll_", max_iterations: int = 10000, precondition: bool = True):
+                 prefix: str = "petroll_", max_iterations: int = 10000, precondition: bool = True,
+                 layer=None):
         from petsc4py import PETSc
 
         self.grid, self.comm, self.tol, self.prefix = grid, comm, tol, prefix
@@ -75,11 +77,15 @@ class ContactSolver:
         workers = options.getInt("fft_workers", spare_cores(comm))
         if workers < 1:
             raise SolverError(f"-{prefix}fft_workers {workers}: the FFT threads per rank must be >= 1")
-        self.influence = influence_operator(grid, comm, workers)
+        self.influence = material_operator(grid, comm, layer, workers)
+        self.lift = self.influence.lift_bound(grid.nx, grid.ny)  # upward displacement per unit pressure
         self.rows = RowPartition(grid.nx, comm.size)
         self.r0, self.r1 = self.rows.range(comm.rank)
         self.work = [0, 0]  # TAO iterations and operator applications of every QP solved so far
         self._qps: dict[tuple[int, int], WindowQP] = {}
+
+    MARGIN = 4
+    """Width in cells of the ring around a layer's QP window on which the gap is checked (_solve_qp)."""
 
     kept = 6
     """Window shapes whose TAO, shell matrix and vectors are kept (the most recently used)."""
@@ -229,12 +235,62 @@ class ContactSolver:
     # -- the QP -----------------------------------------------------------------------------------------
     def _solve_qp(self, interference: np.ndarray, compliance: float, warm: np.ndarray | None,
                   load: float | None = None):
-        """The QP on the window of positive ``interference`` (m); ``load`` (N, pk only): the force held, the
-        penetration found with the pressure. Returns the pressure, TAO's iterations, the applications, the
-        residual, the window and the penetration's change (m; 0 without load)."""
+        """The QP on the window of the cells that can touch (``interference`` in m); ``load`` (N, pk only):
+        the force held, the penetration found with the pressure. Returns the pressure, TAO's iterations,
+        the applications, the residual, the window and the penetration's change (m; 0 without load).
+
+        With all coefficients positive the cells that can touch are those With all coefficients positive 
+        of positive interference (exact). A layer's surface bulges up around a load, so cells beyond
+        them can touch too: the window then also covers the warm start's contact, and after each solve the
+        gap is checked on a ring of ``MARGIN`` cells around the window; cells found touching (gap below
+        -tol of the largest interference) join the window and the QP is solved again, until the ring is
+        clear. (A cell beyond a clear ring touching would need the bulge to rise faster than the body's
+        profile away from the contact; the thin incompressible layer's contact, 41 % wider than the
+        interference region, is found this way: tests/test_layer.py.)"""
+        candidates = interference > 0
+        if (not self.influence.positive and warm is not None
+                and self.comm.allreduce(bool(candidates.any()), op=MPI.LOR)):
+            candidates |= warm > 0
+        its = applications = 0
+        while True:
+            pressure, n, apps, residual, window, change = self._solve_window(interference, compliance, warm,
+                                                                             candidates, load)
+            its, applications = its + n, applications + apps
+            if self.influence.positive or window == (0, 0, 0, 0):
+                return pressure, its, applications, residual, window, change
+            touching = self._touching(pressure, interference + change, compliance, window)
+            if not self.comm.allreduce(bool(touching.any()), op=MPI.LOR):
+                return pressure, its, applications, residual, window, change
+            candidates = candidates | touching
+            warm = pressure
+
+    def _touching(self, pressure: np.ndarray, interference: np.ndarray, compliance: float,
+                  window: tuple[int, int, int, int]) -> np.ndarray:
+        """Cells outside ``window`` but within ``MARGIN`` cells of it whose gap J A p - interference is
+        below -tol times the largest interference (this rank's rows; booleans). No convolution when the
+        surface's largest possible lift, J max(p) ``lift``, cannot close the ring's gaps."""
+        g, m = self.grid, self.MARGIN
+        i0, i1, j0, j1 = window
+        box = (max(i0 - m, 0), min(i1 + m, g.nx), max(j0 - m, 0), min(j1 + m, g.ny))
+        ring = np.zeros(self.local_shape, dtype=bool)
+        rows = slice(max(box[0], self.r0) - self.r0, max(min(box[1], self.r1), self.r0) - self.r0)
+        ring[rows, box[2]:box[3]] = True
+        rows = slice(max(i0, self.r0) - self.r0, max(min(i1, self.r1), self.r0) - self.r0)
+        ring[rows, j0:j1] = False
+        extremes = np.array([interference.max(initial=0.0), np.max(interference, where=ring, initial=-np.inf),
+                             pressure.max(initial=0.0)])
+        self.comm.Allreduce(MPI.IN_PLACE, extremes, op=MPI.MAX)
+        w_ref, closest, p_max = extremes
+        if closest + compliance * p_max * self.lift < -self.tol * w_ref:
+            return np.zeros(self.local_shape, dtype=bool)
+        gap = compliance * self.convolve_box(pressure, box) - interference
+        return ring & (gap < -self.tol * w_ref)
+
+    def _solve_window(self, interference: np.ndarray, compliance: float, warm: np.ndarray | None,
+                      candidates: np.ndarray, load: float | None):
         grid, comm = self.grid, self.comm
         pressure = np.zeros(self.local_shape)
-        window = self._window(interference > 0)
+        window = self._window(candidates)
         if window is None:
             return pressure, 0, 0, 0.0, (0, 0, 0, 0), 0.0
         i0, i1, j0, j1 = window

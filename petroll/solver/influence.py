@@ -249,9 +249,11 @@ class InfluenceOperator:
     """Largest Love table kept (8 MiB)."""
 
     def __init__(self, dx: float, dy: float, comm: MPI.Comm = MPI.COMM_SELF,
-                 coefficients: Callable[[int, int], np.ndarray] | None = None, workers: int = 1):
+                 coefficients: Callable[[int, int], np.ndarray] | None = None, workers: int = 1,
+                 positive: bool = True):
         self.dx, self.dy, self.comm, self.workers = dx, dy, comm, workers
         self.love = coefficients is None
+        self.positive = positive  # every coefficient > 0 (a layer's are not: its surface bulges)
         self.coefficients = coefficients or (lambda nx, ny: love_coefficients(nx, ny, dx, dy))
         self._table = self.coefficients(1, 1)
         self._windows: dict[tuple[int, int], Convolution] = {}
@@ -276,14 +278,25 @@ class InfluenceOperator:
         return conv
 
     def row_sum_bound(self, nx: int, ny: int) -> float:
-        """An upper bound of every row sum of A on an nx x ny block: sum_k A_ik <= this (unit compliance),
-        i.e. the largest displacement a unit field on every cell can cause: the sum over all offsets
-        |di| < nx, |dj| < ny. For Love's coefficients that is the displacement at the centre of a
+        """An upper bound of every row sum of |A| on an nx x ny block: sum_k |A_ik| <= this (unit
+        compliance), i.e. the largest displacement a field of unit magnitude can cause: the sum over all
+        offsets |di| < nx, |dj| < ny. For Love's coefficients that is the displacement at the centre of a
         (2 nx - 1) dx x (2 ny - 1) dy rectangle under unit pressure: Love's formula, no table."""
         if self.love:
             return float(rectangle_displacement(0.0, 0.0, (2 * nx - 1) * self.dx / 2,
                                                 (2 * ny - 1) * self.dy / 2))
-        t = self.table_rows(nx, ny)(np.arange(nx))
+        return self._offsets_sum(np.abs(self.table_rows(nx, ny)(np.arange(nx))))
+
+    def lift_bound(self, nx: int, ny: int) -> float:
+        """The sum of -A over the offsets |di| < nx, |dj| < ny where A < 0 (unit compliance): the most a
+        field of unit magnitude can lift a cell's surface (0 for positive coefficients)."""
+        if self.positive:
+            return 0.0
+        return self._offsets_sum(np.maximum(-self.table_rows(nx, ny)(np.arange(nx)), 0.0))
+
+    @staticmethod
+    def _offsets_sum(t: np.ndarray) -> float:
+        """The sum over all signed offsets of a table given for offsets >= 0 (even in both)."""
         return float(4 * t.sum() - 2 * t[0, :].sum() - 2 * t[:, 0].sum() + t[0, 0])
 
     def table_rows(self, nx: int, ny: int) -> Callable[[np.ndarray], np.ndarray]:
@@ -302,7 +315,7 @@ class InfluenceOperator:
 def influence_operator(grid: Grid, comm: MPI.Comm = MPI.COMM_SELF, workers: int = 1) -> InfluenceOperator:
     """The influence operator of ``grid``: Love's rectangles, or for a line-contact grid the plane-strain
     strip kernel with the grid's datum (:func:`strip_coefficients`; the table is (nx, 1)); ``workers``
-    FFT threads."""
+    FFT threads. A layer's: :func:`petroll.solver.layer.material_operator`."""
     if not grid.line:
         return InfluenceOperator(grid.dx, grid.dy, comm, workers=workers)
     dx, datum = grid.dx, grid.datum

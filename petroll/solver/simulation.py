@@ -21,7 +21,7 @@ from mpi4py import MPI
 from petroll.solver.contact import BeyondReach, ContactSolver
 from petroll.errors import SceneError, SolverError
 from petroll.solver.history import make_history
-from petroll.solver.influence import InfluenceOperator
+from petroll.solver.layer import material_operator
 from petroll.solver.steady import Anderson, memory
 from petroll.model.materials import Prony
 from petroll.model.scene import Scene
@@ -65,7 +65,8 @@ class Simulation:
 
     def __init__(self, scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD):
         self.scene, self.comm = scene, comm
-        self.solver = ContactSolver(scene.grid, comm, tao_type=scene.solver.tao_type, tol=scene.solver.tol)
+        self.solver = ContactSolver(scene.grid, comm, tao_type=scene.solver.tao_type, tol=scene.solver.tol,
+                                    layer=scene.layer)
         self.history = make_history(scene.material, scene.solver.integrator, self.solver.local_shape)
         g = scene.grid
         self.x = g.x[self.solver.r0 : self.solver.r1, None]
@@ -209,7 +210,7 @@ class Simulation:
         pad[axis] = (behind, 0) if sign > 0 else (0, behind)
         inside = [slice(None), slice(None)]
         inside[axis] = slice(behind, None) if sign > 0 else slice(0, n_along)
-        extended = InfluenceOperator(g.dx, g.dy).window(g.nx + (behind if axis == 0 else 0),
+        extended = material_operator(g, layer=scene.layer).window(g.nx + (behind if axis == 0 else 0),
                                                           g.ny + (behind if axis == 1 else 0))
 
         def displacement(field):  # A m on this rank's rows, m given on the extended grid
