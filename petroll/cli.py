@@ -8,6 +8,8 @@
     petroll sweep SCENE.toml --vary KEY=SPEC [--out DIR]   one scene over values of a key (docs/sweep.md)
     petroll stress DIR [--step N] [--depth z1,z2,... | --depths auto] [--nu NU]   stresses below a saved
                             pressure field: DIR/stress.h5 and DIR/stress.png
+    petroll bench tao|warm|skips|peers|precision|growth|mpi|memory|append [--out DIR]   benchmarks
+                            (docs/benchmarks.md); bench warm --quick: a seconds-long check that it runs
     petroll material fit DMA.csv [--terms N | --per-decade K] [--nu NU] [--shift LAW] [--out FILE.toml]
                             a Prony series fitted to DMA data: the [material] block (docs/materials.md)
 
@@ -76,6 +78,9 @@ def _parser() -> argparse.ArgumentParser:
                        "mpirun children, e.g. 1,2 (default: mpi: the current communicator only; memory: 1,2,4)")
     bench.add_argument("--sides", type=_ranks, help="memory only: grid sides (cells) to measure, e.g. "
                        "1024,2048,4096 (the default)")
+    bench.add_argument("--quick", action="store_true", help="warm only: a coarse grid (a/dx = 6) and one "
+                       "repeat, in seconds: shows that the benchmark runs (e.g. from an install); measures "
+                       "nothing")
     sweep = verbs.add_parser("sweep", help="run a scene over values of one key to steady state; table and "
                              "plot in DIR (docs/sweep.md); run again to resume")
     sweep.add_argument("scene", help="scene file (TOML)")
@@ -350,6 +355,8 @@ def _main(args: argparse.Namespace, comm) -> int:
             raise PetrollError(f"petroll bench {args.which}: --ranks applies to petroll bench mpi and memory only")
         if args.sides is not None and args.which != "memory":
             raise PetrollError(f"petroll bench {args.which}: --sides applies to petroll bench memory only")
+        if args.quick and args.which != "warm":
+            raise PetrollError(f"petroll bench {args.which}: --quick applies to petroll bench warm only")
         out = pathlib.Path(args.out)
         if args.which == "mpi":
             bench_rolling.mpi_scaling(out, comm, ranks=args.ranks)
@@ -361,6 +368,8 @@ def _main(args: argparse.Namespace, comm) -> int:
             else:
                 bench_memory.memory(out, comm, sides=args.sides or bench_memory.SIDES,
                                     ranks=args.ranks or bench_memory.RANKS)
+        elif args.quick:
+            bench.warm_starts(out, comm, cells_per_radius=6, repeats=1)
         else:
             {"tao": bench.tao_types, "warm": bench.warm_starts, "peers": bench.peers,
              "precision": bench_rolling.precision, "growth": bench_rolling.growth,

@@ -690,7 +690,7 @@ def _changes(old: dict, new: dict):
 
 def _simple(value) -> bool:
     return value is None or isinstance(value, (bool, int, float, str)) or (
-        isinstance(value, tuple) and all(isinstance(v, (int, float)) for v in value))
+        isinstance(value, (list, tuple)) and all(isinstance(v, (int, float, str)) for v in value))
 
 
 def _normal(value):

@@ -9,12 +9,13 @@ Writes ``peers.csv`` and ``peers.png``. The peers run in their own virtual envir
 (created or completed on first use with pip: they need numpy 2, which must not enter petroll's
 environment); every solver runs through its script ``peers/solve_<name>.py``.
 
-``petroll bench warm [--out DIR]``: the rolling sphere of runs/sphere.toml on square cells at a/dx = 16 (the
-Hertz radius over 16 cells), rolled one cell per step to steady state, with every step's QP started from
-p = 0 (``cold``), from the last solution carried along with the body (``carried``) and from the last three
-extrapolated in the body's frame (``extrapolated``, the default; petroll/warm.py): operator applications
-per step (all warm steps, and the last 20, at steady state), time per step, and the steady force and mu_r
-(the guess changes the cost, not the answer). Writes warm.csv and warm.png (applications per step).
+``petroll bench warm [--out DIR] [--quick]``: the rolling sphere of runs/sphere.toml on square cells at
+a/dx = 16 (the Hertz radius over 16 cells), rolled one cell per step to steady state, with every step's QP
+started from p = 0 (``cold``), from the last solution carried along with the body (``carried``) and from
+the last three extrapolated in the body's frame (``extrapolated``, the default; petroll/solver/warm.py):
+operator applications per step (all warm steps, and the last 20, at steady state), time per step, and the
+steady force and mu_r (the guess changes the cost, not the answer). Writes warm.csv and warm.png
+(applications per step). ``--quick``: a/dx = 6 and one repeat, a check that it runs (tests/test_install.py).
 
 ``petroll bench tao [--out DIR]``: every TAO type on the elastic Hertz step (sphere, displacement control)
 at two resolutions, cold (from p = 0) and warm (from the solution at a 1 % smaller penetration), the types
