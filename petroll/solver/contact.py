@@ -141,7 +141,7 @@ class ContactSolver:
             if not reach > base:
                 raise BeyondReach(f"the load {load:g} N needs a penetration beyond {reach:g} m")
             if warm is None:
-                warm = self._hertz_pressure(height, compliance, load, radius_hint)
+                warm = self._hertz_pressure(height, compliance, load, radius_hint, min(delta_guess, reach))
             return self._load_in_pk(height, compliance, load, min(delta_guess, reach), warm, reach)
         power = 1.0 if self.grid.line else 2 / 3
         rtol = 10 * self.tol
@@ -181,15 +181,16 @@ class ContactSolver:
         raise SolverError(f"load control did not reach the load {load:g} N within 60 penetrations "
                           f"(last force {step.force:g} N); check the scene's load and body")
 
-    def _hertz_pressure(self, height: np.ndarray, compliance: float, load: float, radius: float) -> np.ndarray:
+    def _hertz_pressure(self, height: np.ndarray, compliance: float, load: float, radius: float,
+                        delta: float) -> np.ndarray:
         """Hertz's pressure (Pa) for ``load`` on a sphere (line contact: a cylinder, N/m) of ``radius`` (m)
-        centred on the lowest height: a cold start for load control (this rank's rows)."""
+        centred on the centroid of the interference delta - height > 0 (m): a cold start for load control
+        (this rank's rows; symmetric where the body is)."""
         g = self.grid
-        local = np.unravel_index(np.argmin(height), height.shape) if height.size else (0, 0)
-        value = float(height[local]) if height.size else np.inf
-        _, rank = self.comm.allreduce((value, self.comm.rank), op=MPI.MINLOC)
-        centre = self.comm.bcast((g.x[self.r0 + local[0]], g.y[local[1]]) if rank == self.comm.rank else None,
-                                 root=rank)
+        w = np.maximum(delta - height, 0.0)
+        sums = np.array([w.sum(), (w.sum(axis=1) * g.x[self.r0 : self.r1]).sum(), (w.sum(axis=0) * g.y).sum()])
+        self.comm.Allreduce(MPI.IN_PLACE, sums, op=MPI.SUM)
+        centre = sums[1:] / sums[0]
         x = g.x[self.r0 : self.r1, None] - centre[0]
         if g.line:
             a = math.sqrt(4 * load * radius * compliance / math.pi)
