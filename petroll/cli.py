@@ -440,14 +440,17 @@ def summary(scene, results, wall: float) -> str:
     """One paragraph on a finished run: its extent, the last (steady) values, wall time and output path."""
     s = results.series
     n = len(s["t"])
+    if scene.time.mode == "steady":
+        how = "the steady state solved directly ([time] mode = \"steady\")"
+    else:
+        how = f"{n} step{'s' * (n != 1)} to t = {s['t'][-1]:.4g} s over {s['distance'][-1]:.4g} m of rolling"
     steady = scene.time.steady is not None and (
         (scene.time.end is not None and s["t"][-1] < scene.time.end * (1 - 1e-9))
         or (scene.time.distance is not None and s["distance"][-1] < scene.time.distance * (1 - 1e-9)))
     state = "steady state reached, " if steady else ""
     line = scene.grid.line  # plane strain: per unit length, the penetration relative to the datum
     force, area = ("N/m", "contact width {:.4g} m") if line else ("N", "contact area {:.4g} m^2")
-    return (f"petroll: {scene.source}: {n} step{'s' * (n != 1)} to t = {s['t'][-1]:.4g} s over {s['distance'][-1]:.4g} m "
-            f"of rolling ({state}wall time {wall:.1f} s). Last step: force {s['force'][-1]:.6g} {force} at "
+    return (f"petroll: {scene.source}: {how} ({state}wall time {wall:.1f} s). Last step: force {s['force'][-1]:.6g} {force} at "
             f"penetration {s['delta'][-1]:.6g} m{' (to the datum)' if line else ''}, mu_r {s['mu_r'][-1]:.4e}, "
             f"{area.format(s['area'][-1])}, "
             f"patch from {s['trail'][-1]:.4g} to {s['lead'][-1]:.4g} m along the motion, max pressure "

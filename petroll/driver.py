@@ -46,7 +46,9 @@ def run(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, out: str | pathlib.Path |
     prepare_output(out, comm)
     sim = Simulation(scene, comm)
     g = scene.grid
-    results = ResultsFile(out / "results.h5", scene.text, g.x, g.y, comm, fields=scene.fields, line=g.line)
+    steady = scene.time.mode == "steady"
+    results = ResultsFile(out / "results.h5", scene.text, g.x, g.y, comm, fields=scene.fields, line=g.line,
+                          steady=steady)
     if restart is not None:
         t, field_steps = restart.restore(sim)
         results.resume(run_directory(restart.path) / "results.h5", len(sim.records), field_steps)
@@ -62,7 +64,7 @@ def run(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, out: str | pathlib.Path |
             on_step(record)
         signum = stop.agreed(comm) if stop is not None else 0
         interrupted = bool(signum) and not stop_now
-        every = scene.checkpoint_every
+        every = 0 if steady else scene.checkpoint_every  # a steady solve is one step: nothing to resume
         due = every and not resumed and ((record.step > 0 and record.step % every == 0) or stop_now)
         if progress and comm.rank == 0:
             _show_progress(scene, record, clock.perf_counter() - wall)

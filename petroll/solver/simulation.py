@@ -21,8 +21,8 @@ from mpi4py import MPI
 from petroll.solver.contact import BeyondReach, ContactSolver
 from petroll.errors import SceneError, SolverError
 from petroll.solver.history import make_history
-from petroll.solver.influence import InfluenceOperator
-from petroll.solver.steady import Anderson, memory
+from petroll.solver.influence import influence_operator
+from petroll.solver.steady import Anderson, SteadyMemory
 from petroll.model.materials import Prony
 from petroll.model.scene import Scene
 from petroll.solver.wake import Wake
@@ -76,7 +76,8 @@ class Simulation:
         self.warm = WarmStart(scene.grid, self.solver.rows, comm)
         self.wake = Wake(self.solver, scene.solver.history_cutoff)
         self.t, self.dt_next = 0.0, None
-        self._newest = None  # the newest step's (profile, v, J_eff, delta): what surface() needs
+        self._newest = None  # the newest step's (profile, v, J_eff, delta): what surface() needs (a steady
+        # solve: (profile, w, None, delta))
 
     # -- the run ----------------------------------------------------------------------------------------
     def steps(self, t: float = 0.0, dts: Iterable[float] | None = None) -> Iterator[StepRecord]:
@@ -88,8 +89,14 @@ class Simulation:
         record again, unsolved, then the steps after it. While a record is out, ``self.t`` is its time and
         ``self.dt_next`` the length of the next step (None: it is the last). ``dts``: the step lengths
         after the sudden start (s), instead of the scene's clock and steady stop. A step numbered beyond
-        [time] max_steps raises SceneError.
+        [time] max_steps raises SceneError. A scene with [time] mode = "steady" yields its one step,
+        the steady state solved directly (:meth:`solve_steady`).
         """
+        if self.scene.time.mode == "steady":
+            record = self.solve_steady(tol=self.scene.solver.tol)
+            self.t, self.dt_next = 0.0, None
+            yield record
+            return
         lengths = iter(dts) if dts is not None else None
         resumed, dt = bool(self.records), 0.0
         while True:
@@ -172,10 +179,13 @@ class Simulation:
 
     def solve_steady(self, tol: float = 1e-10, max_iterations: int = 500) -> StepRecord:
         """The constant-velocity steady state solved directly in the body frame (petroll.solver.steady),
-        recorded as step 0 at t = 0 with the body at [motion] position. Velocity, penetration or load are
-        taken at t = 0 and must be constant (the caller checks); the motion must be along X or Y. ``tol``:
-        relative change of the memory field (scaled by the QP compliance x p_max) at which the fixed point
-        stops. The wake behind the grid (up to 25 V tau) is included; surface() is not available after it."""
+        recorded as step 0 at t = 0 with the body at [body] position. Velocity, penetration or load are
+        taken at t = 0 and must be constant (the scene checks this for [time] mode = "steady"); the motion
+        must be along X or Y. The memory is the scene's integrator at its time step: dt from [time] dt or
+        steps_per_cell (default 1 step per cell), so that with one step per cell crossed this is exactly
+        the state the transient run converges to. ``tol``: relative change of the memory field (scaled by
+        the QP compliance x p_max) at which the fixed point stops. The wake behind the grid (up to 25 V tau,
+        at most 4 grid lengths) is included. Collective: the memory is computed whole on every rank."""
         scene, solver, comm, g = self.scene, self.solver, self.comm, self.scene.grid
         material = scene.material
         if not isinstance(material, Prony):
@@ -190,11 +200,10 @@ class Simulation:
                              "the steady solve needs a non-zero velocity along X or Y")
         sign = 1 if velocity[axis] > 0 else -1
         cell = g.dx if axis == 0 else g.dy
+        dt = scene.time.dt or g.cell / ((scene.time.steps_per_cell or 1.0) * speed)
         self.direction = velocity / speed
         sx, sy = scene.position
         profile = scene.body.height(self.x - sx, self.y - sy)
-        # the wake behind the grid (no pressure, memory decaying over V tau) pushes on the contact too:
-        # the memory and its displacement are computed on the grid extended behind by ``behind`` cells
         # the QPs' compliance: J at the time the material takes to cross a Hertz half-width (relaxed when
         # rolling slowly, instantaneous when fast); the rest of the operator is the memory, lagged
         if scene.penetration is not None:
@@ -202,20 +211,24 @@ class Simulation:
         else:
             half_width = (0.75 * float(scene.load(0.0)) * scene.body.radius_hint * material.Jinf) ** (1 / 3)
         compliance = float(material(half_width / speed))
+        # the wake behind the grid (no pressure, memory decaying over V tau) pushes on the contact too:
+        # the memory and its displacement are computed on the grid extended behind by ``behind`` cells
         r0, r1 = solver.r0, solver.r1
         n_along = (g.nx, g.ny)[axis]
         behind = min(math.ceil(25 * speed * material.longest_time / cell), 4 * n_along)
+        shape = [g.nx, g.ny]
+        shape[axis] += behind
         pad = [(0, 0), (0, 0)]
         pad[axis] = (behind, 0) if sign > 0 else (0, behind)
         inside = [slice(None), slice(None)]
         inside[axis] = slice(behind, None) if sign > 0 else slice(0, n_along)
-        extended = InfluenceOperator(g.dx, g.dy).window(g.nx + (behind if axis == 0 else 0),
-                                                          g.ny + (behind if axis == 1 else 0))
+        extended = influence_operator(g).window(*shape)
+        memory = SteadyMemory(material, scene.solver.integrator, speed, dt, cell, axis, sign, shape[axis])
 
-        def displacement(field):  # A m on this rank's rows, m given on the extended grid
+        def displacement(field):  # A field on this rank's rows, field given on the extended grid
             return extended(field)[tuple(inside)][r0:r1]
 
-        m = np.zeros((g.nx + (behind if axis == 0 else 0), g.ny + (behind if axis == 1 else 0)))
+        m = np.zeros(shape)
         mixer, work = Anderson(), list(solver.work)
         solution, delta = None, None
         for _ in range(max_iterations):
@@ -227,9 +240,8 @@ class Simulation:
                 solution = solver.solve_load(height, compliance, float(scene.load(0.0)),
                                              scene.body.radius_hint, delta, warm)
             delta = solution.delta
-            p = np.vstack(comm.allgather(solution.pressure))
-            p = np.pad(p, pad)
-            target = memory(p, material, speed, cell, axis, sign) - (compliance - material.J0) * p
+            p = np.pad(np.vstack(comm.allgather(solution.pressure)), pad)
+            target = memory(p) - compliance * p
             scale = compliance * float(p.max(initial=0.0))
             change = float(np.abs(target - m).max(initial=0.0))
             if change <= tol * scale:
@@ -241,7 +253,8 @@ class Simulation:
         solution.iterations = solver.work[0] - work[0]
         solution.applications = solver.work[1] - work[1]
         self.pressure = solution.pressure
-        self._newest = None  # surface() is not kept for a steady solve (its wake lies beyond the grid)
+        w = displacement(m + compliance * p)
+        self._newest = (profile, w, None, delta)
         record = self._diagnose(0, 0.0, sx, sy, solution, velocity, 0.0, clock.perf_counter() - start)
         self.records.append(record)
         return record
@@ -256,6 +269,8 @@ class Simulation:
         if self._newest is None:
             raise RuntimeError("no solved step: the surface of a restored step is not kept")
         profile, v, compliance, delta = self._newest
+        if compliance is None:  # a steady solve: v is already w (its wake lies beyond the grid)
+            return v, profile + v - delta
         g = self.scene.grid
         source = compliance * self.pressure if v is None else compliance * self.pressure + v
         w = self.solver.influence.window(g.nx, g.ny)(source)

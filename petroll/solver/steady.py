@@ -1,56 +1,84 @@
 """Steady rolling at constant velocity solved directly in the body frame (no transient).
 
-For J(t) = Jinf - sum_i dJ_i exp(-t / tau_i) and a body moving at constant speed V along the direction d,
-a material point now at body-frame position x was, a time s ago, at x + V s d (ahead of the body: the
-material arrives from ahead). The steady surface displacement is therefore
+A body moving at constant speed V along the direction d (+X, -X, +Y or -Y): in its frame the material
+streams backwards, and a material point now at body-frame cell j was at j + V s d a time s ago (the
+material arrives from ahead). The transient run's time integrator ([solver] integrator, step dt) turns a
+point's pressure history into its displacement in pressure space W (w = A W, formulation §4): a linear,
+time-invariant, causal filter of that history, whose response to a unit pressure pulse is h[s] (s steps
+later; :func:`pulse_response`, computed by the integrator itself). In steady state the history of the point
+at j is the body-frame field ahead of it, so
 
-    u = A (J0 p + sum_i dJ_i E_i p),    (E_i p)(x) = int_0^inf exp(-eta / L_i) p(x + eta d) deta / L_i,
+    W_j = sum_s h[s] p(j + s c),     c = V dt / (cell along d),
 
-L_i = V tau_i. With p interpolated linearly between cell centres along d (so that a filter length far
-below the cell still shifts the field by L: E p = p + L dp/dx + ...), E_i at a cell centre is exact as the
-one-sided recursion
+with p interpolated linearly between cell centres along d: a correlation with a per-cell kernel H
+(:func:`memory_kernel`). With c = 1 (the body crosses one cell per step: [time] steps_per_cell = 1 on square
+cells) there is no interpolation and this is exactly the steady state of the transient run with that step
+and integrator: the long transient converges to it. Smaller c refines the time integration of the same
+body-frame field (c -> 0: the exact hereditary law for p linear between cell centres).
 
-    (E p)_k = alpha p_k + beta p_{k+1} + r (E p)_{k+1},   r = e^{-t}, t = dx / L,
-    beta = (1 - e^{-t} (1 + t)) / t,   alpha = 1 - e^{-t} - beta,
-
-(k + 1 the next cell ahead). With the memory m(p) = sum_i dJ_i E_i p,
-the steady state is a fixed point of elastic contact problems with a compliance Jc (Simulation.solve_steady:
-J at the time to cross the contact) and the known height Z + A (m(p_old) - (Jc - J0) p_old), solved by the
-ContactSolver; Anderson mixing of that field accelerates it.
+Simulation.solve_steady finds p by a fixed point over elastic contact problems: compliance Jc (J at the
+time to cross the contact) and the known height Z + A (W(p_old) - Jc p_old), Anderson-mixed.
 """
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
+from scipy.signal import fftconvolve
+
+from petroll.solver.history import make_history
 
 
-def creep_filter(p: np.ndarray, length: float, cell: float, axis: int, sign: int) -> np.ndarray:
-    """E p of the module docstring on a whole (nx, ny) field: ``length`` = V tau (m), ``cell`` the cell
-    size along ``axis`` (m), ``sign`` = +1 when the motion is towards increasing index along ``axis``."""
-    q = np.moveaxis(p, axis, 0)
-    if sign < 0:
-        q = q[::-1]
-    t = cell / length
-    r = np.exp(-t)
-    beta = -np.expm1(-t) / t - r if t > 1e-3 else t / 2 - t * t / 3  # (1 - e^-t (1 + t)) / t
-    alpha = -np.expm1(-t) - beta
-    out = np.empty_like(q)
-    ahead = np.zeros(q.shape[1:])  # (E p) and p of the next cell ahead; none beyond the grid (p = 0)
-    p_ahead = np.zeros(q.shape[1:])
-    for k in range(q.shape[0] - 1, -1, -1):  # from the front backwards
-        ahead = alpha * q[k] + beta * p_ahead + r * ahead
-        out[k], p_ahead = ahead, q[k]
-    if sign < 0:
-        out = out[::-1]
-    return np.moveaxis(out, 0, axis)
+def pulse_response(material, integrator: str, dt: float, steps: int) -> np.ndarray:
+    """W (1/Pa) of one material point at steps 0 ... steps - 1 after it carried a unit pressure over step
+    0 only (zero before and after), as ``integrator`` computes it with steps of dt (s): h[0] = J_eff.
+    The history is guarded: a step at which the integrator cannot hold a penetration is refused
+    (SolverError), as in a transient run."""
+    history = make_history(material, integrator, (1, 1))
+    pulse, rest = np.ones((1, 1)), np.zeros((1, 1))
+    h = np.empty(steps)
+    for s in range(steps):
+        p = pulse if s == 0 else rest
+        v = history.preceding(dt)
+        h[s] = history.compliance(dt) * p[0, 0] + (0.0 if v is None else v[0, 0])
+        history.advance(p, dt)
+    return h
 
 
-def memory(p: np.ndarray, material, speed: float, cell: float, axis: int, sign: int) -> np.ndarray:
-    """m(p) = sum_i dJ_i E_i p (Pa * 1/Pa, >= 0 for p >= 0): J0 A p + A m(p) is the steady displacement."""
-    m = np.zeros_like(p)
-    for dJ, tau in zip(material.dJ, material.tau):
-        m += dJ * creep_filter(p, speed * tau, cell, axis, sign)
-    return m
+def memory_kernel(h: np.ndarray, c: float, cells: int) -> np.ndarray:
+    """H[m], m = 0 ... cells - 1: W_j = sum_m H[m] p_{j+m} (module docstring) from the pulse response h
+    of steps that cross c cells each (p linear between cell centres; c = 1: H = h)."""
+    position = np.arange(len(h)) * c
+    i = np.floor(position + 1e-12).astype(int)
+    f = np.clip(position - i, 0.0, 1.0)
+    H = np.zeros(cells + 1)
+    inside = i < cells
+    np.add.at(H, i[inside], (1 - f[inside]) * h[inside])
+    np.add.at(H, i[inside] + 1, f[inside] * h[inside])
+    return H[:cells]
+
+
+class SteadyMemory:
+    """W(p) of the module docstring on a body-frame field, motion along ``axis`` (0: X, 1: Y) with ``sign``
+    +1 towards increasing index. ``behind``: cells added behind the field (its wake, where p = 0):
+    ``__call__`` takes and returns fields on the extended grid."""
+
+    def __init__(self, material, integrator: str, speed: float, dt: float, cell: float, axis: int,
+                 sign: int, cells: int):
+        c = speed * dt / cell
+        steps = math.ceil(cells / c) + 1
+        self.kernel = memory_kernel(pulse_response(material, integrator, dt, steps), c, cells)
+        self.axis, self.sign = axis, sign
+
+    def __call__(self, p: np.ndarray) -> np.ndarray:
+        q = np.moveaxis(p, self.axis, 0)
+        if self.sign > 0:  # reversed so that "ahead" is towards lower index: a causal convolution
+            q = q[::-1]
+        w = fftconvolve(q, self.kernel[:, None], axes=0)[: q.shape[0]]
+        if self.sign > 0:
+            w = w[::-1]
+        return np.moveaxis(w, 0, self.axis)
 
 
 class Anderson:
