@@ -84,6 +84,8 @@ def _parser() -> argparse.ArgumentParser:
                        "motion.velocity=1e-4..1e-1:log:7 (a vector key varies its magnitude)")
     sweep.add_argument("--out", help="output directory (default: the scene's [output] dir + -sweep)")
     sweep.add_argument("--quiet", action="store_true", help="no progress line (also off when not a terminal)")
+    sweep.add_argument("--transient", action="store_true", help="run every point from rest to steady state, "
+                       "even where its steady state can be solved directly (the default there)")
     material = verbs.add_parser("material", help="materials from measurements (docs/materials.md)")
     material_verbs = material.add_subparsers(dest="material_verb", required=True, metavar="fit")
     fit = material_verbs.add_parser("fit", help="fit a Maxwell (relaxation) Prony series with non-negative "
@@ -369,7 +371,7 @@ def _main(args: argparse.Namespace, comm) -> int:
     if args.verb == "sweep":
         from petroll.studies.sweep import command
 
-        return command(args.scene, args.vary, args.out, args.quiet, comm)
+        return command(args.scene, args.vary, args.out, args.quiet, comm, args.transient)
     if args.verb == "stress":
         return _stress(args, comm)
     if args.verb == "stability":

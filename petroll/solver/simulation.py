@@ -22,7 +22,7 @@ from petroll.solver.contact import BeyondReach, ContactSolver
 from petroll.errors import SceneError, SolverError
 from petroll.solver.history import make_history
 from petroll.solver.influence import influence_operator
-from petroll.solver.steady import Anderson, SteadyMemory
+from petroll.solver.steady import Anderson, FarWake, SteadyMemory
 from petroll.model.materials import Prony
 from petroll.model.scene import Scene
 from petroll.solver.wake import Wake
@@ -76,6 +76,7 @@ class Simulation:
         self.warm = WarmStart(scene.grid, self.solver.rows, comm)
         self.wake = Wake(self.solver, scene.solver.history_cutoff)
         self.t, self.dt_next = 0.0, None
+        self.steady_start = None  # a first guess for solve_steady: (whole-grid pressure in Pa, penetration in m)
         self._newest = None  # the newest step's (profile, v, J_eff, delta): what surface() needs (a steady
         # solve: (profile, w, None, delta))
 
@@ -177,21 +178,25 @@ class Simulation:
         self.records.append(record)
         return record
 
-    def solve_steady(self, tol: float = 1e-10, max_iterations: int = 500) -> StepRecord:
+    def solve_steady(self, tol: float = 1e-10, max_iterations: int = 500,
+                     start: tuple[np.ndarray, float] | None = None) -> StepRecord:
         """The constant-velocity steady state solved directly in the body frame (petroll.solver.steady),
         recorded as step 0 at t = 0 with the body at [body] position. Velocity, penetration or load are
         taken at t = 0 and must be constant (the scene checks this for [time] mode = "steady"); the motion
         must be along X or Y. The memory is the scene's integrator at its time step: dt from [time] dt or
         steps_per_cell (default 1 step per cell), so that with one step per cell crossed this is exactly
         the state the transient run converges to. ``tol``: relative change of the memory field (scaled by
-        the QP compliance x p_max) at which the fixed point stops. The wake behind the grid (up to 25 V tau,
-        at most 4 grid lengths) is included. Collective: the memory is computed whole on every rank."""
+        the QP compliance x p_max) at which the fixed point stops. ``start``: a first guess (the whole
+        grid's pressure, Pa, and its penetration, m), e.g. a neighbouring steady state (continuation; default
+        ``self.steady_start``, else the elastic problem with the QP compliance). The wake behind the grid (up
+        to 25 V tau, at most 4 grid lengths) is included. Collective: the memory is computed whole on every
+        rank."""
         scene, solver, comm, g = self.scene, self.solver, self.comm, self.scene.grid
         material = scene.material
         if not isinstance(material, Prony):
             raise SceneError(scene.source, "[material] model", "tabulated",
                              'the direct steady solve needs a Prony series: use [time] mode = "transient"')
-        start = clock.perf_counter()
+        began = clock.perf_counter()
         velocity = np.asarray(scene.velocity(0.0), dtype=float)
         speed = float(np.hypot(*velocity))
         axis = 0 if abs(velocity[1]) == 0 else 1
@@ -211,11 +216,14 @@ class Simulation:
         else:
             half_width = (0.75 * float(scene.load(0.0)) * scene.body.radius_hint * material.Jinf) ** (1 / 3)
         compliance = float(material(half_width / speed))
-        # the wake behind the grid (no pressure, memory decaying over V tau) pushes on the contact too:
-        # the memory and its displacement are computed on the grid extended behind by ``behind`` cells
+        # the wake behind the grid (no pressure, memory decaying over V tau) pushes on the contact too, up
+        # to 30 V tau: the memory and its displacement are computed on the grid extended behind by
+        # ``behind`` cells, the rest (3-D) lumped in blocks (FarWake)
         r0, r1 = solver.r0, solver.r1
         n_along = (g.nx, g.ny)[axis]
-        behind = min(math.ceil(25 * speed * material.longest_time / cell), 4 * n_along)
+        needed = math.ceil(30 * speed * material.longest_time / cell)
+        behind = min(needed, 4 * n_along if g.line else max(2 * n_along, 64))
+        far = needed - behind if not g.line else 0
         shape = [g.nx, g.ny]
         shape[axis] += behind
         pad = [(0, 0), (0, 0)]
@@ -223,25 +231,37 @@ class Simulation:
         inside = [slice(None), slice(None)]
         inside[axis] = slice(behind, None) if sign > 0 else slice(0, n_along)
         extended = influence_operator(g).window(*shape)
-        memory = SteadyMemory(material, scene.solver.integrator, speed, dt, cell, axis, sign, shape[axis])
+        memory = SteadyMemory(material, scene.solver.integrator, speed, dt, cell, axis, sign,
+                              n_along + behind + far + 1)
+        wake = None
+        if far > 0:
+            wake = FarWake(memory.kernel, n_along, (g.ny, g.nx)[axis], behind, far, cell,
+                           g.dy if axis == 0 else g.dx, axis, sign)
 
-        def displacement(field):  # A field on this rank's rows, field given on the extended grid
-            return extended(field)[tuple(inside)][r0:r1]
+        def displacement(field, p):  # A field + the far wake of p on this rank's rows (field extended)
+            u = extended(field)[tuple(inside)]
+            return (u if wake is None else u + wake(p))[r0:r1]
 
-        m = np.zeros(shape)
+        m, p = np.zeros(shape), np.zeros((g.nx, g.ny))
         mixer, work = Anderson(), list(solver.work)
-        solution, delta = None, None
+        solution, delta, warm = None, None, None
+        start = start if start is not None else self.steady_start
+        if start is not None:
+            p = np.asarray(start[0], dtype=float).reshape(g.nx, g.ny)
+            guess = np.pad(p, pad)
+            m, warm, delta = memory(guess) - compliance * guess, p[r0:r1], start[1]
         for _ in range(max_iterations):
-            height = profile + displacement(m)
-            warm = None if solution is None else solution.pressure
+            height = profile + displacement(m, p)
+            warm = warm if solution is None else solution.pressure
             if scene.penetration is not None:
                 solution = solver.solve_penetration(height, compliance, float(scene.penetration(0.0)), warm)
             else:
                 solution = solver.solve_load(height, compliance, float(scene.load(0.0)),
                                              scene.body.radius_hint, delta, warm)
             delta = solution.delta
-            p = np.pad(np.vstack(comm.allgather(solution.pressure)), pad)
-            target = memory(p) - compliance * p
+            p = np.vstack(comm.allgather(solution.pressure))
+            padded = np.pad(p, pad)
+            target = memory(padded) - compliance * padded
             scale = compliance * float(p.max(initial=0.0))
             change = float(np.abs(target - m).max(initial=0.0))
             if change <= tol * scale:
@@ -253,9 +273,9 @@ class Simulation:
         solution.iterations = solver.work[0] - work[0]
         solution.applications = solver.work[1] - work[1]
         self.pressure = solution.pressure
-        w = displacement(m + compliance * p)
+        w = displacement(m + compliance * padded, p)
         self._newest = (profile, w, None, delta)
-        record = self._diagnose(0, 0.0, sx, sy, solution, velocity, 0.0, clock.perf_counter() - start)
+        record = self._diagnose(0, 0.0, sx, sy, solution, velocity, 0.0, clock.perf_counter() - began)
         self.records.append(record)
         return record
 

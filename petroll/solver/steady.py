@@ -28,21 +28,49 @@ import numpy as np
 from scipy.signal import fftconvolve
 
 from petroll.solver.history import make_history
+from petroll.solver.influence import rectangle_displacement
 
 
 def pulse_response(material, integrator: str, dt: float, steps: int) -> np.ndarray:
     """W (1/Pa) of one material point at steps 0 ... steps - 1 after it carried a unit pressure over step
     0 only (zero before and after), as ``integrator`` computes it with steps of dt (s): h[0] = J_eff.
     The history is guarded: a step at which the integrator cannot hold a penetration is refused
-    (SolverError), as in a transient run."""
+    (SolverError), as in a transient run.
+
+    The integrator is a linear state machine: after the pulse its state S evolves by a fixed matrix M per
+    step. M^K (K ~ sqrt(steps)) is measured by running K steps from every basis state at once (one field of
+    d cells), the states at multiples of K follow by d x d products, and one more batch of K steps from all
+    of them gives every h[s]: 2 K integrator steps instead of ``steps``."""
     history = make_history(material, integrator, (1, 1))
-    pulse, rest = np.ones((1, 1)), np.zeros((1, 1))
-    h = np.empty(steps)
-    for s in range(steps):
-        p = pulse if s == 0 else rest
-        v = history.preceding(dt)
-        h[s] = history.compliance(dt) * p[0, 0] + (0.0 if v is None else v[0, 0])
-        history.advance(p, dt)
+    h = np.zeros(steps)
+    h[0] = history.compliance(dt)
+    history.advance(np.ones((1, 1)), dt)
+    rest = steps - 1
+    if rest <= 0 or history.preceding(dt) is None:
+        return h
+    after = np.array([f[0, 0] for f in history.state()])  # S at step 1, just after the pulse
+    d, K = len(after), math.isqrt(rest - 1) + 1
+    blocks = -(-rest // K)
+
+    def run(start: np.ndarray, record: np.ndarray | None = None) -> np.ndarray:
+        """K steps at p = 0 from the states ``start`` (d, cells): the final states; W of each step into
+        ``record`` (K, cells)."""
+        history.load_state([row.reshape(1, -1).copy() for row in start])
+        zero = np.zeros((1, start.shape[1]))
+        for r in range(K):
+            if record is not None:
+                record[r] = history.preceding(dt)[0]
+            history.advance(zero, dt)
+        return np.array([f[0] for f in history.state()])
+
+    power = run(np.eye(d))  # M^K: column j = M^K e_j
+    starts = np.empty((d, blocks))
+    starts[:, 0] = after
+    for b in range(1, blocks):
+        starts[:, b] = power @ starts[:, b - 1]
+    out = np.empty((K, blocks))
+    run(starts, out)
+    h[1:] = out.T.ravel()[:rest]
     return h
 
 
@@ -61,8 +89,8 @@ def memory_kernel(h: np.ndarray, c: float, cells: int) -> np.ndarray:
 
 class SteadyMemory:
     """W(p) of the module docstring on a body-frame field, motion along ``axis`` (0: X, 1: Y) with ``sign``
-    +1 towards increasing index. ``behind``: cells added behind the field (its wake, where p = 0):
-    ``__call__`` takes and returns fields on the extended grid."""
+    +1 towards increasing index; ``kernel`` (H) holds ``cells`` values. ``__call__`` takes and returns
+    fields extended behind by cells where p = 0 (the near wake), along the motion at most ``cells`` long."""
 
     def __init__(self, material, integrator: str, speed: float, dt: float, cell: float, axis: int,
                  sign: int, cells: int):
@@ -75,10 +103,49 @@ class SteadyMemory:
         q = np.moveaxis(p, self.axis, 0)
         if self.sign > 0:  # reversed so that "ahead" is towards lower index: a causal convolution
             q = q[::-1]
-        w = fftconvolve(q, self.kernel[:, None], axes=0)[: q.shape[0]]
+        w = fftconvolve(q, self.kernel[: q.shape[0], None], axes=0)[: q.shape[0]]
         if self.sign > 0:
             w = w[::-1]
         return np.moveaxis(w, 0, self.axis)
+
+
+class FarWake:
+    """The displacement on the grid of the wake far behind it: cells ``near`` < t <= ``near + far`` behind
+    the grid's rear row (t in cells along the motion), where p = 0 and W_{-t} = sum_k H[k + t] p_k varies
+    only over V tau. They are lumped into blocks growing geometrically (by ``ratio``), each carrying its
+    mean W over Love's rectangle of the block (exact for the block mean; blocks are at least ``near`` cells
+    from the grid, where W is smooth). 3-D grids only. ``along``, ``across``: cell sides (m) along and
+    across the motion; ``n_across`` cells across; ``axis``, ``sign`` as :class:`SteadyMemory`."""
+
+    def __init__(self, kernel: np.ndarray, n_along: int, n_across: int, near: int, far: int, along: float,
+                 across: float, axis: int, sign: int, ratio: float = 1.15):
+        edges = [near + 1]
+        while edges[-1] <= near + far:
+            edges.append(min(max(edges[-1] + 1, round(edges[-1] * ratio)), near + far + 1))
+        e = np.array(edges)
+        cumulative = np.concatenate([[0.0], np.cumsum(kernel)])
+        k = np.arange(n_along)[None, :]
+        width = np.diff(e)[:, None]
+        self.mean = (cumulative[k + e[1:, None]] - cumulative[k + e[:-1, None]]) / width  # (blocks, n_along)
+        centre = (e[:-1] + e[1:] - 1) / 2  # cells behind the rear row
+        self.length = 2 * n_across
+        offsets = np.arange(self.length)
+        offsets = np.where(offsets < n_across, offsets, offsets - self.length)  # wrap-around order
+        r = rectangle_displacement(((np.arange(n_along)[:, None, None] + centre[None, :, None]) * along),
+                                   offsets[None, None, :] * across, width[None, :, :] * along / 2, across / 2)
+        self.spectrum = np.fft.rfft(r, axis=2)  # (n_along, blocks, frequencies)
+        self.axis, self.sign, self.n_across = axis, sign, n_across
+
+    def __call__(self, p: np.ndarray) -> np.ndarray:
+        """The far wake's displacement (m per unit compliance x Pa) on the grid, from its pressure p."""
+        q = np.moveaxis(p, self.axis, 0)
+        if self.sign < 0:  # so that the rear row is row 0
+            q = q[::-1]
+        blocks = np.fft.rfft(self.mean @ q, n=self.length, axis=1)
+        u = np.fft.irfft(np.einsum("kbf,bf->kf", self.spectrum, blocks), n=self.length, axis=1)[:, : self.n_across]
+        if self.sign < 0:
+            u = u[::-1]
+        return np.moveaxis(u, 0, self.axis)
 
 
 class Anderson:
