@@ -208,3 +208,23 @@ def test_a_steady_scene_that_is_not_steady_is_refused_with_one_line(changes, key
     assert code == 2 and len(lines) == 1 and "Traceback" not in err, err
     assert key in lines[0] and "s.toml" in lines[0], lines[0]
     assert not (tmp_path / "out" / "results.h5").exists()
+
+
+@pytest.mark.parametrize("v_tau_a", [1.0, 10.0])
+def test_the_far_wake_in_blocks_is_the_wake_on_a_long_grid(v_tau_a, comm):
+    """A 16 x 16 window: the wake from 64 cells (14 a) to 30 V tau behind is lumped in geometric blocks
+    (FarWake). Oracle: the same solve on a grid extended 30 V tau behind the body, where the whole wake is
+    convolved cell by cell. Measured: 4.1e-6 (force), 1.2e-6 (mu_r) at V tau/a = 10;
+    7e-12 at V tau/a = 1."""
+    speed, n, half = v_tau_a * A / TAU, 16, HALF
+    cell = 2 * half / n
+    motion = {"velocity": [speed, 0.0], "penetration": DELTA}
+    window = Simulation(scene(half=half, n=n, motion=motion, time={"mode": "steady"}, solver={"tol": 1e-10}),
+                        comm).solve_steady(tol=1e-10)
+    behind = math.ceil(30 * speed * TAU / cell)
+    long = scene(half=half, n=n, motion=motion, time={"mode": "steady"}, solver={"tol": 1e-10})
+    long = long.replace({"grid.nx": n + behind, "grid.x": [-half - behind * cell, half]})
+    whole = Simulation(long, comm).solve_steady(tol=1e-10)
+    assert window.force == pytest.approx(whole.force, rel=1e-5)
+    assert window.mu_r == pytest.approx(whole.mu_r, rel=1e-5)
+    assert window.mu_r > 5e-3

@@ -37,10 +37,10 @@ def pulse_response(material, integrator: str, dt: float, steps: int) -> np.ndarr
     The history is guarded: a step at which the integrator cannot hold a penetration is refused
     (SolverError), as in a transient run.
 
-    The integrator is a linear state machine: after the pulse its state S evolves by a fixed matrix M per
-    step. M^K (K ~ sqrt(steps)) is measured by running K steps from every basis state at once (one field of
-    d cells), the states at multiples of K follow by d x d products, and one more batch of K steps from all
-    of them gives every h[s]: 2 K integrator steps instead of ``steps``."""
+    The integrator is a linear state machine: after the pulse (state S_1) a step at p = 0 maps the state
+    S to M S and outputs W = c S. M and c are measured by one step of the integrator itself from every
+    basis state at once (a field of d cells); then h[1 + j K + r] = (c M^r) (M^K)^j S_1 for r < K ~
+    sqrt(steps): about 2 sqrt(steps) products of d x d matrices instead of ``steps`` integrator steps."""
     history = make_history(material, integrator, (1, 1))
     h = np.zeros(steps)
     h[0] = history.compliance(dt)
@@ -48,43 +48,37 @@ def pulse_response(material, integrator: str, dt: float, steps: int) -> np.ndarr
     rest = steps - 1
     if rest <= 0 or history.preceding(dt) is None:
         return h
-    after = np.array([f[0, 0] for f in history.state()])  # S at step 1, just after the pulse
-    d, K = len(after), math.isqrt(rest - 1) + 1
-    blocks = -(-rest // K)
-
-    def run(start: np.ndarray, record: np.ndarray | None = None) -> np.ndarray:
-        """K steps at p = 0 from the states ``start`` (d, cells): the final states; W of each step into
-        ``record`` (K, cells)."""
-        history.load_state([row.reshape(1, -1).copy() for row in start])
-        zero = np.zeros((1, start.shape[1]))
-        for r in range(K):
-            if record is not None:
-                record[r] = history.preceding(dt)[0]
-            history.advance(zero, dt)
-        return np.array([f[0] for f in history.state()])
-
-    power = run(np.eye(d))  # M^K: column j = M^K e_j
-    starts = np.empty((d, blocks))
-    starts[:, 0] = after
-    for b in range(1, blocks):
-        starts[:, b] = power @ starts[:, b - 1]
-    out = np.empty((K, blocks))
-    run(starts, out)
-    h[1:] = out.T.ravel()[:rest]
+    after = np.array([f[0, 0] for f in history.state()])  # S_1, just after the pulse
+    d = len(after)
+    history.load_state([row.reshape(1, d).copy() for row in np.eye(d)])  # cell j holds the state e_j
+    c = history.preceding(dt)[0].copy()
+    history.advance(np.zeros((1, d)), dt)
+    M = np.array([f[0] for f in history.state()])  # column j = M e_j
+    K = math.isqrt(rest - 1) + 1
+    outputs, power = np.empty((K, d)), np.eye(d)  # rows c M^r; M^r
+    for r in range(K):
+        outputs[r] = c @ power
+        power = power @ M
+    J = -(-rest // K)
+    states = np.empty((d, J))  # (M^K)^j S_1
+    states[:, 0] = after
+    for b in range(1, J):
+        states[:, b] = power @ states[:, b - 1]
+    h[1:] = (outputs @ states).T.ravel()[:rest]
     return h
 
 
 def memory_kernel(h: np.ndarray, c: float, cells: int) -> np.ndarray:
     """H[m], m = 0 ... cells - 1: W_j = sum_m H[m] p_{j+m} (module docstring) from the pulse response h
     of steps that cross c cells each (p linear between cell centres; c = 1: H = h)."""
+    if c == 1:
+        return np.concatenate([h, np.zeros(max(cells - len(h), 0))])[:cells]
     position = np.arange(len(h)) * c
     i = np.floor(position + 1e-12).astype(int)
     f = np.clip(position - i, 0.0, 1.0)
-    H = np.zeros(cells + 1)
     inside = i < cells
-    np.add.at(H, i[inside], (1 - f[inside]) * h[inside])
-    np.add.at(H, i[inside] + 1, f[inside] * h[inside])
-    return H[:cells]
+    i, f, h = i[inside], f[inside], h[inside]
+    return (np.bincount(i, (1 - f) * h, cells + 1) + np.bincount(i + 1, f * h, cells + 1))[:cells]
 
 
 class SteadyMemory:
@@ -118,7 +112,7 @@ class FarWake:
     across the motion; ``n_across`` cells across; ``axis``, ``sign`` as :class:`SteadyMemory`."""
 
     def __init__(self, kernel: np.ndarray, n_along: int, n_across: int, near: int, far: int, along: float,
-                 across: float, axis: int, sign: int, ratio: float = 1.15):
+                 across: float, axis: int, sign: int, ratio: float = 1.05):
         edges = [near + 1]
         while edges[-1] <= near + far:
             edges.append(min(max(edges[-1] + 1, round(edges[-1] * ratio)), near + far + 1))
@@ -129,10 +123,10 @@ class FarWake:
         self.mean = (cumulative[k + e[1:, None]] - cumulative[k + e[:-1, None]]) / width  # (blocks, n_along)
         centre = (e[:-1] + e[1:] - 1) / 2  # cells behind the rear row
         self.length = 2 * n_across
-        offsets = np.arange(self.length)
-        offsets = np.where(offsets < n_across, offsets, offsets - self.length)  # wrap-around order
-        r = rectangle_displacement(((np.arange(n_along)[:, None, None] + centre[None, :, None]) * along),
-                                   offsets[None, None, :] * across, width[None, :, :] * along / 2, across / 2)
+        half = rectangle_displacement(((np.arange(n_along)[:, None, None] + centre[None, :, None]) * along),
+                                      np.arange(n_across)[None, None, :] * across, width[None, :, :] * along / 2,
+                                      across / 2)  # even in the offset across: wrap-around order below
+        r = np.concatenate([half, half[:, :, :1] * 0, half[:, :, :0:-1]], axis=2)
         self.spectrum = np.fft.rfft(r, axis=2)  # (n_along, blocks, frequencies)
         self.axis, self.sign, self.n_across = axis, sign, n_across
 

@@ -240,7 +240,8 @@ def _transient_point(scene: Scene, key: str, value: float) -> Scene:
     changes: dict[str, object] = {key: new}
     if key in EXCLUSIVE:
         changes[EXCLUSIVE[key]] = None
-    if "time" in scene.raw and "steady" not in scene.raw["time"] and key != "time.steady":
+    time = scene.raw.get("time")
+    if time is not None and "steady" not in time and time.get("mode") != "steady" and key != "time.steady":
         changes["time.steady"] = DEFAULT_STEADY
     return scene.replace(changes)
 
