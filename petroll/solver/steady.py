@@ -28,7 +28,6 @@ import numpy as np
 from scipy.signal import fftconvolve
 
 from petroll.solver.history import make_history
-from petroll.solver.influence import rectangle_displacement
 
 
 def pulse_response(material, integrator: str, dt: float, steps: int) -> np.ndarray:
@@ -107,8 +106,8 @@ class FarWake:
     """The displacement on the grid of the wake far behind it: cells ``near`` < t <= ``near + far`` behind
     the grid's rear row (t in cells along the motion), where p = 0 and W_{-t} = sum_k H[k + t] p_k varies
     only over V tau. They are lumped into blocks growing geometrically (by ``ratio``), each carrying its
-    mean W over Love's rectangle of the block (exact for the block mean; blocks are at least ``near`` cells
-    from the grid, where W is smooth). 3-D grids only. ``along``, ``across``: cell sides (m) along and
+    mean W (exact, from the cumulative sums of H) as line sources along the motion, one per column of cells
+    across (blocks are at least ``near`` cells from the grid, where W is smooth). 3-D grids only. ``along``, ``across``: cell sides (m) along and
     across the motion; ``n_across`` cells across; ``axis``, ``sign`` as :class:`SteadyMemory`."""
 
     def __init__(self, kernel: np.ndarray, n_along: int, n_across: int, near: int, far: int, along: float,
@@ -121,12 +120,15 @@ class FarWake:
         k = np.arange(n_along)[None, :]
         width = np.diff(e)[:, None]
         self.mean = (cumulative[k + e[1:, None]] - cumulative[k + e[:-1, None]]) / width  # (blocks, n_along)
-        centre = (e[:-1] + e[1:] - 1) / 2  # cells behind the rear row
         self.length = 2 * n_across
-        half = rectangle_displacement(((np.arange(n_along)[:, None, None] + centre[None, :, None]) * along),
-                                      np.arange(n_across)[None, None, :] * across, width[None, :, :] * along / 2,
-                                      across / 2)  # even in the offset across: wrap-around order below
-        r = np.concatenate([half, half[:, :, :1] * 0, half[:, :, :0:-1]], axis=2)
+        # a block's strip of cells across as a line source along the motion (exact along it; across, its
+        # width dy is lumped at its centre line: the blocks are >= near cells away): per unit compliance
+        # (dy / pi) ln((x2 + r2) / (x1 + r1)), x1, x2 the block's ends ahead of the target, r = sqrt(x^2 + y^2)
+        x1 = (np.arange(n_along)[:, None, None] + e[None, :-1, None] - 0.5) * along
+        x2 = x1 + width[None, :, :] * along
+        y = np.arange(n_across)[None, None, :] * across
+        half = across / np.pi * np.log((x2 + np.hypot(x2, y)) / (x1 + np.hypot(x1, y)))
+        r = np.concatenate([half, half[:, :, :1] * 0, half[:, :, :0:-1]], axis=2)  # even across: wrap-around
         self.spectrum = np.fft.rfft(r, axis=2)  # (n_along, blocks, frequencies)
         self.axis, self.sign, self.n_across = axis, sign, n_across
 
@@ -159,5 +161,7 @@ class Anderson:
             return gx
         df = np.array([a - b for a, b in zip(self.fs[1:], self.fs[:-1])]).reshape(len(self.fs) - 1, -1)
         dg = np.array([a - b for a, b in zip(self.xs[1:], self.xs[:-1])]).reshape(len(self.xs) - 1, -1)
-        gamma = np.linalg.lstsq(df.T, f.ravel(), rcond=None)[0]
+        gram = df @ df.T  # the least-squares problem min |f - gamma df| by its normal equations (k <= depth)
+        gram += 1e-14 * np.trace(gram) * np.eye(len(gram))
+        gamma = np.linalg.solve(gram, df @ f.ravel())
         return gx - (gamma @ dg).reshape(gx.shape)
