@@ -62,7 +62,7 @@ def _parser() -> argparse.ArgumentParser:
     stability.add_argument("--out", default="results/stability", help="directory for stability.csv and .md")
     bench = verbs.add_parser("bench", help="run a benchmark, print its table and write CSV (docs/benchmarks.md)")
     bench.add_argument("which", choices=["tao", "warm", "skips", "peers", "precision", "growth", "mpi", "memory",
-                                         "append"],
+                                         "append", "steady"],
                        help="tao: every TAO type on the Hertz step; warm: operator applications per rolling "
                        "step for each first guess; skips: each saving on and off; peers: petroll against Tamaas and "
                        "ContactMechanics on the Hertz step; precision: error against run time of the "
@@ -70,7 +70,8 @@ def _parser() -> argparse.ArgumentParser:
                        "step against the contact window's cells, and along a long track; mpi: time per "
                        "rolling step against the rank count; memory: peak memory of every rank against the "
                        "grid's cells at 1, 2 and 4 ranks (--ranks); append: results.h5 writing time per "
-                       "saved step over 1000 steps")
+                       "saved step over 1000 steps; steady: the direct steady solve against the transient run "
+                       "to the same steady tolerance, V tau/a 1e-3 to 1e3")
     bench.add_argument("--out", default="results/bench", help="directory for the CSV (and PNG) files")
     bench.add_argument("--ranks", type=_ranks, help="mpi and memory only: rank counts to run side by side as "
                        "mpirun children, e.g. 1,2 (default: mpi: the current communicator only; memory: 1,2,4)")
@@ -353,7 +354,11 @@ def _main(args: argparse.Namespace, comm) -> int:
         if args.sides is not None and args.which != "memory":
             raise PetrollError(f"petroll bench {args.which}: --sides applies to petroll bench memory only")
         out = pathlib.Path(args.out)
-        if args.which == "mpi":
+        if args.which == "steady":
+            from petroll.studies.bench_steady import steady
+
+            steady(out, comm)
+        elif args.which == "mpi":
             bench_rolling.mpi_scaling(out, comm, ranks=args.ranks)
         elif args.which in ("memory", "append"):
             from petroll.studies import bench_memory

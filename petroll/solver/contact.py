@@ -180,6 +180,7 @@ class ContactSolver:
         start = None
         if warm is not None:
             start = move_rows(warm[:, j0:j1], grid_ranges, window_ranges, comm).ravel() / to_pressure
+        qp.tao.setTolerances(gatol=self.tol, grtol=0.0, gttol=0.0)  # self.tol may change between solves
         x, gap, its, applications = qp.solve(-target.ravel() / w_ref, start)
         natural = np.minimum(x, gap)
         residual = comm.allreduce(float(np.abs(natural).max(initial=0.0)), op=MPI.MAX)
