@@ -93,7 +93,9 @@ COLUMNS: dict[str, tuple[str, str]] = {
     "speed": ("m/s", "|V| of a constant velocity (NaN otherwise)"),
     "tau": ("s", "longest creep (retardation) time of a Prony/SLS material (NaN otherwise)"),
     "a_T": ("-", "time-temperature shift factor at the point's [material] temperature (1 without one)"),
-    "a": ("m", "Hertz radius of the first step: sqrt(R delta_0) for a sphere, else sqrt(area_0/pi)"),
+    "a": ("m", "Hertz radius of the first step: sqrt(R delta_0) for a sphere, else sqrt(area_0/pi) (line "
+          "contact: half the width); a point solved directly has no first step: Hertz with J0 at its "
+          "force (sphere under load control, cylinder in line contact)"),
     "v_tau_a": ("-", "V tau / a (NaN where speed or tau is)"),
     "mu_r_slow": ("-", "slow-rolling limit V sum(dJ_r tau_r) / (Jinf R) (sphere, Prony; = V tau (1 - "
                   "J0/Jinf)/R for an SLS)"),
@@ -423,7 +425,12 @@ def table_row(scene: Scene, results: Results, value: float) -> dict[str, float]:
     sphere = isinstance(scene.body, Sphere)
     line = scene.grid.line  # plane strain: force per length, area a width, delta relative to the datum
     delta0 = float(s["delta"][0])
-    if line:
+    direct = scene.time.mode == "steady"  # no first (instantaneous) step: Hertz with J0 at its load
+    if direct and line and isinstance(scene.body, CylinderSection) and isinstance(material, Prony):
+        a = math.sqrt(4 * st.force * scene.body.radius * material.J0 / math.pi)
+    elif direct and sphere and scene.load is not None and isinstance(material, Prony):
+        a = (0.75 * st.force * scene.body.radius * material.J0) ** (1 / 3)
+    elif line:
         a = float(s["area"][0]) / 2
     elif sphere and delta0 > 0:
         a = math.sqrt(scene.body.radius * delta0)
