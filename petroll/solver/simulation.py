@@ -179,7 +179,7 @@ class Simulation:
         return record
 
     def solve_steady(self, tol: float = 1e-10, max_iterations: int = 500,
-                     start: tuple[np.ndarray, float] | None = None) -> StepRecord:
+                     start: tuple[np.ndarray, float] | None = None, steady: float | None = None) -> StepRecord:
         """The constant-velocity steady state solved directly in the body frame (petroll.solver.steady),
         recorded as step 0 at t = 0 with the body at [body] position. Velocity, penetration or load are
         taken at t = 0 and must be constant (the scene checks this for [time] mode = "steady"); the motion
@@ -188,7 +188,9 @@ class Simulation:
         the state the transient run converges to. ``tol``: relative change of the memory field (scaled by
         the QP compliance x p_max) at which the fixed point stops; the QPs are solved to 1 % of the memory's
         last change until then (at least [solver] tol), the last ones to max([solver] tol, tol / 100).
-        ``start``: a first guess (the whole
+        ``steady``: stop also once force and resisting force change by at most ``steady`` x force
+        from one fixed-point iteration to the next (the [time] steady test of a transient run, applied to
+        the iterations; petroll bench steady). ``start``: a first guess (the whole
         grid's pressure, Pa, and its penetration, m), e.g. a neighbouring steady state (continuation; default
         ``self.steady_start``, else the elastic problem with the QP compliance). The wake behind the grid up
         to 30 V tau is included (cell by cell up to 2 grid lengths, in blocks beyond: FarWake; line contact:
@@ -253,7 +255,7 @@ class Simulation:
         if start is not None:
             p = np.asarray(start[0], dtype=float).reshape(g.nx, g.ny)
             m, warm, delta = lagged(np.pad(p, pad)), p[r0:r1], start[1]
-        scene_tol, change, scale = solver.tol, math.inf, 1.0
+        scene_tol, change, scale, previous = solver.tol, math.inf, 1.0, None
         final = max(scene_tol, min(0.01 * tol, 1e-3))  # the last QPs' tolerance
         for _ in range(max_iterations):
             height = profile + displacement(m, p)
@@ -274,6 +276,11 @@ class Simulation:
             if change <= tol * scale and solver.tol == final:
                 m = target
                 break
+            forces = self._forces(solution.pressure, sx, sy, velocity / speed)
+            if steady is not None and previous is not None and all(
+                    abs(now - then) <= steady * forces[0] for now, then in zip(forces, previous)):
+                break
+            previous = forces
             m = mixer.next(m, target)
         else:
             solver.tol = scene_tol
@@ -287,6 +294,14 @@ class Simulation:
         record = self._diagnose(0, 0.0, sx, sy, solution, velocity, 0.0, clock.perf_counter() - began)
         self.records.append(record)
         return record
+
+    def _forces(self, p: np.ndarray, sx: float, sy: float, d: np.ndarray) -> tuple[float, float]:
+        """(normal force, resisting force along d) of the pressure p (this rank's rows) of a body at (sx,
+        sy), N (collective)."""
+        slope_x, slope_y = self.scene.body.slope(self.x - sx, self.y - sy)
+        sums = np.array([p.sum(), (p * (slope_x * d[0] + slope_y * d[1])).sum()]) * self.scene.grid.cell_area
+        self.comm.Allreduce(MPI.IN_PLACE, sums, op=MPI.SUM)
+        return float(sums[0]), float(sums[1])
 
     def surface(self) -> tuple[np.ndarray, np.ndarray]:
         """The newest solved step's surface displacement w (m, positive into the half-space) and gap
