@@ -29,6 +29,11 @@ from petroll.solver.wake import Wake
 from petroll.solver.warm import WarmStart
 
 
+WAKE_CELLS = 2**22
+"""The longest wake (cells behind the grid) a steady solve keeps: 30 V tau up to V tau/a ~ 1e4 at a/dx = 10;
+beyond, a wake of relative weight ~ (a / V tau) E1(WAKE_CELLS dx / V tau) is dropped."""
+
+
 @dataclass
 class StepRecord:
     """What one step reports (global values; formulation §6). Lengths m, forces N, pressures Pa."""
@@ -225,7 +230,7 @@ class Simulation:
         # ``behind`` cells, the rest (3-D) lumped in blocks (FarWake)
         r0, r1 = solver.r0, solver.r1
         n_along = (g.nx, g.ny)[axis]
-        needed = math.ceil(30 * speed * material.longest_time / cell)
+        needed = min(math.ceil(30 * speed * material.longest_time / cell), WAKE_CELLS)
         behind = min(needed, 4 * n_along if g.line else max(2 * n_along, 64))
         far = needed - behind if not g.line else 0
         shape = [g.nx, g.ny]
