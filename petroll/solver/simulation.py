@@ -246,6 +246,7 @@ class Simulation:
         if far > 0:
             wake = FarWake(memory.kernel, n_along, (g.ny, g.nx)[axis], behind, far, cell,
                            g.dy if axis == 0 else g.dx, axis, sign)
+
         def lagged(field):  # (W - compliance) field on the extended grid
             return memory(field) - compliance * field
 
@@ -253,17 +254,20 @@ class Simulation:
             u = extended(field)[tuple(inside)]
             return (u if wake is None else u + wake(p))[r0:r1]
 
-        m, p = np.zeros(shape), np.zeros((g.nx, g.ny))
+        # the fixed point is over the pressure x the memory is lagged from: Anderson-mixed, m = lagged(x)
+        p = np.zeros((g.nx, g.ny))
         mixer, work = Anderson(), list(solver.work)
         solution, warm, delta = None, None, None
         start = start if start is not None else self.steady_start
         if start is not None:
             p = np.asarray(start[0], dtype=float).reshape(g.nx, g.ny)
-            m, warm, delta = lagged(np.pad(p, pad)), p[r0:r1], start[1]
+            warm, delta = p[r0:r1], start[1]
+        x = np.pad(p, pad)
+        m = lagged(x)
         scene_tol, change, scale, previous = solver.tol, math.inf, 1.0, None
         final = max(scene_tol, min(0.01 * tol, 1e-3))  # the last QPs' tolerance
         for _ in range(max_iterations):
-            height = profile + displacement(m, p)
+            height = profile + displacement(m, x[tuple(inside)])
             warm = warm if solution is None else solution.pressure
             # inexact QPs while the memory is far from converged: 1 % of its last change, at least final
             solver.tol = max(final, min(1e-3, 0.01 * change / scale))
@@ -286,7 +290,8 @@ class Simulation:
                     abs(now - then) <= steady * forces[0] for now, then in zip(forces, previous)):
                 break
             previous = forces
-            m = mixer.next(m, target)
+            x = mixer.next(x, padded)
+            m = lagged(x)
         else:
             solver.tol = scene_tol
             raise SolverError(f"the steady solve did not converge within {max_iterations} iterations")
