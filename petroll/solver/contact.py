@@ -20,6 +20,7 @@ contact, where delta = (2 J F/pi) (ln(2 L/a) + 1/2) is nearly linear in F; L the
 from __future__ import annotations
 
 import atexit
+import itertools
 import math
 import weakref
 from dataclasses import dataclass
@@ -327,6 +328,7 @@ class WindowQP:
         self._vecs = (lower, upper)
         if not _LIVE:  # registered after PETSc started: runs before its finalisation
             atexit.register(_destroy_live)
+        self.created = next(_CREATED)
         _LIVE.add(self)
 
     def _objective_gradient(self, tao, p, grad) -> float:
@@ -369,8 +371,14 @@ _LIVE: weakref.WeakSet[WindowQP] = weakref.WeakSet()
 """WindowQPs not yet destroyed: destroyed at exit, while PETSc still runs (later, their callbacks crash it)."""
 
 
+_CREATED = itertools.count()
+"""Creation numbers of WindowQPs: every rank creates the collective ones in the same order."""
+
+
 def _destroy_live() -> None:
-    for qp in list(_LIVE):
+    """Destroy the live WindowQPs in the order they were created: the same on every rank (destroying is
+    collective; a set's order, by address, may differ between ranks and deadlock the exit)."""
+    for qp in sorted(_LIVE, key=lambda qp: qp.created):
         qp.destroy()
 
 
