@@ -1,5 +1,12 @@
 """Tests run serially and under `mpirun -n 2` (scripts/test.sh). Collective tests use ``comm``: under
-mpirun every rank runs every test, and comparisons against COMM_SELF check rank-count independence."""
+mpirun every rank runs every test, and comparisons against COMM_SELF check rank-count independence.
+Shared fixtures: ``comm``, ``shared_dir`` (one directory for all ranks), ``cli`` (the command line in
+a child process) and ``cli_main`` (in this process)."""
+
+import os
+import pathlib
+import subprocess
+import sys
 
 import petsc4py
 
@@ -12,6 +19,55 @@ from mpi4py import MPI  # noqa: E402
 @pytest.fixture
 def comm():
     return MPI.COMM_WORLD
+
+
+@pytest.fixture
+def shared_dir(comm, tmp_path) -> pathlib.Path:
+    """Rank 0's tmp_path on every rank (the ranks share a file system): where collective tests write."""
+    return pathlib.Path(comm.bcast(str(tmp_path) if comm.rank == 0 else None, root=0))
+
+
+class PetrollCommand:
+    """The ``petroll`` command line run as a child process (``python -m petroll.cli``) of this Python, with
+    an environment that lets Open MPI run as root and oversubscribe (``env``)."""
+
+    argv = (sys.executable, "-m", "petroll.cli")
+    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
+               OMPI_MCA_rmaps_base_oversubscribe="1", OMPI_MCA_btl_vader_single_copy_mechanism="none",
+               OMPI_MCA_mpi_yield_when_idle="1", PYTHONDONTWRITEBYTECODE="1")
+
+    def __call__(self, *args, cwd, ranks=0, timeout=300.0, **env) -> subprocess.CompletedProcess:
+        """``petroll ARGS`` in ``cwd`` (under ``mpirun -n ranks`` if ranks > 0), output captured as text;
+        keyword arguments are extra environment variables."""
+        mpirun = ("mpirun", "-n", str(ranks)) if ranks else ()
+        return subprocess.run([*mpirun, *self.argv, *map(str, args)], cwd=cwd, env=dict(self.env, **env),
+                              capture_output=True, text=True, timeout=timeout)
+
+    def start(self, *args, cwd, **popen) -> subprocess.Popen:
+        """``petroll ARGS`` started in ``cwd`` without waiting (subprocess.Popen keywords pass through)."""
+        return subprocess.Popen([*self.argv, *map(str, args)], cwd=cwd, env=self.env, **popen)
+
+
+@pytest.fixture
+def cli() -> PetrollCommand:
+    return PetrollCommand()
+
+
+@pytest.fixture
+def cli_main(capsys):
+    """``petroll ARGS`` in this process (``petroll.cli.main``, argparse's exits included), called with the
+    list of arguments: (exit status, stdout, stderr)."""
+    from petroll.cli import main
+
+    def call(argv: list) -> tuple:
+        try:
+            code = main(argv)
+        except SystemExit as exc:  # argparse
+            code = exc.code
+        captured = capsys.readouterr()
+        return code, captured.out, captured.err
+
+    return call
 
 
 def pytest_collection_modifyitems(config, items):
@@ -39,5 +95,5 @@ def pytest_runtest_call(item):
     if comm.size == 1:
         return
     failed = comm.allreduce(outcome.excinfo is not None, op=MPI.LOR)
-    if failed and outcome.excinfo is None:
-        outcome.force_exception(AssertionError("failed on another rank (see that rank's report)"))
+    if failed and outcome.excinfo is None:  # raised here: pluggy < 1.1 has no outcome.force_exception
+        raise AssertionError("failed on another rank (see that rank's report)")

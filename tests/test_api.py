@@ -2,7 +2,6 @@
 command line; the steady-state convenience values of Results agree with the series."""
 
 import math
-import pathlib
 
 import numpy as np
 import pytest
@@ -23,22 +22,17 @@ RAW = {
 }
 
 
-def shared_dir(comm, tmp_path) -> pathlib.Path:
-    return pathlib.Path(comm.bcast(str(tmp_path) if comm.rank == 0 else None, root=0))
-
-
-def test_a_scene_built_in_python_runs_exactly_as_its_toml_through_the_command_line(comm, tmp_path, capsys):
-    shared = shared_dir(comm, tmp_path)
+def test_a_scene_built_in_python_runs_exactly_as_its_toml_through_the_command_line(comm, capsys, shared_dir):
     scene = petroll.parse_scene(RAW)
-    api = petroll.run(scene, comm, out=shared / "api")
+    api = petroll.run(scene, comm, out=shared_dir / "api")
     if comm.rank == 0:
-        (shared / "scene.toml").write_text(dumps(RAW), encoding="utf-8")
+        (shared_dir / "scene.toml").write_text(dumps(RAW), encoding="utf-8")
     comm.Barrier()
     capsys.readouterr()
-    assert main(["run", str(shared / "scene.toml"), "--out", str(shared / "cli"), "--quiet"]) == 0
+    assert main(["run", str(shared_dir / "scene.toml"), "--out", str(shared_dir / "cli"), "--quiet"]) == 0
     if comm.rank == 0:
         assert "steady state reached" in capsys.readouterr().out
-    cli = petroll.Results.open(shared / "cli" / "results.h5")
+    cli = petroll.Results.open(shared_dir / "cli" / "results.h5")
     assert set(api.series) == set(cli.series)
     assert len(api.series["t"]) > 5
     for name in api.series:
@@ -50,9 +44,8 @@ def test_a_scene_built_in_python_runs_exactly_as_its_toml_through_the_command_li
     assert api.steady == cli.steady
 
 
-def test_steady_values_agree_with_the_series_and_survive_reopening(comm, tmp_path):
-    shared = shared_dir(comm, tmp_path)
-    results = petroll.run(petroll.parse_scene(RAW), comm, out=shared / "run")
+def test_steady_values_agree_with_the_series_and_survive_reopening(comm, shared_dir):
+    results = petroll.run(petroll.parse_scene(RAW), comm, out=shared_dir / "run")
     s, st = results.series, results.steady
     assert isinstance(st, petroll.SteadyState)
     assert (st.force, st.mu_r, st.delta, st.area, st.lead, st.trail, st.p_max) == tuple(
@@ -75,12 +68,12 @@ def test_steady_values_agree_with_the_series_and_survive_reopening(comm, tmp_pat
     assert petroll.Results.open(results.path).steady == st  # the same values from the file
     # a run that does not roll: the final values, no convergence measure, not "reached"
     still = petroll.run(petroll.parse_scene({**RAW, "motion": {"penetration": 2e-5}, "time": {
-        "dt": 0.01, "end": 0.03, "steady": 1e-3}}), comm, out=shared / "still").steady
+        "dt": 0.01, "end": 0.03, "steady": 1e-3}}), comm, out=shared_dir / "still").steady
     assert math.isnan(still.force_change) and math.isnan(still.mu_r_change) and not still.reached
     assert not still.converged(1.0)
 
 
-def test_scene_replace_gives_a_validated_copy(comm):
+def test_scene_replace_gives_a_validated_copy():
     scene = petroll.parse_scene(RAW)
     faster = scene.replace("motion.velocity", [0.02, 0.0])
     assert float(faster.velocity(0.0)[0]) == 0.02 and float(scene.velocity(0.0)[0]) == 0.01

@@ -8,10 +8,8 @@ check the real command, and `mpirun -n 2` cases check that an error on one rank 
 
 import datetime
 import math
-import os
 import pathlib
-import subprocess
-import sys
+import time
 import tomllib
 import warnings
 
@@ -134,16 +132,6 @@ def test_extreme_but_valid_numbers_parse_or_are_refused_quickly(changes):
 
 
 # -- scenes as TOML text through the command line (in-process) ------------------------------------------
-def _cli(argv, capsys):
-    from petroll.cli import main
-
-    try:
-        code = main(argv)
-    except SystemExit as exc:  # argparse
-        code = exc.code
-    captured = capsys.readouterr()
-    return code, captured.out, captured.err
-
 
 def _prepare(tmp_path: pathlib.Path):
     out = tmp_path / "out"
@@ -205,14 +193,14 @@ def _toml(raw: dict) -> str:
 @settings(max_examples=150, deadline=None, derandomize=True,
           suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
 @given(texts)
-def test_malformed_scene_files_fail_with_one_line_and_keep_the_output(tmp_path, capsys, text):
+def test_malformed_scene_files_fail_with_one_line_and_keep_the_output(tmp_path, cli_main, text):
     scene = tmp_path / "FUZZ.toml"
     if isinstance(text, bytes):
         scene.write_bytes(text)
     else:
         scene.write_text(text, encoding="utf-8", errors="surrogatepass")
     out = _prepare(tmp_path)
-    code, stdout, err = _cli(["run", str(scene), "--out", str(out), "--quiet"], capsys)
+    code, stdout, err = cli_main(["run", str(scene), "--out", str(out), "--quiet"])
     event(f"exit status {code}")
     if code == 0:
         assert (out / "results.h5").read_bytes()[:4] == b"\x89HDF" and "Traceback" not in err
@@ -235,7 +223,7 @@ tokens = st.one_of(
 @settings(max_examples=150, deadline=None, derandomize=True,
           suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
 @given(st.lists(tokens, max_size=5))
-def test_malformed_command_lines_fail_with_one_line(tmp_path, capsys, monkeypatch, argv):
+def test_malformed_command_lines_fail_with_one_line(tmp_path, cli_main, monkeypatch, argv):
     import tempfile
 
     work = pathlib.Path(tempfile.mkdtemp(dir=tmp_path))  # one directory per example
@@ -244,7 +232,7 @@ def test_malformed_command_lines_fail_with_one_line(tmp_path, capsys, monkeypatc
     (work / "runs" / "hertz.toml").write_text(_toml(BASE))
     (work / "DIR").mkdir()
     (work / "DIR" / "results.h5").write_bytes(b"an earlier result")
-    code, stdout, err = _cli(argv, capsys)
+    code, stdout, err = cli_main(argv)
     event(f"exit status {code}")
     assert "Traceback" not in err + stdout
     assert (work / "DIR" / "results.h5").read_bytes() == b"an earlier result" or "run" in argv
@@ -255,45 +243,30 @@ def test_malformed_command_lines_fail_with_one_line(tmp_path, capsys, monkeypatc
 
 
 # -- the real command, and MPI (subprocesses) -----------------------------------------------------------
-ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
-           OMPI_MCA_rmaps_base_oversubscribe="1", OMPI_MCA_btl_vader_single_copy_mechanism="none",
-           PYTHONDONTWRITEBYTECODE="1")
-PETROLL = [sys.executable, "-m", "petroll.cli"]
-
-
-def _mpirun(args, cwd, timeout=60, **env):
-    started = __import__("time").monotonic()
-    proc = subprocess.run(["mpirun", "-n", "2", *PETROLL, *args], cwd=cwd, env=dict(ENV, **env),
-                          capture_output=True, text=True, timeout=timeout)
-    return proc, __import__("time").monotonic() - started
-
-
 @pytest.mark.serial
-def test_extreme_scene_through_the_real_command(tmp_path):
+def test_extreme_scene_through_the_real_command(tmp_path, cli):
     """Moduli 1e12 Pa, a 1 um sphere, 1e-3 s steps: runs; a scene past the limits: one line, exit 2."""
     raw = mutate(BASE, [("set", ("material", "E0"), 1e12), ("set", ("material", "Einf"), 1e9),
                         ("set", ("body", "radius"), 1e-6), ("set", ("motion", "penetration"), 2e-9),
                         ("set", ("grid", "x"), [-1e-7, 1e-7]), ("set", ("grid", "y"), [-1e-7, 1e-7])])
     (tmp_path / "tiny.toml").write_text(dumps(raw))
-    done = subprocess.run([*PETROLL, "run", "tiny.toml", "--out", "o"], cwd=tmp_path, env=ENV,
-                          capture_output=True, text=True, timeout=120)
+    done = cli("run", "tiny.toml", "--out", "o", cwd=tmp_path, timeout=120)
     assert done.returncode == 0, done.stderr
     raw["motion"]["penetration"] = 1e-6  # delta = R: the contact would reach the sphere's equator
     raw["grid"] = {"nx": 8, "ny": 8, "x": [-5e-6, 5e-6], "y": [-5e-6, 5e-6]}
     (tmp_path / "deep.toml").write_text(dumps(raw))
     out = _prepare(tmp_path)
-    refused = subprocess.run([*PETROLL, "run", "deep.toml", "--out", str(out)], cwd=tmp_path, env=ENV,
-                             capture_output=True, text=True, timeout=120)
+    refused = cli("run", "deep.toml", "--out", out, cwd=tmp_path, timeout=120)
     _check_failure(refused.returncode, refused.stderr, out,
                    "deep.toml: [motion] penetration = 1e-06: too large")
 
 
 @pytest.mark.serial
-def test_an_error_raised_on_every_rank_is_printed_once_and_exits_cleanly(tmp_path):
+def test_an_error_raised_on_every_rank_is_printed_once_and_exits_cleanly(tmp_path, cli):
     raw = mutate(BASE, [("set", ("grid", "nx"), 0)])
     (tmp_path / "bad.toml").write_text(dumps(raw))
     out = _prepare(tmp_path)
-    proc, wall = _mpirun(["run", "bad.toml", "--out", str(out)], tmp_path)
+    proc = cli("run", "bad.toml", "--out", out, cwd=tmp_path, ranks=2, timeout=60)
     assert proc.returncode == 2
     ours = [line for line in proc.stderr.splitlines() if line.startswith("petroll")]
     assert ours == ["petroll: error: bad.toml: [grid] nx = 0: must be an integer >= 1, at most 16777216 "
@@ -309,12 +282,14 @@ def test_an_error_raised_on_every_rank_is_printed_once_and_exits_cleanly(tmp_pat
     ("0:crash", 1, "RuntimeError: test failure on rank 0 (PETROLL_TEST_FAIL_RANK) (on rank 0 of 2 only; "
                    "ending all ranks)"),
 ])
-def test_an_error_on_one_rank_ends_all_ranks_promptly(tmp_path, hook, code, text):
+def test_an_error_on_one_rank_ends_all_ranks_promptly(tmp_path, hook, code, text, cli):
     """The other rank waits in a collective of the run; the failing rank prints its message and aborts the
     job after ERROR_AGREEMENT_S (3 s) instead of leaving it hanging."""
     (tmp_path / "ok.toml").write_text(dumps(BASE))
-    proc, wall = _mpirun(["run", "ok.toml", "--out", "o", "--quiet"], tmp_path, timeout=90,
-                         PETROLL_TEST_FAIL_RANK=hook)
+    started = time.monotonic()
+    proc = cli("run", "ok.toml", "--out", "o", "--quiet", cwd=tmp_path, ranks=2, timeout=90,
+               PETROLL_TEST_FAIL_RANK=hook)
+    wall = time.monotonic() - started
     assert proc.returncode != 0
     assert text in proc.stderr, proc.stderr
     assert wall < 60

@@ -96,7 +96,9 @@ def test_tao_types_on_the_rolling_scene_agree(tmp_path):
 
     rows = tao_types_rolling(tmp_path, distance=0.3e-3)
     forces = [float(r["force"]) for r in rows]  # a failed type would not parse
-    assert len(rows) == 9 and max(forces) / min(forces) - 1 < 1e-6  # every solver, the same answer
+    assert len(rows) == 15 and max(forces) / min(forces) - 1 < 1e-6  # every solver and PC, the same answer
+    assert [r["pc"] for r in rows if r["tao_type"] == "tron"] == ["circulant", "none"]
+    assert [r["pc"] for r in rows if r["tao_type"] == "bncg"] == ["-"]
     assert all(int(r["steps"]) == rows[0]["steps"] for r in rows)
     assert (tmp_path / "tao_rolling.csv").exists()
 
@@ -121,6 +123,32 @@ def test_append_bench_times_every_append(tmp_path):
     rows = append(tmp_path, side=16, steps=30, block=10)
     assert [r["steps"] for r in rows] == ["0-9", "10-19", "20-29"]
     assert all(0 < r["median_ms"] <= r["max_ms"] for r in rows)
+
+
+def test_peers_bench_converges_each_solver_to_the_reference(tmp_path):
+    """petroll alone (the peers need their own environment): the tolerance chosen is one whose pressure
+    is within the target of the 1e-12 reference, tighter than the loosest tried."""
+    from petroll.studies.bench import PEER_TOLERANCES, peers
+
+    rows = peers(tmp_path, cells=(24,), repeats=1, target=1e-8, solvers=("petroll",))
+    assert len(rows) == 1
+    row = rows[0]
+    assert row["solver"] == "petroll" and float(row["difference"]) <= 1e-8
+    assert float(row["tol"]) in PEER_TOLERANCES and float(row["tol"]) < PEER_TOLERANCES[0]  # 1e-6 is too loose
+    assert float(row["cold_s"]) > float(row["warm_s"]) > 0 and row["cold_ratio"] == "1.000"
+    assert (tmp_path / "peers.csv").exists() and (tmp_path / "peers.png").stat().st_size > 0
+
+
+def test_load_control_bench_finds_the_same_penetration(tmp_path):
+    from petroll.studies.bench import load_control
+
+    rows = load_control(tmp_path, cells=48)
+    assert [r["tao_type"] for r in rows] == ["pk", "tron"]
+    for row in rows:
+        assert abs(float(row["delta_error"])) < 1e-6  # the force of delta gives delta back
+        assert float(row["ratio"]) == pytest.approx(row["load_applications"] / row["displacement_applications"],
+                                                   abs=0.006)
+    assert (tmp_path / "tao_load.csv").exists()
 
 
 def test_steady_compares_the_direct_solve_with_the_transient_run(tmp_path):

@@ -362,7 +362,9 @@ def spherical_cap(radius=1.0, cap=0.5, rings=40, sectors=128, shift=(0.0, 0.0, 0
     return xyz, tris, longest
 
 
-def check_cap(body, radius=1.0, cap=0.5, sectors=128, longest=0.05, bare=True):
+def check_cap(body, radius=1.0, cap=0.5, sectors=128, longest=0.05, bare=True, below=1e-9):
+    """The mesh's height map on the sphere's: never below it (but for the file's rounding, ``below``), above
+    it by at most the interpolation bound of the mesh's longest edge."""
     assert isinstance(body, HeightMap)
     sphere = Sphere(radius)
     g = np.arange(-0.6, 0.6 + 1e-12, 0.0125)
@@ -374,7 +376,7 @@ def check_cap(body, radius=1.0, cap=0.5, sectors=128, longest=0.05, bare=True):
     curvature = radius**2 / (radius**2 - cap**2) ** 1.5
     bound = 0.5 * longest**2 * curvature
     diff = z[inner] - sphere.height(x, y)[inner]
-    assert diff.min() >= -1e-9
+    assert diff.min() >= -below
     assert diff.max() <= bound
     if bare:
         assert np.all(np.isinf(z[r > cap * 1.02]))
@@ -424,16 +426,15 @@ def test_mesh_errors(tmp_path):
     raises_key("[body] cell", mesh_height_map, ok, 10.0)
 
 
-def test_mesh_rasterises_many_triangles_quickly(tmp_path):
-    import time
-
-    xyz, tris, _ = spherical_cap(rings=100, sectors=256)  # ~51k triangles
+def test_mesh_of_many_triangles_rasterises_to_its_sphere(tmp_path):
+    """~51k triangles (a binary STL, float32 coordinates) on a 251 x 251 raster: the sphere within the
+    interpolation bound (how fast is a benchmark's business, not a unit test's)."""
+    xyz, tris, longest = spherical_cap(rings=100, sectors=256)
     path = tmp_path / "big.stl"
     meshio.write_points_cells(path, xyz, [("triangle", tris)], binary=True)
-    start = time.perf_counter()
     body = mesh_height_map(path, 0.004)
-    assert time.perf_counter() - start < 3.0
     assert body.heights.shape == (251, 251)
+    check_cap(body, sectors=256, longest=longest, below=1e-7)  # binary STL: float32, eps 6e-8
 
 
 # ------------------------------------------------------------------------------------------- make_body

@@ -8,7 +8,6 @@ start processes are marked ``serial``.
 
 import errno
 import hashlib
-import os
 import pathlib
 import shutil
 import signal
@@ -29,11 +28,10 @@ from petroll.cli import main
 from petroll.model.scene import DEFAULT_TAO_TYPE
 from petroll.errors import SceneError
 from petroll.io.results import OutputError, Results
-from petroll.model.scene import parse_scene
+from petroll.model.scene import dumps, parse_scene
 from petroll.driver import run
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
-PETROLL = ROOT / ".venv" / "bin" / "petroll"
 HALF, LENGTH = 0.8e-3, 0.4e-3
 SLS = {"model": "sls", "E0": 10e6, "Einf": 2e6, "nu": 0.5, "tau_relax": 0.01}
 PRONY = {"model": "prony", "series": "maxwell", "Einf": 2e6, "nu": 0.5, "moduli": [5e6, 3e6],
@@ -65,23 +63,7 @@ def make_scene(raw, base_dir="."):
 
 
 def write_toml(path: pathlib.Path, raw: dict) -> None:
-    def value(v):
-        if isinstance(v, str):
-            return '"' + v + '"'
-        if isinstance(v, (list, tuple)):
-            return "[" + ", ".join(value(x) for x in v) + "]"
-        if isinstance(v, dict):
-            return "{" + ", ".join(f"{k} = {value(x)}" for k, x in v.items()) + "}"
-        return repr(v)
-
-    path.write_text("".join(f"[{s}]\n" + "".join(f"{k} = {value(v)}\n" for k, v in t.items()) + "\n"
-                            for s, t in raw.items()))
-
-
-@pytest.fixture
-def shared(tmp_path, comm):
-    """Rank 0's tmp_path on every rank."""
-    return pathlib.Path(comm.bcast(str(tmp_path) if comm.rank == 0 else None, root=0))
+    path.write_text(dumps(raw), encoding="utf-8")
 
 
 def on_root(comm, work):
@@ -151,10 +133,10 @@ CASES = {
 
 @pytest.mark.parametrize("case", [pytest.param(c, marks=pytest.mark.ranks4) if c == "prony-constant-load" else c
                                   for c in CASES])
-def test_interrupted_and_restarted_run_is_bitwise_the_uninterrupted_run(case, comm, shared):
+def test_interrupted_and_restarted_run_is_bitwise_the_uninterrupted_run(case, comm, shared_dir):
     material, velocity, control = CASES[case]
     scene = make_scene(raw_scene(material, velocity, control))
-    reference = run(scene, comm, shared / "reference")
+    reference = run(scene, comm, shared_dir / "reference")
     n = len(reference.series["t"])
     assert n >= 10 and list(reference.field_steps) == [0, 3, 6, 9, *([n - 1] if (n - 1) % 3 else [])]
     if velocity is SINUSOIDAL:
@@ -164,99 +146,99 @@ def test_interrupted_and_restarted_run_is_bitwise_the_uninterrupted_run(case, co
     # far.
     stop, on_step = interrupter(5, comm)
     with pytest.raises(RunInterrupted) as info:
-        run(scene, comm, shared / "stopped", stop=stop, on_step=on_step)
+        run(scene, comm, shared_dir / "stopped", stop=stop, on_step=on_step)
     assert info.value.step == 5 and info.value.exit_code == 143
-    assert info.value.checkpoint == shared / "stopped" / "checkpoints" / "step-00000005.h5"
-    partial = Results.open(shared / "stopped" / "results.h5")
+    assert info.value.checkpoint == shared_dir / "stopped" / "checkpoints" / "step-00000005.h5"
+    partial = Results.open(shared_dir / "stopped" / "results.h5")
     assert not partial.complete and reference.complete
     for name in PHYSICAL:
         assert np.array_equal(partial.series[name], reference.series[name][:6], equal_nan=True)
     assert list(partial.field_steps) == [0, 3]
 
-    restarted = run(scene, comm, shared / "stopped", restart=read_checkpoint(info.value.checkpoint, comm))
+    restarted = run(scene, comm, shared_dir / "stopped", restart=read_checkpoint(info.value.checkpoint, comm))
     assert_identical(restarted, reference)
 
     # Any periodic checkpoint of the uninterrupted run (steps 4, 8, and the last) continues identically.
-    found = list_checkpoints(shared / "reference" / "checkpoints")
+    found = list_checkpoints(shared_dir / "reference" / "checkpoints")
     assert [int(p.stem[5:]) for p in found] == [4, 8, *([n - 1] if (n - 1) % 4 else [])]
     for path in found[:2]:
         check = read_checkpoint(path, comm)
         assert check.ranks == comm.size and check.step == int(path.stem[5:])
-        again = run(restart_scene(check), comm, shared / f"from-{path.stem}", restart=check)
+        again = run(restart_scene(check), comm, shared_dir / f"from-{path.stem}", restart=check)
         assert_identical(again, reference)
 
 
-def test_a_checkpoint_without_the_kept_first_guesses_restarts_to_the_same_answer(comm, shared):
+def test_a_checkpoint_without_the_kept_first_guesses_restarts_to_the_same_answer(comm, shared_dir):
     """Checkpoints written before the warm start kept its last solutions lack state/recent: the restart
     then carries the checkpoint's pressure as the first guess and reaches the same answer within the
     tolerance (not bitwise: the first guesses differ)."""
     raw = raw_scene(SLS, CONSTANT, ("load", 0.1))
     raw["solver"]["tol"] = 1e-12
     scene = make_scene(raw)
-    reference = run(scene, comm, shared / "reference")
-    check = read_checkpoint(shared / "reference" / "checkpoints" / "step-00000004.h5", comm)
+    reference = run(scene, comm, shared_dir / "reference")
+    check = read_checkpoint(shared_dir / "reference" / "checkpoints" / "step-00000004.h5", comm)
     assert len(check.state["recent"]) == 5  # steps 0-4: up to 6 are kept (3 per lag of 2); every rank its rows
     del check.state["recent"], check.state["recent_position"]
-    assert_close(run(scene, comm, shared / "older", restart=check), reference, rtol=1e-10)
+    assert_close(run(scene, comm, shared_dir / "older", restart=check), reference, rtol=1e-10)
 
 
 @pytest.mark.parallel
 @pytest.mark.parametrize("material", ["sls", "prony"])
-def test_restart_on_another_rank_count_agrees_to_1e_10(material, comm, shared):
+def test_restart_on_another_rank_count_agrees_to_1e_10(material, comm, shared_dir):
     """Written on 2 ranks, continued on 1 (rank 0, COMM_SELF); written on 1, continued on 2. The contact
     conditions are solved to 1e-12 so that the solver's own rank-count dependence (~ its tolerance) stays
     well below the 1e-10 checked."""
     raw = raw_scene(SLS if material == "sls" else PRONY, SINUSOIDAL, ("load", 0.1))
     raw["solver"]["tol"] = 1e-12
     scene = make_scene(raw)
-    two = run(scene, comm, shared / "two")
-    middle = shared / "two" / "checkpoints" / "step-00000004.h5"
+    two = run(scene, comm, shared_dir / "two")
+    middle = shared_dir / "two" / "checkpoints" / "step-00000004.h5"
 
     def continue_on_one():
         check = read_checkpoint(middle, MPI.COMM_SELF)
         assert check.ranks == comm.size
-        assert_close(run(scene, MPI.COMM_SELF, shared / "two-to-one", restart=check), two)
+        assert_close(run(scene, MPI.COMM_SELF, shared_dir / "two-to-one", restart=check), two)
         return True
 
     assert on_root(comm, continue_on_one)
 
-    one = on_root(comm, lambda: run(scene, MPI.COMM_SELF, shared / "one").path)
+    one = on_root(comm, lambda: run(scene, MPI.COMM_SELF, shared_dir / "one").path)
     one = Results.open(one)
-    check = read_checkpoint(shared / "one" / "checkpoints" / "step-00000008.h5", comm)
+    check = read_checkpoint(shared_dir / "one" / "checkpoints" / "step-00000008.h5", comm)
     assert check.ranks == 1
-    assert_close(run(scene, comm, shared / "one-to-two", restart=check), one)
+    assert_close(run(scene, comm, shared_dir / "one-to-two", restart=check), one)
     assert_close(one, two)
 
 
-def test_tabulated_material_restarts_bitwise_and_a_changed_table_is_refused(comm, shared):
+def test_tabulated_material_restarts_bitwise_and_a_changed_table_is_refused(comm, shared_dir):
     """The hereditary history (all increments and times) is in the checkpoint; its J table must not change."""
     if comm.rank == 0:
         t = np.array([0.0, 0.002, 0.005, 0.01, 0.02, 0.05, 1.0])
         J = 0.75 / (2e6 + 1e6 * np.exp(-t / 0.01))  # E0/Einf = 1.5: the paper scheme holds at these steps
-        (shared / "J.csv").write_text("".join(f"{a!r},{b!r}\n" for a, b in zip(t, J)))
+        (shared_dir / "J.csv").write_text("".join(f"{a!r},{b!r}\n" for a, b in zip(t, J)))
     comm.Barrier()
     raw = raw_scene({"model": "tabulated", "file": "J.csv", "quantity": "J"}, CONSTANT, ("penetration", 2e-5))
-    scene = make_scene(raw, base_dir=shared)
-    reference = run(scene, comm, shared / "reference")
-    check = read_checkpoint(shared / "reference" / "checkpoints" / "step-00000004.h5", comm)
+    scene = make_scene(raw, base_dir=shared_dir)
+    reference = run(scene, comm, shared_dir / "reference")
+    check = read_checkpoint(shared_dir / "reference" / "checkpoints" / "step-00000004.h5", comm)
     assert check.attrs["history"] == "hereditary" and len(check.times) == 5
-    assert_identical(run(restart_scene(check), comm, shared / "again", restart=check), reference)
+    assert_identical(run(restart_scene(check), comm, shared_dir / "again", restart=check), reference)
     if comm.rank == 0:
-        (shared / "J.csv").write_text("0.0,1e-7\n1.0,2e-7\n")
+        (shared_dir / "J.csv").write_text("0.0,1e-7\n1.0,2e-7\n")
     comm.Barrier()
     with pytest.raises(CheckpointError, match="file named by \\[material\\] file or \\[body\\] file changed"):
         restart_scene(check)
 
 
 @pytest.mark.ranks4
-def test_checkpoint_layout_and_sizes_do_not_grow_with_the_steps_for_prony(comm, shared):
+def test_checkpoint_layout_and_sizes_do_not_grow_with_the_steps_for_prony(comm, shared_dir):
     """Prony: the state is p, W and one field per term whatever the step; only the series grow (the saved
     fields are in results.h5, not in the checkpoints). Every dataset is readable with plain h5py."""
     raw = raw_scene(PRONY, CONSTANT, ("penetration", 2e-5),
                     output={"every": 0, "checkpoint_every": 2, "keep": 2})
-    results = run(make_scene(raw), comm, shared)
+    results = run(make_scene(raw), comm, shared_dir)
     nx, ny = results.pressure.shape[1:]
-    found = list_checkpoints(shared / "checkpoints")
+    found = list_checkpoints(shared_dir / "checkpoints")
     assert [p.name for p in found] == ["step-00000008.h5", "step-00000010.h5"]  # 2, 4, 6 removed
     if comm.rank == 0:
         sizes = []
@@ -271,7 +253,7 @@ def test_checkpoint_layout_and_sizes_do_not_grow_with_the_steps_for_prony(comm, 
                 assert "[material]" in f.attrs["scene"] and f.attrs["ranks"] == comm.size
             sizes.append(path.stat().st_size)
         print("checkpoint sizes (bytes):", dict(zip([p.name for p in found], sizes)),
-              "results.h5:", (shared / "results.h5").stat().st_size, "grid", nx, ny)
+              "results.h5:", (shared_dir / "results.h5").stat().st_size, "grid", nx, ny)
         # At most the raw bytes of p, W, the 2 s fields, the 6 recent solutions (the next first guess:
         # 3 per lag, and the body moves half a cell per step), the saved fields and the series, plus the
         # fixed cost of about 30 HDF5 objects (~1 kB each).
@@ -284,30 +266,30 @@ def test_checkpoint_layout_and_sizes_do_not_grow_with_the_steps_for_prony(comm, 
             assert size < raw_bytes + 40_000, (path.name, size, raw_bytes)
 
 
-def test_keep_removes_older_checkpoints_only(comm, shared):
+def test_keep_removes_older_checkpoints_only(comm, shared_dir):
     raw = raw_scene(SLS, CONSTANT, ("penetration", 2e-5), output={"checkpoint_every": 2, "keep": 2})
     if comm.rank == 0:
-        (shared / "checkpoints").mkdir(parents=True)
-        (shared / "checkpoints" / "step-00000099.h5").write_bytes(b"left by another run")
-        (shared / "checkpoints" / "notes.txt").write_text("mine")
+        (shared_dir / "checkpoints").mkdir(parents=True)
+        (shared_dir / "checkpoints" / "step-00000099.h5").write_bytes(b"left by another run")
+        (shared_dir / "checkpoints" / "notes.txt").write_text("mine")
     comm.Barrier()
-    results = run(make_scene(raw), comm, shared)
+    results = run(make_scene(raw), comm, shared_dir)
     last = len(results.series["t"]) - 1
-    names = sorted(p.name for p in (shared / "checkpoints").iterdir())
+    names = sorted(p.name for p in (shared_dir / "checkpoints").iterdir())
     assert names == sorted([f"step-{last - last % 2 - (2 if last % 2 == 0 else 0):08d}.h5",
                             f"step-{last:08d}.h5", "step-00000099.h5", "notes.txt"])
 
 
-def test_results_xdmf_describes_the_saved_fields_over_the_hdf5_data(comm, shared):
-    results = run(make_scene(raw_scene()), comm, shared)
+def test_results_xdmf_describes_the_saved_fields_over_the_hdf5_data(comm, shared_dir):
+    results = run(make_scene(raw_scene()), comm, shared_dir)
     if comm.rank != 0:
         return
     nx, ny = results.pressure.shape[1:]
-    root = ET.parse(shared / "results.xdmf").getroot()
+    root = ET.parse(shared_dir / "results.xdmf").getroot()
     grids = root.findall("./Domain/Grid/Grid")
     assert root.find("./Domain/Grid").get("CollectionType") == "Temporal"
     assert len(grids) == len(results.field_steps)
-    with h5py.File(shared / "results.h5", "r") as f:
+    with h5py.File(shared_dir / "results.h5", "r") as f:
         for k, (grid, step) in enumerate(zip(grids, results.field_steps)):
             assert float(grid.find("Time").get("Value")) == results.series["t"][step]
             topology = grid.find("Topology")
@@ -376,17 +358,17 @@ def snapshot(directory: pathlib.Path) -> dict:
             for p in sorted(directory.rglob("*")) if p.is_file()}
 
 
-def test_every_kind_of_bad_checkpoint_is_refused_with_one_line_and_nothing_written(comm, shared, capsys):
-    run(make_scene(raw_scene(PRONY)), comm, shared / "run")
-    good = shared / "run" / "checkpoints" / "step-00000008.h5"
+def test_every_kind_of_bad_checkpoint_is_refused_with_one_line_and_nothing_written(comm, shared_dir, capsys):
+    run(make_scene(raw_scene(PRONY)), comm, shared_dir / "run")
+    good = shared_dir / "run" / "checkpoints" / "step-00000008.h5"
     if comm.rank == 0:
-        (shared / "bad").mkdir()
+        (shared_dir / "bad").mkdir()
         for kind, (make, _) in BAD.items():
-            make(good, shared / "bad" / f"{kind.replace(' ', '-')}.h5")
+            make(good, shared_dir / "bad" / f"{kind.replace(' ', '-')}.h5")
     comm.Barrier()
-    before = snapshot(shared)
+    before = snapshot(shared_dir)
     for kind, (_, expected) in BAD.items():
-        path = shared / "bad" / f"{kind.replace(' ', '-')}.h5"
+        path = shared_dir / "bad" / f"{kind.replace(' ', '-')}.h5"
         with pytest.raises(CheckpointError) as info:
             read_checkpoint(path, comm)
         message = str(info.value)
@@ -394,11 +376,11 @@ def test_every_kind_of_bad_checkpoint_is_refused_with_one_line_and_nothing_writt
         assert "\n" not in message
         # The command line: one line, exit status 2, on every rank; nothing created or changed.
         capsys.readouterr()
-        assert main(["restart", str(path), "--out", str(shared / "run"), "--quiet"]) == 2
+        assert main(["restart", str(path), "--out", str(shared_dir / "run"), "--quiet"]) == 2
         if comm.rank == 0:
             lines = [line for line in capsys.readouterr().err.splitlines() if line.strip()]
             assert lines == [f"petroll: error: {message}"], (kind, lines)
-    assert snapshot(shared) == before
+    assert snapshot(shared_dir) == before
     assert read_checkpoint(good, comm).step == 8  # the good one is still good
 
 
@@ -411,63 +393,63 @@ def test_every_kind_of_bad_checkpoint_is_refused_with_one_line_and_nothing_writt
     ({"time": {"steps_per_cell": 3}}, "[time] steps_per_cell"),
     ({"solver": {"integrator": "paper"}}, "[solver] integrator"),
 ])
-def test_restart_with_an_unsafe_scene_change_names_the_key(change, key, comm, shared, capsys):
+def test_restart_with_an_unsafe_scene_change_names_the_key(change, key, comm, shared_dir, capsys):
     raw = raw_scene()
-    run(make_scene(raw), comm, shared / "run")
+    run(make_scene(raw), comm, shared_dir / "run")
     new = {s: dict(t) for s, t in raw.items()}
     for section, values in change.items():
         new[section].update(values)
         if "load" in values:
             new[section].pop("penetration")
     if comm.rank == 0:
-        write_toml(shared / "new.toml", new)
+        write_toml(shared_dir / "new.toml", new)
     comm.Barrier()
-    check = read_checkpoint(shared / "run" / "checkpoints" / "step-00000004.h5", comm)
+    check = read_checkpoint(shared_dir / "run" / "checkpoints" / "step-00000004.h5", comm)
     with pytest.raises(SceneError) as info:
-        restart_scene(check, shared / "new.toml")
+        restart_scene(check, shared_dir / "new.toml")
     assert info.value.key == key
     message = str(info.value)
-    assert message.startswith(f"{shared / 'new.toml'}: {key} = ") and str(check.path) in message
+    assert message.startswith(f"{shared_dir / 'new.toml'}: {key} = ") and str(check.path) in message
     assert "a restart may change only [time] end, distance" in message and "\n" not in message
-    before = snapshot(shared)
+    before = snapshot(shared_dir)
     capsys.readouterr()
-    assert main(["restart", str(check.path), "--scene", str(shared / "new.toml"), "--quiet"]) == 2
+    assert main(["restart", str(check.path), "--scene", str(shared_dir / "new.toml"), "--quiet"]) == 2
     if comm.rank == 0:
         assert capsys.readouterr().err.strip() == f"petroll: error: {message}"
-    assert snapshot(shared) == before
+    assert snapshot(shared_dir) == before
 
 
-def test_restart_may_extend_the_run_and_change_outputs(comm, shared, capsys):
+def test_restart_may_extend_the_run_and_change_outputs(comm, shared_dir, capsys):
     raw = raw_scene(distance=2 * LENGTH)
     raw["time"]["distance"] = LENGTH
-    short = run(make_scene(raw), comm, shared / "run")
+    short = run(make_scene(raw), comm, shared_dir / "run")
     longer = {s: dict(t) for s, t in raw.items()}
     longer["time"]["distance"] = 2 * LENGTH
     longer["output"] = {"every": 5, "checkpoint_every": 0}
     longer["solver"]["tao_type"] = DEFAULT_TAO_TYPE  # the defaults, written out: no change
     longer["solver"]["integrator"] = make_scene(raw).solver.integrator
     if comm.rank == 0:
-        write_toml(shared / "longer.toml", longer)
+        write_toml(shared_dir / "longer.toml", longer)
     comm.Barrier()
-    last = list_checkpoints(shared / "run" / "checkpoints")[-1]
-    assert main(["restart", str(shared / "run"), "--scene", str(shared / "longer.toml"), "--out",
-                 str(shared / "longer"), "--quiet"]) == 0
-    extended = Results.open(shared / "longer" / "results.h5")
+    last = list_checkpoints(shared_dir / "run" / "checkpoints")[-1]
+    assert main(["restart", str(shared_dir / "run"), "--scene", str(shared_dir / "longer.toml"), "--out",
+                 str(shared_dir / "longer"), "--quiet"]) == 0
+    extended = Results.open(shared_dir / "longer" / "results.h5")
     n = len(short.series["t"])
     assert int(last.stem[5:]) == n - 1 and len(extended.series["t"]) > n + 5
     assert np.array_equal(extended.series["force"][:n], short.series["force"])
     assert extended.series["distance"][-1] == pytest.approx(2 * LENGTH, rel=1e-6)
     assert list(extended.field_steps)[: len(short.field_steps)] == list(short.field_steps)
-    assert not (shared / "longer" / "checkpoints").exists()
+    assert not (shared_dir / "longer" / "checkpoints").exists()
     if comm.rank == 0:
-        assert "Results: " + str(shared / "longer" / "results.h5") in capsys.readouterr().out
+        assert "Results: " + str(shared_dir / "longer" / "results.h5") in capsys.readouterr().out
 
 
 # -- write failures ---------------------------------------------------------------------------------------
-def test_disk_full_during_a_checkpoint_is_a_clear_error_and_the_last_one_stays_usable(comm, shared,
+def test_disk_full_during_a_checkpoint_is_a_clear_error_and_the_last_one_stays_usable(comm, shared_dir,
                                                                                       monkeypatch):
     scene = make_scene(raw_scene())
-    reference = run(scene, comm, shared / "reference")
+    reference = run(scene, comm, shared_dir / "reference")
     real, calls = ckpt._write_dataset, []
 
     def full(f, name, data):
@@ -478,45 +460,35 @@ def test_disk_full_during_a_checkpoint_is_a_clear_error_and_the_last_one_stays_u
 
     monkeypatch.setattr(ckpt, "_write_dataset", full)
     with pytest.raises(CheckpointError) as info:
-        run(scene, comm, shared / "full")
+        run(scene, comm, shared_dir / "full")
     monkeypatch.undo()
-    path = shared / "full" / "checkpoints" / "step-00000008.h5"
+    path = shared_dir / "full" / "checkpoints" / "step-00000008.h5"
     assert str(info.value) == (f"{path}: cannot write the checkpoint (No space left on device); the earlier "
                                f"checkpoints in {path.parent} are unchanged")
     assert sorted(p.name for p in path.parent.iterdir()) == ["step-00000004.h5"]  # no temporary file left
-    partial = Results.open(shared / "full" / "results.h5")  # brought up to step 8 before the checkpoint
+    partial = Results.open(shared_dir / "full" / "results.h5")  # brought up to step 8 before the checkpoint
     assert not partial.complete and len(partial.series["t"]) == 9
     check = read_checkpoint(path.parent / "step-00000004.h5", comm)
-    assert_identical(run(scene, comm, shared / "full", restart=check), reference)
+    assert_identical(run(scene, comm, shared_dir / "full", restart=check), reference)
 
 
-def test_unwritable_output_directory_is_refused_before_any_step(comm, shared, capsys):
+def test_unwritable_output_directory_is_refused_before_any_step(comm, shared_dir, capsys):
     if comm.rank == 0:
-        (shared / "file").write_text("not a directory")
+        (shared_dir / "file").write_text("not a directory")
     comm.Barrier()
     with pytest.raises(OutputError, match=r"file/out: cannot write to the output directory \(Not a dir"):
-        run(make_scene(raw_scene()), comm, shared / "file" / "out")
+        run(make_scene(raw_scene()), comm, shared_dir / "file" / "out")
     if comm.rank == 0:
-        write_toml(shared / "s.toml", raw_scene())
+        write_toml(shared_dir / "s.toml", raw_scene())
     comm.Barrier()
     capsys.readouterr()
-    assert main(["run", str(shared / "s.toml"), "--out", str(shared / "file" / "out"), "--quiet"]) == 2
+    out = shared_dir / "file" / "out"
+    assert main(["run", str(shared_dir / "s.toml"), "--out", str(out), "--quiet"]) == 2
     if comm.rank == 0:
         assert capsys.readouterr().err.count("\n") == 1
 
 
 # -- real processes ---------------------------------------------------------------------------------------
-def child_env() -> dict:
-    env = dict(os.environ)
-    env.update(OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1", PYTHONDONTWRITEBYTECODE="1")
-    return env
-
-
-def petroll(*args, cwd) -> subprocess.CompletedProcess:
-    return subprocess.run([str(PETROLL), *map(str, args)], cwd=cwd, env=child_env(), capture_output=True,
-                          text=True, timeout=120)
-
-
 def wait_for(path: pathlib.Path, proc: subprocess.Popen, limit=60.0) -> None:
     start = time.monotonic()
     while not path.exists():
@@ -533,11 +505,11 @@ def long_raw() -> dict:
 
 
 @pytest.mark.serial
-def test_sigterm_during_a_cli_run_leaves_a_checkpoint_that_restart_finishes_identically(tmp_path):
+def test_sigterm_during_a_cli_run_leaves_a_checkpoint_that_restart_finishes_identically(tmp_path, cli):
     write_toml(tmp_path / "long.toml", long_raw())
     reference = run(make_scene(long_raw()), MPI.COMM_SELF, tmp_path / "reference")
-    proc = subprocess.Popen([str(PETROLL), "run", "long.toml", "--out", "stopped", "--quiet"], cwd=tmp_path,
-                            env=child_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = cli.start("run", "long.toml", "--out", "stopped", "--quiet", cwd=tmp_path,
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     wait_for(tmp_path / "stopped" / "checkpoints" / "step-00000005.h5", proc)
     proc.send_signal(signal.SIGTERM)
     out, err = proc.communicate(timeout=60)
@@ -550,7 +522,7 @@ def test_sigterm_during_a_cli_run_leaves_a_checkpoint_that_restart_finishes_iden
                            f"{last.name}; continue with: petroll restart stopped/checkpoints/{last.name}")
     partial = Results.open(tmp_path / "stopped" / "results.h5")
     assert not partial.complete and len(partial.series["t"]) == step + 1
-    done = petroll("restart", f"stopped/checkpoints/{last.name}", "--quiet", cwd=tmp_path)
+    done = cli("restart", f"stopped/checkpoints/{last.name}", "--quiet", cwd=tmp_path)
     assert done.returncode == 0, done.stderr
     assert_identical(Results.open(tmp_path / "stopped" / "results.h5"), reference)
 
@@ -576,13 +548,13 @@ run(load_scene(sys.argv[1]), out="killed")
 
 
 @pytest.mark.serial
-def test_sigkill_during_a_checkpoint_write_leaves_the_previous_checkpoint_and_results_usable(tmp_path):
+def test_sigkill_during_a_checkpoint_write_leaves_the_previous_checkpoint_and_results_usable(tmp_path, cli):
     raw = long_raw()
     write_toml(tmp_path / "long.toml", raw)
     reference = run(make_scene(raw), MPI.COMM_SELF, tmp_path / "reference")
     # 25 whole datasets per checkpoint (p, W, direction, 21 series, fields/step): die in the third (step 15).
     proc = subprocess.run([sys.executable, "-c", KILLER, "long.toml", str(2 * 25 + 12)], cwd=tmp_path,
-                          env=child_env(), capture_output=True, text=True, timeout=120)
+                          env=cli.env, capture_output=True, text=True, timeout=120)
     assert proc.returncode == -signal.SIGKILL, proc.stderr
     directory = tmp_path / "killed" / "checkpoints"
     leftovers = sorted(p.name for p in directory.iterdir())
@@ -595,19 +567,19 @@ def test_sigkill_during_a_checkpoint_write_leaves_the_previous_checkpoint_and_re
     bad = directory / "step-00000015.h5"
     bad.write_bytes((directory / "step-00000010.h5").read_bytes()[:20000])
     before = snapshot(tmp_path / "killed")
-    refused = petroll("restart", "killed", cwd=tmp_path)
+    refused = cli("restart", "killed", cwd=tmp_path)
     assert refused.returncode == 2 and refused.stderr.count("\n") == 1
     expected = f"petroll: error: {bad.relative_to(tmp_path)}: truncated"
     assert refused.stderr.startswith(expected), refused.stderr
     assert snapshot(tmp_path / "killed") == before
     bad.unlink()
-    done = petroll("restart", "killed", "--quiet", cwd=tmp_path)
+    done = cli("restart", "killed", "--quiet", cwd=tmp_path)
     assert done.returncode == 0, done.stderr
     assert_identical(Results.open(tmp_path / "killed" / "results.h5"), reference)
 
 
 @pytest.mark.serial
-def test_sigkill_at_random_moments_never_leaves_a_bad_checkpoint_or_results_file(tmp_path):
+def test_sigkill_at_random_moments_never_leaves_a_bad_checkpoint_or_results_file(tmp_path, cli):
     raw = long_raw()
     raw["output"].update(checkpoint_every=1, keep=3)
     write_toml(tmp_path / "long.toml", raw)
@@ -615,9 +587,8 @@ def test_sigkill_at_random_moments_never_leaves_a_bad_checkpoint_or_results_file
     kills = 0
     for attempt in range(4):
         out = tmp_path / f"run{attempt}"
-        proc = subprocess.Popen([str(PETROLL), "run", "long.toml", "--out", out.name, "--quiet"],
-                                cwd=tmp_path, env=child_env(), stdout=subprocess.DEVNULL,
-                                stderr=subprocess.DEVNULL)
+        proc = cli.start("run", "long.toml", "--out", out.name, "--quiet", cwd=tmp_path,
+                                 stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         wait_for(out / "checkpoints" / "step-00000002.h5", proc)
         time.sleep(rng.uniform(0.0, 0.3))
         proc.kill()
@@ -632,7 +603,8 @@ def test_sigkill_at_random_moments_never_leaves_a_bad_checkpoint_or_results_file
 
 
 # -- without parallel HDF5 --------------------------------------------------------------------------------
-def test_without_parallel_hdf5_rank_0_writes_the_same_files_and_restarts_bitwise(comm, shared, monkeypatch):
+def test_without_parallel_hdf5_rank_0_writes_the_same_files_and_restarts_bitwise(comm, shared_dir,
+                                                                                   monkeypatch):
     """The path taken when h5py has no MPI (PyPI's h5py): rank 0 alone opens the files and moves the other
     ranks' rows in blocks (made 2 KiB here, so that every field takes several). Its results.h5 and
     checkpoints hold what the parallel path's hold, bit for bit, and a run stopped and restarted through
@@ -640,15 +612,15 @@ def test_without_parallel_hdf5_rank_0_writes_the_same_files_and_restarts_bitwise
     from petroll.io import hdf5
 
     scene = make_scene(raw_scene(PRONY, SINUSOIDAL, ("load", 0.1)))
-    reference = run(scene, comm, shared / "parallel")
+    reference = run(scene, comm, shared_dir / "parallel")
     monkeypatch.setattr(hdf5, "parallel_hdf5", lambda comm: False)
     monkeypatch.setattr(hdf5, "BLOCK_BYTES", 2048)
-    through_root = run(scene, comm, shared / "rank0")
+    through_root = run(scene, comm, shared_dir / "rank0")
     assert_identical(through_root, reference)
     stop, on_step = interrupter(5, comm)
     with pytest.raises(RunInterrupted) as info:
-        run(scene, comm, shared / "stopped", stop=stop, on_step=on_step)
-    restarted = run(scene, comm, shared / "stopped", restart=read_checkpoint(info.value.checkpoint, comm))
+        run(scene, comm, shared_dir / "stopped", stop=stop, on_step=on_step)
+    restarted = run(scene, comm, shared_dir / "stopped", restart=read_checkpoint(info.value.checkpoint, comm))
     assert_identical(restarted, reference)
 
     def datasets(path: pathlib.Path) -> dict:
@@ -665,8 +637,8 @@ def test_without_parallel_hdf5_rank_0_writes_the_same_files_and_restarts_bitwise
             assert np.array_equal(one[name], two[name]), name
 
     def compare():
-        same_files(shared / "parallel" / "results.h5", shared / "rank0" / "results.h5")
-        for path in list_checkpoints(shared / "parallel" / "checkpoints"):
-            same_files(path, shared / "rank0" / "checkpoints" / path.name)
+        same_files(shared_dir / "parallel" / "results.h5", shared_dir / "rank0" / "results.h5")
+        for path in list_checkpoints(shared_dir / "parallel" / "checkpoints"):
+            same_files(path, shared_dir / "rank0" / "checkpoints" / path.name)
 
     on_root(comm, compare)

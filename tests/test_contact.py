@@ -10,6 +10,7 @@ from petroll.model.bodies import Cylinder, Sphere
 from petroll.solver.contact import ContactSolver
 from petroll.errors import SolverError
 from petroll.model.grid import Grid
+from petroll.model.scene import DEFAULT_TAO_TYPE
 from petroll.solver.influence import dense_influence, love_coefficients
 from petroll.solver.partition import gather_field
 
@@ -21,7 +22,7 @@ def hertz(delta):
     return math.sqrt(R * delta), 4 * math.sqrt(R) * delta**1.5 / (3 * J), 2 * math.sqrt(delta / R) / (math.pi * J)
 
 
-def sphere_setup(comm, cells_per_radius, delta=1e-5, tao_type="tron", tol=1e-8):
+def sphere_setup(comm, cells_per_radius, delta=1e-5, tao_type=DEFAULT_TAO_TYPE, tol=1e-8):
     a = hertz(delta)[0]
     half = 1.6 * a
     n = int(round(2 * half / (a / cells_per_radius)))
@@ -31,26 +32,32 @@ def sphere_setup(comm, cells_per_radius, delta=1e-5, tao_type="tron", tol=1e-8):
     return grid, solver, height
 
 
-@pytest.mark.parametrize("cells_per_radius", [8, 16])
-def test_hertz_displacement_control(comm, cells_per_radius):
+@pytest.mark.parametrize("cells_per_radius, force_rel, peak_rel", [(8, 2e-3, 5e-3), (16, 2e-4, 1e-3)])
+def test_hertz_displacement_control(comm, cells_per_radius, force_rel, peak_rel):
+    """The default TAO type against Hertz, to the grid's error (measured: force 1.1e-3 and 6.6e-5, peak
+    pressure 2.8e-3 and 3.4e-4 at a/dx = 8 and 16)."""
     delta = 1e-5
     grid, solver, height = sphere_setup(comm, cells_per_radius, delta)
     step = solver.solve_penetration(height, J, delta)
     a, force, p0 = hertz(delta)
-    assert step.force == pytest.approx(force, rel=5e-3)
-    assert comm.allreduce(step.pressure.max(initial=0), op=MPI.MAX) == pytest.approx(p0, rel=1e-2)
+    assert step.force == pytest.approx(force, rel=force_rel)
+    assert comm.allreduce(step.pressure.max(initial=0), op=MPI.MAX) == pytest.approx(p0, rel=peak_rel)
     assert step.residual <= 1e-8
     assert np.all(step.pressure >= 0)
 
 
 def test_hertz_load_control(comm):
+    """The load to 10 tol = 1e-7, at the penetration whose displacement-controlled solve carries that
+    load to the same 1e-7 (measured 2.4e-9 and 3.9e-9); Hertz's radius within a cell, its penetration to
+    the grid's error (measured 3.6e-4 at a/dx = 10)."""
     a_ref, load, _ = hertz(1e-5)
     grid, solver, height = sphere_setup(comm, 10)
     step = solver.solve_load(height, J, load, radius_hint=2 * R)  # a poor first guess on purpose
-    assert step.force == pytest.approx(load, rel=1e-6)
+    assert step.force == pytest.approx(load, rel=1e-7)
+    assert solver.solve_penetration(height, J, step.delta).force == pytest.approx(load, rel=1e-7)
     cells = comm.allreduce(int(np.count_nonzero(step.pressure > 0)))
     assert abs(math.sqrt(cells * grid.cell_area / math.pi) - a_ref) <= grid.dx
-    assert step.delta == pytest.approx(1e-5, rel=5e-3)
+    assert step.delta == pytest.approx(1e-5, rel=1e-3)
 
 
 def test_wide_cylinder_mid_section_is_plane_strain_hertz(comm):
@@ -77,9 +84,9 @@ def test_wide_cylinder_mid_section_is_plane_strain_hertz(comm):
         assert abs(np.ptp(grid.x[mid > 0]) / 2 + grid.dx / 2 - a) <= grid.dx
 
 
-@pytest.mark.parametrize("other_type", ["blmvm", "pk"])
+@pytest.mark.parametrize("other_type", [t for t in ("tron", "blmvm", "pk") if t != DEFAULT_TAO_TYPE])
 def test_two_tao_types_agree(comm, other_type):
-    grid, solver, height = sphere_setup(comm, 8, tao_type="tron")
+    grid, solver, height = sphere_setup(comm, 8)
     other = ContactSolver(grid, comm, tao_type=other_type, tol=1e-8)
     p1 = solver.solve_penetration(height, J, 1e-5).pressure
     p2 = other.solve_penetration(height, J, 1e-5).pressure
@@ -88,7 +95,9 @@ def test_two_tao_types_agree(comm, other_type):
 
 
 def projected_gauss_seidel(matrix, rhs, sweeps=20000):
-    """min 1/2 p.Mp + p.rhs, p >= 0, by projected Gauss-Seidel: an independent, dense, slow oracle."""
+    """min 1/2 p.Mp + p.rhs, p >= 0, by projected Gauss-Seidel: an independent, dense, slow oracle. It
+    asserts its own convergence: the sweeps stop changing p, and p meets the optimality conditions
+    min(p, Mp + rhs) = 0 to 1e-12 of their scales."""
     p = np.zeros_like(rhs)
     for _ in range(sweeps):
         old = p.copy()
@@ -96,18 +105,25 @@ def projected_gauss_seidel(matrix, rhs, sweeps=20000):
             p[i] = max(0.0, p[i] - (matrix[i] @ p + rhs[i]) / matrix[i, i])
         if np.abs(p - old).max() <= 1e-15 * np.abs(p).max():
             break
+    else:
+        raise AssertionError(f"projected Gauss-Seidel did not settle in {sweeps} sweeps")
+    gap = matrix @ p + rhs
+    assert np.abs(np.minimum(p / p.max(), gap / np.abs(rhs).max())).max() <= 1e-12
     return p
 
 
-def test_window_qp_equals_the_whole_grid_dense_solution(comm):
-    """Posing the QP on the interference window only is exact: compare with the whole-grid dense problem."""
-    grid = Grid(14, 12, -1.0, 1.0, -0.9, 0.9)
+@pytest.mark.parametrize("nx,ny,window", [(14, 12, (10, 9)), (19, 14, (14, 12))])
+def test_window_qp_equals_the_whole_grid_dense_solution(comm, nx, ny, window):
+    """Posing the QP on the interference window only is exact: compare with the whole-grid dense problem.
+    On the 19 x 14 grid the interference's bounding box, 13 x 11 cells, is grown to 14 x 12 (fast FFT
+    lengths for the preconditioner)."""
+    grid = Grid(nx, ny, -1.0, 1.0, -0.9, 0.9)
     solver = ContactSolver(grid, comm, tol=1e-9)
     body = Sphere(3.0)
     height_all = body.height(grid.x[:, None] - 0.1, grid.y[None, :] + 0.05)
     delta, compliance = 0.08, 2.0
     step = solver.solve_penetration(height_all[solver.r0 : solver.r1], compliance, delta)
-    assert step.window[1] - step.window[0] < grid.nx  # the window really is smaller than the grid
+    assert (step.window[1] - step.window[0], step.window[3] - step.window[2]) == window
     matrix = compliance * dense_influence(love_coefficients(grid.nx, grid.ny, grid.dx, grid.dy))
     reference = projected_gauss_seidel(matrix, (height_all - delta).ravel()).reshape(grid.nx, grid.ny)
     ours = step.pressure

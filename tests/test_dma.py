@@ -36,10 +36,6 @@ def complex_modulus(frequency, Einf=TRUE_EINF, moduli=TRUE_MODULI, times=TRUE_TI
     return Einf + (np.asarray(moduli) * iwt / (1 + iwt)).sum(axis=1)
 
 
-def shared_dir(comm, tmp_path) -> pathlib.Path:
-    return pathlib.Path(comm.bcast(str(tmp_path) if comm.rank == 0 else None, root=0))
-
-
 # -- shift laws ---------------------------------------------------------------------------------------------
 def test_wlf_and_arrhenius_factors_against_hand_computed_values():
     wlf = materials.WLF(C1=17.44, C2=51.6, T_ref=300.0)
@@ -135,12 +131,11 @@ def test_a_sweep_point_varies_the_temperature_and_reports_a_T():
 
 
 # -- time-temperature superposition in a rolling run --------------------------------------------------------
-def test_rolling_at_T_is_rolling_at_T_ref_with_the_speed_times_a_T(comm, tmp_path):
+def test_rolling_at_T_is_rolling_at_T_ref_with_the_speed_times_a_T(comm, shared_dir):
     """mu_r(V, T) = mu_r(V a_T, T_ref): every time of the material is a_T times longer at T, and with
     steps_per_cell the time step dx / (V steps_per_cell) at speed V is a_T times the one at V a_T, so
     every dimensionless number of the discrete problem (dt / tau, V dt / dx, the body's positions)
     is the same: the two runs solve the same QPs up to round-off in a_T's products."""
-    out = shared_dir(comm, tmp_path)
     law = materials.make_shift(WLF)
     T = 302.0  # a_T = 10^(-17.44 x 2 / 53.6) = 0.2235
     a_T = materials.shift_factor(law, T)
@@ -148,8 +143,8 @@ def test_rolling_at_T_is_rolling_at_T_ref_with_the_speed_times_a_T(comm, tmp_pat
     hot = parse_scene({**with_material({**SCENE["material"], "temperature": T, "shift": WLF}),
                        "motion": {"velocity": [V, 0.0], "penetration": 2e-5}})
     ref = parse_scene({**SCENE, "motion": {"velocity": [V * a_T, 0.0], "penetration": 2e-5}})
-    one = petroll.run(hot, comm, out=out / "hot").series
-    two = petroll.run(ref, comm, out=out / "ref").series
+    one = petroll.run(hot, comm, out=shared_dir / "hot").series
+    two = petroll.run(ref, comm, out=shared_dir / "ref").series
     assert len(one["t"]) == len(two["t"]) == 16  # 15 steps of one cell (80 um) after the start
     assert one["t"] == pytest.approx(two["t"] * a_T, rel=1e-12)
     assert np.ptp(one["mu_r"]) > 0.2 * np.max(one["mu_r"])  # a transient, not a trivial constant
@@ -223,38 +218,38 @@ def test_data_at_several_temperatures_are_shifted_onto_the_reference(tmp_path):
 
 
 # -- the command ---------------------------------------------------------------------------------------------
-def test_material_fit_writes_a_block_ready_to_paste_and_the_figure(comm, tmp_path, capsys):
-    base = shared_dir(comm, tmp_path)
+def test_material_fit_writes_a_block_ready_to_paste_and_the_figure(comm, capsys, shared_dir):
     if comm.rank == 0:
-        write_shifted_table(base / "dma.csv", materials.WLF(8.86, 101.6, 300.0))
+        write_shifted_table(shared_dir / "dma.csv", materials.WLF(8.86, 101.6, 300.0))
     comm.barrier()
-    code = main(["material", "fit", str(base / "dma.csv"), "--shift", "wlf:8.86,101.6,300", "--nu", "0.49",
-                 "--out", str(base / "material.toml")])
+    code = main(["material", "fit", str(shared_dir / "dma.csv"), "--shift", "wlf:8.86,101.6,300", "--nu",
+                 "0.49",
+                 "--out", str(shared_dir / "material.toml")])
     assert code == 0
     out = capsys.readouterr().out
     # Without --out the block alone goes to stdout (ready to redirect), the report to stderr; the shift
     # law may come from a TOML file's [material] shift (here: the block just written)
-    assert main(["material", "fit", str(base / "dma.csv"), "--shift", str(base / "material.toml"), "--nu",
-                 "0.49", "--plot", str(base / "other.png")]) == 0
+    assert main(["material", "fit", str(shared_dir / "dma.csv"), "--shift", str(shared_dir / "material.toml"),
+                 "--nu", "0.49", "--plot", str(shared_dir / "other.png")]) == 0
     printed = capsys.readouterr()
     if comm.rank != 0:
         assert out == printed.out == printed.err == ""  # only rank 0 works and speaks
         return
     assert "7 temperatures shifted to T_ref = 300 K" in out and "relative error rms" in out
-    text = (base / "material.toml").read_text()
+    text = (shared_dir / "material.toml").read_text()
     block = tomllib.loads(text)["material"]
     assert block["temperature"] == 300.0 and block["shift"] == {"law": "wlf", "C1": 8.86, "C2": 101.6,
                                                                  "T_ref": 300.0}
     assert block["model"] == "prony" and block["series"] == "maxwell" and block["nu"] == 0.49
     scene = parse_scene(with_material(block))  # pasted into a scene as it is
-    data = dma.read_dma(base / "dma.csv", materials.WLF(8.86, 101.6, 300.0))
+    data = dma.read_dma(shared_dir / "dma.csv", materials.WLF(8.86, 101.6, 300.0))
     fit = dma.fit_prony(data.reduced, data.storage, data.loss, nu=0.49)  # the Python API: the same fit
     t = np.geomspace(1e-8, 1e3, 50)
     assert scene.material(t) == pytest.approx(fit.material()(t), rel=1e-12)
-    assert (base / "fit.png").read_bytes()[:8] == PNG_MAGIC
-    assert not [p for p in base.iterdir() if ".tmp" in p.name]  # atomic writes leave no temporary files
+    assert (shared_dir / "fit.png").read_bytes()[:8] == PNG_MAGIC
+    assert not [p for p in shared_dir.iterdir() if ".tmp" in p.name]  # atomic writes leave no temporary files
     assert printed.out == text and "relative error rms" in printed.err
-    assert (base / "other.png").read_bytes()[:8] == PNG_MAGIC
+    assert (shared_dir / "other.png").read_bytes()[:8] == PNG_MAGIC
 
 
 @pytest.mark.parametrize("content, line, allowed", [
@@ -268,22 +263,22 @@ def test_material_fit_writes_a_block_ready_to_paste_and_the_figure(comm, tmp_pat
     ("frequency,storage,loss,temperature\n1,2e6,1e5,300\n2,2e6,1e5,310\n0.5,2e6,1e5,300\n", 4,
      "does not exceed 1 Hz on line 2 at temperature 300 K"),
 ], ids=["missing", "unknown", "negative", "not-increasing", "nan", "short-row", "per-temperature"])
-def test_bad_dma_files_are_refused_with_one_line_naming_file_and_line(comm, tmp_path, capsys, content, line,
-                                                                      allowed):
-    base = shared_dir(comm, tmp_path)
+def test_bad_dma_files_are_refused_with_one_line_naming_file_and_line(comm, capsys, content, line, allowed,
+                                                                      shared_dir):
     if comm.rank == 0:
-        (base / "bad.csv").write_text(content)
+        (shared_dir / "bad.csv").write_text(content)
     comm.barrier()
-    argv = ["material", "fit", str(base / "bad.csv"), "--out", str(base / "m.toml")]
+    argv = ["material", "fit", str(shared_dir / "bad.csv"), "--out", str(shared_dir / "m.toml")]
     if "temperature" in content:
         argv += ["--shift", "wlf:8.86,101.6,300"]
     assert main(argv) == 2
     if comm.rank == 0:
         err = capsys.readouterr().err
         lines = [text for text in err.splitlines() if text.strip()]
-        assert len(lines) == 1 and lines[0].startswith(f"petroll: error: {base / 'bad.csv'}, line {line}: "), err
+        bad = shared_dir / "bad.csv"
+        assert len(lines) == 1 and lines[0].startswith(f"petroll: error: {bad}, line {line}: "), err
         assert allowed in lines[0] and "Traceback" not in err
-        assert sorted(p.name for p in base.iterdir()) == ["bad.csv"]  # nothing written
+        assert sorted(p.name for p in shared_dir.iterdir()) == ["bad.csv"]  # nothing written
 
 
 def test_the_shipped_example_is_the_fit_of_the_shipped_table():

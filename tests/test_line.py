@@ -4,7 +4,6 @@ and rank-count independence. Viscoelastic checks: tests/test_line_rolling.py.
 """
 
 import math
-import pathlib
 
 import h5py
 import numpy as np
@@ -145,26 +144,26 @@ def test_velocity_as_a_number_or_a_program_of_numbers_moves_along_x():
     assert scene.grid.line and scene.grid.ny == 1 and scene.grid.cell_area == scene.grid.dx
 
 
-def test_heightmap_profile_is_a_cylinder_sampled(tmp_path, comm):
+def test_heightmap_profile_is_a_cylinder_sampled(comm, shared_dir):
     """A 1-D .npy profile sampling the cylinder's arc finely gives the cylinder's answer."""
     dx = 4e-3 / 128
     s = np.arange(-400, 401) * (dx / 4)
-    path = pathlib.Path(comm.bcast(str(tmp_path) if comm.rank == 0 else None))
     if comm.rank == 0:
-        np.save(path / "profile.npy", R - np.sqrt(R**2 - s**2) + 1e-3)
+        np.save(shared_dir / "profile.npy", R - np.sqrt(R**2 - s**2) + 1e-3)
     comm.Barrier()
     raw = line_raw(body={"shape": "heightmap", "file": "profile.npy", "cell": dx / 4})
-    scene = parse_scene(raw, base_dir=path)
+    scene = parse_scene(raw, base_dir=shared_dir)
     sim_map = Simulation(scene, comm)
-    rec_map = next(sim_map.steps())
+    next(sim_map.steps())
     sim_cyl, rec_cyl = first_step(line_raw(), comm)
     assert np.abs(whole(sim_map) - whole(sim_cyl)).max() <= 1e-3 * rec_cyl.p_max
-    bad = path / "map2d.npy"
+    bad = shared_dir / "map2d.npy"
     if comm.rank == 0:
         np.save(bad, np.zeros((4, 4)))
     comm.Barrier()
     with pytest.raises(SceneError, match="1-D array"):
-        parse_scene(line_raw(body={"shape": "heightmap", "file": "map2d.npy", "cell": dx}), base_dir=path)
+        parse_scene(line_raw(body={"shape": "heightmap", "file": "map2d.npy", "cell": dx}),
+                    base_dir=shared_dir)
 
 
 # -- results, restart, ranks ------------------------------------------------------------------------------
@@ -175,17 +174,12 @@ def rolling_raw(out=None) -> dict:
                     solver={"tol": 1e-11}, output={"every": 4, "checkpoint_every": 5, "keep": 10})
 
 
-@pytest.fixture
-def shared(tmp_path, comm):
-    return pathlib.Path(comm.bcast(str(tmp_path) if comm.rank == 0 else None, root=0))
-
-
-def test_results_are_per_unit_length_and_a_restart_is_bitwise(comm, shared):
+def test_results_are_per_unit_length_and_a_restart_is_bitwise(comm, shared_dir):
     scene = parse_scene(rolling_raw(), source="roll")
-    reference = run(scene, comm, shared / "reference")
+    reference = run(scene, comm, shared_dir / "reference")
     assert reference.line and reference.pressure.shape[1:] == (160, 1)
     assert "force_y" not in reference.series and "cop_y" not in reference.series
-    with h5py.File(shared / "reference" / "results.h5", "r") as f:
+    with h5py.File(shared_dir / "reference" / "results.h5", "r") as f:
         assert f["series/force"].attrs["units"] == "N/m" and f["series/area"].attrs["units"] == "m"
         assert f.attrs["line_contact"]
     assert np.allclose(reference.series["force"], 200.0, rtol=1e-9)
@@ -193,8 +187,8 @@ def test_results_are_per_unit_length_and_a_restart_is_bitwise(comm, shared):
     dx = scene.grid.dx
     last = reference.pressure[-1, :, 0]
     assert reference.series["area"][-1] == pytest.approx((last > 0).sum() * dx)
-    check = read_checkpoint(shared / "reference" / "checkpoints" / "step-00000005.h5", comm)
-    again = run(scene, comm, shared / "again", restart=check)
+    check = read_checkpoint(shared_dir / "reference" / "checkpoints" / "step-00000005.h5", comm)
+    again = run(scene, comm, shared_dir / "again", restart=check)
     for name in reference.series:
         if name != "solve_time":
             assert np.array_equal(again.series[name], reference.series[name], equal_nan=True), name
@@ -202,18 +196,18 @@ def test_results_are_per_unit_length_and_a_restart_is_bitwise(comm, shared):
     if comm.rank == 0:  # the figures of a line-contact run: profiles instead of maps
         from petroll.plot import plot_results
 
-        written = plot_results(shared / "reference")
+        written = plot_results(shared_dir / "reference")
         assert [p.name for p in written] == ["pressure.png", "patches.png", "series.png"]
         assert all(p.stat().st_size > 10000 for p in written)
 
 
 @pytest.mark.parallel
-def test_two_ranks_agree_with_one(comm, shared):
+def test_two_ranks_agree_with_one(comm, shared_dir):
     scene = parse_scene(rolling_raw(), source="roll")
-    two = run(scene, comm, shared / "two")
+    two = run(scene, comm, shared_dir / "two")
     one = None
     if comm.rank == 0:
-        one = run(scene, MPI.COMM_SELF, shared / "one")
+        one = run(scene, MPI.COMM_SELF, shared_dir / "one")
     one = comm.bcast(None if one is None else (one.series, one.pressure), root=0)
     series, pressure = one
     for name in ("force", "force_x", "mu_r", "delta", "p_max", "lead", "trail", "cop_x"):
@@ -222,23 +216,24 @@ def test_two_ranks_agree_with_one(comm, shared):
     assert np.abs(two.pressure - pressure).max() <= 1e-9 * np.abs(pressure).max()
 
 
-def test_command_line_speaks_per_unit_length_and_refuses_a_penetration(comm, shared, capsys):
+def test_command_line_speaks_per_unit_length_and_refuses_a_penetration(comm, shared_dir, capsys):
     """`petroll run` of a line scene: the summary gives N/m and the contact width; a penetration is one
     line `petroll: error:` naming the key and why, exit 2."""
     from petroll.cli import main
 
     if comm.rank == 0:
-        (shared / "line.toml").write_text('[grid]\nnx = 64\nx = [-2e-3, 2e-3]\n\n[material]\nmodel = "elastic"\n'
-                                          'E = 1e7\nnu = 0.3\n\n[body]\nshape = "cylinder"\nradius = 0.01\n\n'
-                                          '[motion]\nload = 1000.0\n')
-        text = (shared / "line.toml").read_text()
-        (shared / "bad.toml").write_text(text.replace("load = 1000.0", "penetration = 1e-5"))
+        (shared_dir / "line.toml").write_text('[grid]\nnx = 64\nx = [-2e-3, 2e-3]\n\n[material]\n'
+                                              'model = "elastic"\nE = 1e7\nnu = 0.3\n\n[body]\n'
+                                              'shape = "cylinder"\nradius = 0.01\n\n'
+                                              '[motion]\nload = 1000.0\n')
+        text = (shared_dir / "line.toml").read_text()
+        (shared_dir / "bad.toml").write_text(text.replace("load = 1000.0", "penetration = 1e-5"))
     comm.Barrier()
-    assert main(["run", str(shared / "line.toml"), "--out", str(shared / "out")]) == 0
+    assert main(["run", str(shared_dir / "line.toml"), "--out", str(shared_dir / "out")]) == 0
     out = capsys.readouterr().out
     if comm.rank == 0:
         assert "force 1000 N/m" in out and "contact width" in out and "m^2" not in out
-    assert main(["run", str(shared / "bad.toml"), "--out", str(shared / "bad")]) == 2
+    assert main(["run", str(shared_dir / "bad.toml"), "--out", str(shared_dir / "bad")]) == 2
     err = [line for line in capsys.readouterr().err.splitlines() if line.strip()]
     if comm.rank == 0:
         assert len(err) == 1 and err[0].startswith("petroll: error:") and "[motion] penetration" in err[0]

@@ -156,3 +156,36 @@ def test_pk_view_shows_its_own_settings(comm, taos, tmp_path):
         assert "type: preonly" in text and "type: none" in text  # its KSP only applies its PC
         assert "gmres" not in text and "ilu" not in text and "bjacobi" not in text
         assert "converged" in text
+
+
+def load_oracle(h, b, total):
+    """min 1/2 x.Hx + b.x on x >= 0 with sum x = total: the active-set oracle on b - lam, lam found by
+    bisection so that sum x(lam) = total (sum x grows with lam). Returns x and lam."""
+    lo, hi = np.zeros(N), np.full(N, np.inf)
+    a, c = -1e3, 1e3
+    for _ in range(200):
+        lam = 0.5 * (a + c)
+        if active_set_oracle(h, b - lam, lo, hi).sum() < total:
+            a = lam
+        else:
+            c = lam
+    return active_set_oracle(h, b - lam, lo, hi), lam
+
+
+@pytest.mark.parametrize("seed", [5, 6])
+def test_pk_load_control_agrees_with_an_oracle(comm, taos, seed):
+    """pk with ``total`` (sum x held): the solution and the multiplier against bisection on the multiplier
+    around the dense active-set solver, and the force exactly held."""
+    h, b, _, _ = random_qp(seed, "none")
+    total = 3.0
+    reference, lam = load_oracle(h, b, total)
+    assert 5 <= np.count_nonzero(reference == 0) <= N - 5  # bounds active and inactive
+    lo, hi = np.zeros(N), np.full(N, np.inf)
+    tao, x, _ = dense_tao(comm, h, b, lo, hi, made=taos)
+    tao.getPythonContext().total = total
+    tao.solve(x)
+    assert tao.getConvergedReason() == PETSc.TAO.Reason.CONVERGED_GATOL
+    ours = np.concatenate(comm.allgather(x.array_r.copy()))
+    assert np.abs(ours - reference).max() <= 1e-10 * np.abs(reference).max()
+    assert tao.getPythonContext().multiplier == pytest.approx(lam, abs=1e-10 * abs(lam))
+    assert ours.sum() == pytest.approx(total, rel=1e-13)

@@ -4,7 +4,6 @@ The run is collective (every rank), the plotting happens on rank 0 only."""
 
 import pathlib
 
-import pytest
 
 from petroll.cli import main
 from petroll.model.scene import parse_scene
@@ -14,11 +13,6 @@ from petroll.driver import run
 from petroll.plot import plot_results, select_fields
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
-
-
-def shared_dir(comm, tmp_path) -> pathlib.Path:
-    """Rank 0's tmp_path on every rank (the ranks share a file system)."""
-    return pathlib.Path(comm.bcast(str(tmp_path) if comm.rank == 0 else None, root=0))
 
 
 def rolling_scene():
@@ -37,29 +31,28 @@ def png_width(path: pathlib.Path) -> int:
     return int.from_bytes(path.read_bytes()[16:20], "big")  # IHDR width
 
 
-def test_plot_writes_pressure_patches_and_series_pngs(comm, tmp_path):
-    base = shared_dir(comm, tmp_path)
-    results = run(rolling_scene(), comm, base / "run")
+def test_plot_writes_pressure_patches_and_series_pngs(comm, shared_dir):
+    results = run(rolling_scene(), comm, shared_dir / "run")
     assert list(results.field_steps) == [0, 5, 10, 15]
     assert select_fields(results) == [0, 1, 2, 3]
     assert select_fields(results, [0.0, 0.0075, 1.0]) == [0, 1, 3]  # nearest saved fields (t = 0.008, 0.024 s)
     if comm.rank != 0:
         return
-    paths = plot_results(base / "run")
+    paths = plot_results(shared_dir / "run")
     assert [p.name for p in paths] == ["pressure.png", "patches.png", "series.png"]
     for path in paths:
-        assert path.parent == base / "run" / "plots"
+        assert path.parent == shared_dir / "run" / "plots"
         data = path.read_bytes()
         assert data[:8] == PNG_MAGIC, path
         assert len(data) > 10_000, (path, len(data))
     # Four pressure panels side by side by default; two for two requested times: half the width.
-    two = plot_results(base / "run", base / "two", times=[0.0, 0.016])
-    assert two[0] == base / "two" / "pressure.png"
+    two = plot_results(shared_dir / "run", shared_dir / "two", times=[0.0, 0.016])
+    assert two[0] == shared_dir / "two" / "pressure.png"
     assert png_width(paths[0]) == 2 * png_width(two[0])
 
 
-def test_cli_plot_without_results_exits_2_naming_the_file(comm, tmp_path, capsys):
-    missing = shared_dir(comm, tmp_path) / "not-a-run"
+def test_cli_plot_without_results_exits_2_naming_the_file(comm, capsys, shared_dir):
+    missing = shared_dir / "not-a-run"
     code = main(["plot", str(missing)])
     assert code == 2  # on every rank: rank 0's status is broadcast
     if comm.rank == 0:

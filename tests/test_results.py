@@ -32,11 +32,6 @@ def field(step: int, nx: int = NX, ny: int = NY) -> np.ndarray:
     return step * 1e4 + np.arange(nx)[:, None] * ny + np.arange(ny)[None, :] + 0.5
 
 
-@pytest.fixture
-def shared(tmp_path, comm):
-    return pathlib.Path(comm.bcast(str(tmp_path) if comm.rank == 0 else None, root=0))
-
-
 def grow(path, comm, steps: int, every: int, records=None, out=None) -> tuple[ResultsFile, list]:
     """Append steps (a field every ``every``) up to ``steps`` to ``out`` (default: a new file at path)."""
     x, y = np.linspace(-1, 1, NX), np.linspace(0, 2, NY)
@@ -51,8 +46,8 @@ def grow(path, comm, steps: int, every: int, records=None, out=None) -> tuple[Re
 
 
 @pytest.mark.ranks4
-def test_appended_series_and_fields_read_back_and_earlier_chunks_are_never_rewritten(comm, shared):
-    path = shared / "results.h5"
+def test_appended_series_and_fields_read_back_and_earlier_chunks_are_never_rewritten(comm, shared_dir):
+    path = shared_dir / "results.h5"
     out, records = grow(path, comm, 6, 2)
     offsets = None
     if comm.rank == 0:
@@ -79,23 +74,23 @@ def test_appended_series_and_fields_read_back_and_earlier_chunks_are_never_rewri
 
 
 @pytest.mark.ranks4
-def test_a_resumed_file_keeps_the_given_prefix_and_continues(comm, shared):
-    path = shared / "results.h5"
+def test_a_resumed_file_keeps_the_given_prefix_and_continues(comm, shared_dir):
+    path = shared_dir / "results.h5"
     grow(path, comm, 15, 3)
     x, y = np.linspace(-1, 1, NX), np.linspace(0, 2, NY)
-    elsewhere = ResultsFile(shared / "copy" / "results.h5", "[grid]\n", x, y, comm)
+    elsewhere = ResultsFile(shared_dir / "copy" / "results.h5", "[grid]\n", x, y, comm)
     elsewhere.resume(path, 7, [0, 3, 6])
     r0, r1 = RowPartition(NX, comm.size).range(comm.rank)
     records = [record(s) for s in range(9)]
     elsewhere.append(records[:8], None)
     elsewhere.append(records, {"pressure": -field(8)[r0:r1]}, complete=True, describe=True)
-    r = Results.open(shared / "copy" / "results.h5")
+    r = Results.open(shared_dir / "copy" / "results.h5")
     assert r.complete and np.array_equal(r.series["step"], np.arange(9))
     assert list(r.field_steps) == [0, 3, 6, 8]
     assert np.array_equal(r.pressure[3], -field(8)) and np.array_equal(r.pressure[2], field(6))
     assert len(Results.open(path).series["t"]) == 15  # the source is left as it was
     if comm.rank == 0:
-        assert "step 8" in (shared / "copy" / "results.xdmf").read_text()
+        assert "step 8" in (shared_dir / "copy" / "results.xdmf").read_text()
 
 
 CHILD = """

@@ -41,10 +41,6 @@ def hertz_axis(z, nu):
     return -(1 + nu) * (1 - z * np.arctan(1 / z)) + 0.5 / (1 + z * z), -1 / (1 + z * z)
 
 
-def shared_dir(comm, tmp_path) -> pathlib.Path:
-    return pathlib.Path(comm.bcast(str(tmp_path) if comm.rank == 0 else None, root=0))
-
-
 @pytest.mark.parametrize("offset", [(0, 0, 0.3), (1, 2, 0.5), (-2, 1, 1.3), (3, -1, 0.05), (0, 0, 2.0)])
 def test_cell_coefficients_are_the_integral_of_the_point_load(offset):
     """The closed-form stresses below a loaded dx x dy cell equal the quadrature of Boussinesq's point load
@@ -84,19 +80,18 @@ def hertz_scene(nu: float = 0.3):
     }, source="test_stress")
 
 
-def test_hertz_stresses_on_the_axis_and_the_maximum_shear(comm, tmp_path):
+def test_hertz_stresses_on_the_axis_and_the_maximum_shear(comm, shared_dir):
     """a/dx = 16, nu = 0.3: on the axis sigma_r = sigma_theta and sigma_z within 0.2 % of p0 of the closed
     form from z = 0.1 a to 2 a; the maximum shear (Tresca) 0.3100 p0 at z = 0.481 a (the closed form's
     maximum, the known 0.31 p0 at 0.48 a) and the von Mises maximum (twice it, on the axis) within 0.2 %,
     located on the axis within half a depth step. (The issue asks 1 %; measured: 1.2e-4 p0 on the axis,
     1.1e-4 relative on the maximum.)"""
     nu, a, R, delta = 0.3, 0.5e-3, 0.01, 25e-6
-    base = shared_dir(comm, tmp_path)
-    run(hertz_scene(nu), comm, base)
+    run(hertz_scene(nu), comm, shared_dir)
     p0 = 2 * np.sqrt(delta / R) * 10e6 / (np.pi * (1 - nu**2))
     z = a * np.linspace(0.1, 2.0, 77)  # 0.025 a apart
-    found = petroll.stress(base, depths=z, comm=comm)
-    assert found.path == base / "stress.h5" and found.step == 0 and found.nu == nu
+    found = petroll.stress(shared_dir, depths=z, comm=comm)
+    assert found.path == shared_dir / "stress.h5" and found.step == 0 and found.nu == nu
     with h5py.File(found.path, "r") as f:
         assert f["sigma_xx"].shape == (77, 49, 49) and f.attrs["motion_axis"] == "x"
         axis = {name: f[name][:, 24, 24] for name in ("sigma_xx", "sigma_yy", "sigma_zz", "max_shear")}
@@ -139,7 +134,7 @@ def test_far_field_decays_like_a_point_load(comm):
 
 
 @pytest.mark.parallel
-def test_two_ranks_agree_with_one_to_round_off(comm, tmp_path):
+def test_two_ranks_agree_with_one_to_round_off(comm):
     """The stresses, von Mises and Tresca fields and their maxima of an asymmetric pressure field (a random
     patch) are the same on 2 ranks as on 1 (each rank recomputes the whole on COMM_SELF)."""
     nx, ny, dx, dy, nu = 21, 14, 1e-4, 1.5e-4, 0.35
@@ -177,14 +172,13 @@ def write_patch_results(directory: pathlib.Path, scene_material: str) -> np.ndar
 
 
 @pytest.mark.parallel
-def test_the_stress_file_is_the_same_on_two_ranks_and_one(comm, tmp_path):
-    base = shared_dir(comm, tmp_path)
+def test_the_stress_file_is_the_same_on_two_ranks_and_one(comm, shared_dir):
     for name in ("two", "one"):
-        (base / name).mkdir(exist_ok=True)
-        write_patch_results(base / name, 'model = "elastic"\nE = 1e7\nnu = 0.35')
-    two = petroll.stress(base / "two", depths=[0.0, 1e-4, 3e-4], comm=comm)
+        (shared_dir / name).mkdir(exist_ok=True)
+        write_patch_results(shared_dir / name, 'model = "elastic"\nE = 1e7\nnu = 0.35')
+    two = petroll.stress(shared_dir / "two", depths=[0.0, 1e-4, 3e-4], comm=comm)
     if comm.rank == 0:
-        one = petroll.stress(base / "one", depths=[0.0, 1e-4, 3e-4], comm=MPI.COMM_SELF)
+        one = petroll.stress(shared_dir / "one", depths=[0.0, 1e-4, 3e-4], comm=MPI.COMM_SELF)
         assert two.von_mises_at == one.von_mises_at and two.max_shear_at == one.max_shear_at
         assert two.max_shear_max == pytest.approx(one.max_shear_max, rel=1e-12)
         with h5py.File(two.path) as f, h5py.File(one.path) as g:
@@ -192,15 +186,14 @@ def test_the_stress_file_is_the_same_on_two_ranks_and_one(comm, tmp_path):
                 assert np.max(np.abs(f[name][()] - g[name][()])) < 1e-12 * 1e6, name
 
 
-def test_command_writes_the_file_and_figure_and_refuses_bad_requests(comm, tmp_path, capsys):
-    base = shared_dir(comm, tmp_path)
-    p = write_patch_results(base, 'model = "elastic"\nE = 1e7\nnu = 0.35')
-    assert main(["stress", str(base), "--depth", "2e-4,0,1e-4"]) == 0
+def test_command_writes_the_file_and_figure_and_refuses_bad_requests(comm, capsys, shared_dir):
+    p = write_patch_results(shared_dir, 'model = "elastic"\nE = 1e7\nnu = 0.35')
+    assert main(["stress", str(shared_dir), "--depth", "2e-4,0,1e-4"]) == 0
     if comm.rank == 0:
         out = capsys.readouterr().out
-        assert "at 3 depths from 0 to 0.0002 m" in out and str(base / "stress.png") in out
-        assert (base / "stress.png").read_bytes()[:4] == b"\x89PNG"
-        with h5py.File(base / "stress.h5") as f:
+        assert "at 3 depths from 0 to 0.0002 m" in out and str(shared_dir / "stress.png") in out
+        assert (shared_dir / "stress.png").read_bytes()[:4] == b"\x89PNG"
+        with h5py.File(shared_dir / "stress.h5") as f:
             assert list(f["z"][()]) == [0.0, 1e-4, 2e-4]  # sorted
             assert np.allclose(f["sigma_zz"][0], -p, rtol=0, atol=1e-9)  # the surface carries -p
             vm = f["von_mises"][()]
@@ -214,7 +207,7 @@ def test_command_writes_the_file_and_figure_and_refuses_bad_requests(comm, tmp_p
                         (["--nu", "0.7"], "--nu 0.7: Poisson's ratio must be a number with -1 < nu <= 0.5")):
         capsys.readouterr()
         try:
-            code = main(["stress", str(base), *argv])
+            code = main(["stress", str(shared_dir), *argv])
         except SystemExit as exc:  # argparse's own errors
             code = exc.code
         assert code == 2
@@ -223,21 +216,22 @@ def test_command_writes_the_file_and_figure_and_refuses_bad_requests(comm, tmp_p
             lines = err.strip().splitlines()
             assert len(lines) == 1 and lines[0].startswith("petroll: error: ") and words in lines[0], err
     with pytest.raises(PetrollError, match="depths must be finite numbers >= 0"):
-        petroll.stress(base, depths=[1e-4, -1e-4], comm=comm)
+        petroll.stress(shared_dir, depths=[1e-4, -1e-4], comm=comm)
     if comm.rank == 0:
-        (base / "J").mkdir()
+        (shared_dir / "J").mkdir()
     comm.Barrier()
-    write_patch_results(base / "J", 'model = "tabulated"\nfile = "J.csv"\nquantity = "J"')
-    assert main(["stress", str(base / "J")]) == 2
+    write_patch_results(shared_dir / "J", 'model = "tabulated"\nfile = "J.csv"\nquantity = "J"')
+    assert main(["stress", str(shared_dir / "J")]) == 2
     if comm.rank == 0:
         assert "[material] nu: the run's scene gives no Poisson's ratio" in capsys.readouterr().err
-    assert main(["stress", str(base / "J"), "--nu", "0.5"]) == 0
+    assert main(["stress", str(shared_dir / "J"), "--nu", "0.5"]) == 0
     if comm.rank == 0:
-        (base / "layer").mkdir()
+        (shared_dir / "layer").mkdir()
     comm.Barrier()
-    write_patch_results(base / "layer", 'model = "elastic"\nE = 1e7\nnu = 0.3\nlayer = {thickness = 1e-3}')
+    write_patch_results(shared_dir / "layer",
+                        'model = "elastic"\nE = 1e7\nnu = 0.3\nlayer = {thickness = 1e-3}')
     capsys.readouterr()
-    assert main(["stress", str(base / "layer")]) == 2
+    assert main(["stress", str(shared_dir / "layer")]) == 2
     if comm.rank == 0:
         assert "stresses of a half-space only" in capsys.readouterr().err
 
@@ -274,7 +268,7 @@ def test_strip_coefficients_are_the_integral_of_the_line_load(offset):
     assert np.max(np.abs(table - quadrature)) < 1e-12
 
 
-def test_line_contact_hertz_stresses_are_mcewens(comm, tmp_path):
+def test_line_contact_hertz_stresses_are_mcewens(comm, shared_dir):
     """A cylinder on an elastic half-space in plane strain, a/dx = 16 (load control, 1000 N/m): every
     stress at every strip from z = 0.1 a to 2 a within 1 % of p0 of McEwen's closed form, and the maximum
     shear 0.300 p0 at z = 0.786 a within 1 %. stress.h5 holds (nz, nx) fields."""
@@ -282,13 +276,12 @@ def test_line_contact_hertz_stresses_are_mcewens(comm, tmp_path):
     a = np.sqrt(4 * load * R * (1 - nu**2) / (E * np.pi))
     p0 = 2 * load / (np.pi * a)
     dx = a / 16
-    base = shared_dir(comm, tmp_path)
     run(parse_scene({"grid": {"nx": 96, "x": [-48 * dx, 48 * dx]},
                      "material": {"model": "elastic", "E": E, "nu": nu},
                      "body": {"shape": "cylinder", "radius": R}, "motion": {"load": load}},
-                    source="test_stress"), comm, base)
+                    source="test_stress"), comm, shared_dir)
     z = a * np.linspace(0.1, 2.0, 77)
-    found = petroll.stress(base, depths=z, comm=comm)
+    found = petroll.stress(shared_dir, depths=z, comm=comm)
     with h5py.File(found.path, "r") as f:
         assert f["sigma_xx"].shape == (77, 96) and bool(f.attrs["line_contact"])
         got = {name: f[name][()] for name in ("sigma_xx", "sigma_yy", "sigma_zz", "sigma_xy", "sigma_xz",

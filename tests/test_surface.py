@@ -85,7 +85,7 @@ def test_rolling_gap_holds_the_contact_conditions_with_the_history(comm):
     assert np.max(np.abs(own - w)[p > 0]) > 0.1 * scale
 
 
-def test_saved_displacement_and_gap_fields_in_results_xdmf_and_plot(comm, tmp_path):
+def test_saved_displacement_and_gap_fields_in_results_xdmf_and_plot(comm, shared_dir):
     """[output] fields = ["displacement", "gap"]: results.h5 holds fields/displacement and fields/gap (m,
     the layout of fields/pressure, pressure saved too) equal to Hertz's closed form as in the test above
     (the same tolerances), results.xdmf lists the three fields, and petroll plot draws surface.png."""
@@ -94,23 +94,23 @@ def test_saved_displacement_and_gap_fields_in_results_xdmf_and_plot(comm, tmp_pa
     from petroll.driver import run
     from petroll.plot import plot_results
 
-    out = comm.bcast(str(tmp_path) if comm.rank == 0 else None, root=0)
     raw = hertz_sim(comm).scene.raw
     raw["output"] = {"fields": ["gap", "displacement"]}
-    results = run(parse_scene(raw, source="test_surface"), comm, out)
+    results = run(parse_scene(raw, source="test_surface"), comm, shared_dir)
     assert results.fields == ("pressure", "displacement", "gap")
     w, g, p = (results.field(name)[-1] for name in ("displacement", "gap", "pressure"))
     assert w.shape == g.shape == p.shape == (49, 49)
     assert_hertz_surface(w, g, p, results.x, results.y)
     if comm.rank != 0:
         return
-    with h5py.File(tmp_path / "results.h5", "r") as f:
+    with h5py.File(shared_dir / "results.h5", "r") as f:
         assert f["fields/displacement"].attrs["units"] == f["fields/gap"].attrs["units"] == "m"
-    root = ET.parse(tmp_path / "results.xdmf").getroot()
+    root = ET.parse(shared_dir / "results.xdmf").getroot()
     names = [a.get("Name") for a in root.findall("./Domain/Grid/Grid")[-1].findall("Attribute")]
     assert names == ["pressure", "displacement", "gap"]
-    written = plot_results(tmp_path)
-    assert tmp_path / "plots" / "surface.png" in written and (tmp_path / "plots" / "surface.png").stat().st_size > 0
+    written = plot_results(shared_dir)
+    surface = shared_dir / "plots" / "surface.png"
+    assert surface in written and surface.stat().st_size > 0
 
 
 def test_unknown_output_field_is_refused_naming_the_key():

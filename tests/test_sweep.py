@@ -9,7 +9,6 @@ import numpy as np
 import pytest
 
 import petroll
-from petroll.cli import main
 from petroll.model.scene import dumps
 from petroll.studies.sweep import (COLUMNS, DEFAULT_STEADY, SweepError, SweepInterrupted, SweepTable, Vary,
                            parse_vary, point_scene, sweep)
@@ -25,10 +24,6 @@ RAW = {  # a/dx = 4.5: tiny, each point a few tenths of a second
 RAW_X = {**RAW, "motion": {"velocity": [0.005, 0.0], "penetration": 2e-5},
          "time": {"steps_per_cell": 1, "distance": 2.4e-3}}
 SPEEDS = (0.002, 0.005, 0.01)
-
-
-def shared_dir(comm, tmp_path) -> pathlib.Path:
-    return pathlib.Path(comm.bcast(str(tmp_path) if comm.rank == 0 else None, root=0))
 
 
 def test_vary_forms():
@@ -85,10 +80,9 @@ def _mtimes(directory: pathlib.Path) -> dict[str, int]:
     return {p.parent.name: p.stat().st_mtime_ns for p in sorted(directory.glob("points/*/results.h5"))}
 
 
-def test_a_small_sweep_writes_its_table_and_plot_and_resumes_without_recomputing(comm, tmp_path):
-    shared = shared_dir(comm, tmp_path)
+def test_a_small_sweep_writes_its_table_and_plot_and_resumes_without_recomputing(comm, shared_dir):
     scene = petroll.parse_scene(RAW_X)
-    out = shared / "sweep"
+    out = shared_dir / "sweep"
     lines = []
     table = sweep(scene, "motion.velocity=0.002,0.005,0.01", out, comm, log=lines.append)
     assert table.computed == [0, 1, 2]
@@ -142,21 +136,20 @@ class StopAfter:
         return 15 if self.calls < 0 else 0
 
 
-def test_an_interrupted_sweep_resumes_its_point_from_the_checkpoint(comm, tmp_path):
-    shared = shared_dir(comm, tmp_path)
+def test_an_interrupted_sweep_resumes_its_point_from_the_checkpoint(comm, shared_dir):
     scene = petroll.parse_scene(RAW_X)
     spec = "motion.velocity=0.002,0.01"
     with pytest.raises(SweepInterrupted) as info:  # point 1 runs 13 steps; stop in point 2's 6th step
-        sweep(scene, spec, shared / "cut", comm, stop=StopAfter(1 + 13 + 1 + 6), plot=False, transient=True)
+        sweep(scene, spec, shared_dir / "cut", comm, stop=StopAfter(1 + 13 + 1 + 6), plot=False, transient=True)
     assert info.value.index == 1 and info.value.exit_code == 143 and "resumes" in str(info.value)
-    point = shared / "cut" / "points" / "motion.velocity=0.01"
+    point = shared_dir / "cut" / "points" / "motion.velocity=0.01"
     assert len(list((point / "checkpoints").glob("step-*.h5"))) == 1
     assert not petroll.Results.open(point / "results.h5").complete
-    resumed = sweep(scene, spec, shared / "cut", comm, plot=False, transient=True)
+    resumed = sweep(scene, spec, shared_dir / "cut", comm, plot=False, transient=True)
     assert resumed.computed == [1]
-    whole = sweep(scene, spec, shared / "whole", comm, plot=False, transient=True)
+    whole = sweep(scene, spec, shared_dir / "whole", comm, plot=False, transient=True)
     cut = petroll.Results.open(point / "results.h5")
-    full = petroll.Results.open(shared / "whole" / "points" / "motion.velocity=0.01" / "results.h5")
+    full = petroll.Results.open(shared_dir / "whole" / "points" / "motion.velocity=0.01" / "results.h5")
     assert cut.complete and len(cut.series["t"]) == len(full.series["t"]) > 6
     for name in cut.series:
         if name != "solve_time":
@@ -164,13 +157,13 @@ def test_an_interrupted_sweep_resumes_its_point_from_the_checkpoint(comm, tmp_pa
     assert np.array_equal(resumed.columns["mu_r"], whole.columns["mu_r"])
 
 
-def test_a_constant_speed_sweep_solves_each_point_directly_from_its_neighbour(comm, tmp_path):
+def test_a_constant_speed_sweep_solves_each_point_directly_from_its_neighbour(comm, shared_dir):
     """Each point of a sweep along X is the steady state solved directly ([time] mode = "steady", one
     step), started from the previous point's pressure: the same values as each point solved from scratch
     (to the fixed point's tolerance), in fewer operator applications; --transient runs them from rest."""
     from petroll.solver.simulation import Simulation
 
-    shared = shared_dir(comm, tmp_path)
+    shared = shared_dir
     scene = petroll.parse_scene({**RAW_X, "solver": {"tol": 1e-10}})
     spec = "motion.velocity=0.001,0.002,0.004"
     table = sweep(scene, spec, shared / "direct", comm, plot=False)
@@ -191,28 +184,20 @@ def test_a_constant_speed_sweep_solves_each_point_directly_from_its_neighbour(co
     assert rolled.columns["mu_r"] == pytest.approx(table.columns["mu_r"], rel=0.05)  # [time] steady = 1e-3
 
 
-def _cli(argv, capsys):
-    try:
-        code = main(argv)
-    except SystemExit as exc:  # argparse
-        code = exc.code
-    captured = capsys.readouterr()
-    return code, captured.out, captured.err
 
 
-def test_the_sweep_command_runs_and_refuses_bad_specs_in_one_line(comm, tmp_path, capsys):
-    shared = shared_dir(comm, tmp_path)
+def test_the_sweep_command_runs_and_refuses_bad_specs_in_one_line(comm, capsys, cli_main, shared_dir):
     if comm.rank == 0:
-        (shared / "scene.toml").write_text(dumps(RAW_X), encoding="utf-8")
+        (shared_dir / "scene.toml").write_text(dumps(RAW_X), encoding="utf-8")
     comm.Barrier()
-    scene = str(shared / "scene.toml")
+    scene = str(shared_dir / "scene.toml")
     capsys.readouterr()
-    code, out, err = _cli(["sweep", scene, "--vary", "motion.velocity=0.005,0.01", "--out",
-                           str(shared / "cli"), "--quiet"], capsys)
+    code, out, err = cli_main(["sweep", scene, "--vary", "motion.velocity=0.005,0.01", "--out",
+                           str(shared_dir / "cli"), "--quiet"])
     assert code == 0, err
     if comm.rank == 0:
         assert out.count("petroll: point ") == 2 and "sweep of motion.velocity over 2 values (2 run" in out
-    assert (shared / "cli" / "sweep.png").is_file()
+    assert (shared_dir / "cli" / "sweep.png").is_file()
     for argv, expected in [
         (["--vary", "motion.velocity=fast"], "petroll: error: --vary 'motion.velocity=fast': a list must "
                                              "hold"),
@@ -223,12 +208,12 @@ def test_the_sweep_command_runs_and_refuses_bad_specs_in_one_line(comm, tmp_path
                                                                          "times"),
         ([], "petroll: error: the following arguments are required: --vary"),
     ]:
-        code, out, err = _cli(["sweep", scene, "--out", str(shared / "bad"), *argv], capsys)
+        code, out, err = cli_main(["sweep", scene, "--out", str(shared_dir / "bad"), *argv])
         assert code == 2
         if comm.rank == 0:
             lines = [line for line in err.splitlines() if line.strip()]
             assert len(lines) == 1 and lines[0].startswith(expected), (argv, lines)
-        assert not (shared / "bad" / "points").exists()
+        assert not (shared_dir / "bad" / "points").exists()
 
 
 def test_the_docs_name_every_table_column_and_steady_field():

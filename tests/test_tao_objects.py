@@ -9,7 +9,9 @@ from petsc4py import PETSc
 from petroll.model.bodies import Sphere
 from petroll.model.grid import Grid
 from petroll.solver.contact import ContactSolver
-from petroll.solver.influence import Convolution, dense_influence, love_coefficients, shell_matrix
+from petroll.errors import SolverError
+from petroll.solver.influence import (Convolution, dense_influence, love_coefficients, shell_matrix,
+                                        spare_cores)
 from petroll.solver.precondition import CirculantInverse
 
 R, J = 0.01, 7.5e-8
@@ -100,7 +102,8 @@ def test_tao_objects_are_built_once_per_window_shape(comm):
 def test_two_solvers_with_their_own_prefixes_do_not_leak(comm):
     """Options for one prefix reach that solver only, and solving writes nothing into the options database."""
     options = PETSc.Options()
-    given = {"tao_a_tao_type": "tron", "tao_b_pc_circulant": "0", "tao_b_tao_max_it": "500"}
+    given = {"tao_a_tao_type": "tron", "tao_b_pc_circulant": "0", "tao_b_tao_max_it": "500",
+             "tao_a_fft_workers": "2"}
     for key, value in given.items():
         options.setValue(key, value)
     try:
@@ -113,8 +116,19 @@ def test_two_solvers_with_their_own_prefixes_do_not_leak(comm):
         assert (a.tao_type, qa.tao.getType(), qa.tao.getKSP().getPC().getType()) == ("tron", "tron", "python")
         assert (b.tao_type, qb.tao.getType(), qb.tao.getKSP().getPC().getType()) == ("pk", "python", "none")
         assert (qa.tao.getMaximumIterations(), qb.tao.getMaximumIterations()) == (10000, 500)
+        assert (a.influence.workers, b.influence.workers) == (2, spare_cores(comm))
         scale = comm.allreduce(pa.pressure.max(initial=0), op=MPI.MAX)
         assert comm.allreduce(np.abs(pa.pressure - pb.pressure).max(initial=0), op=MPI.MAX) <= 1e-6 * scale
     finally:
         for key in given:
             options.delValue(key)
+
+
+def test_fft_workers_below_one_is_refused(comm):
+    options = PETSc.Options()
+    options.setValue("tao_c_fft_workers", "0")
+    try:
+        with pytest.raises(SolverError, match="-tao_c_fft_workers 0: the FFT threads per rank must be >= 1"):
+            hertz_solver(comm, prefix="tao_c_")
+    finally:
+        options.delValue("tao_c_fft_workers")

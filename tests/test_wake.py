@@ -92,18 +92,28 @@ def test_load_control_needing_a_much_deeper_penetration_redoes_u_on_every_cell(c
                          "value": [0.02, 0.02, 0.21, 0.21]},
          "time.dt": 0.01, "time.distance": None, "time.end": 0.02, "time.steady": None, "grid.nx": 64,
          "grid.ny": 64, "grid.x": [-0.8e-3, 0.8e-3], "grid.y": [-0.8e-3, 0.8e-3]})
-    runs = []
+    runs, attempts = [], []  # attempts: the boxed run's solves, (reach, operator applications)
     for full in (False, True):
         sim = petroll.solver.simulation.Simulation(base, comm)
         if full:
             sim.wake.displacement = lambda v, profile, reach, s=sim: s.solver.influence.window(64, 64)(v)
+        else:
+            def counted(*args, solver=sim.solver, solve=sim.solver.solve_load, **kwargs):
+                before = solver.work[1]
+                try:
+                    return solve(*args, **kwargs)
+                finally:
+                    attempts.append((kwargs.get("reach"), solver.work[1] - before))
+
+            sim.solver.solve_load = counted
         records = list(sim.steps())
         runs.append(records)
     boxed, full = runs
     assert len(boxed) == 3 and boxed[-1].delta > 1.5 * boxed[-2].delta  # the fallback was needed
-    # the full run solved the step twice alike (its first attempt also went beyond reach): one solve is
-    # half its count; the boxed run counts its failed first attempt too (measured: 147 against 95)
-    assert boxed[-1].applications > full[-1].applications // 2
+    # the sudden start (no history), step 1 on its box, step 2 on its box (beyond reach) then on every cell
+    assert [reach is None for reach, _ in attempts] == [True, False, False, True]
+    assert attempts[2][0] == pytest.approx(1.5 * boxed[1].delta, rel=1e-15)
+    assert attempts[2][1] > 0 and boxed[-1].applications == attempts[2][1] + attempts[3][1]  # both counted
     for a, b in zip(boxed, full):
         assert abs(a.force / b.force - 1) < 1e-7 and abs(a.delta / b.delta - 1) < 1e-7
 

@@ -390,11 +390,13 @@ def _prune(path: pathlib.Path, keep: int) -> None:
 
 
 def fingerprint(scene) -> str:
-    """A digest of the material and of the body's heights on the grid: what a restart must find unchanged
-    even when it comes from files ([material] file, [body] file) that the scene text only names. The
-    heights are computed and hashed a block of rows at a time (no whole-grid array)."""
+    """A digest of the material (and its layer) and of the body's heights on the grid: what a restart must
+    find unchanged even when it comes from files ([material] file, [body] file) that the scene text only
+    names. The heights are computed and hashed a block of rows at a time (no whole-grid array)."""
     g = scene.grid
     h = hashlib.sha256(repr(scene.material).encode())
+    if scene.layer is not None:
+        h.update(repr(scene.layer).encode())
     block = chunk_rows(g.ny)
     for i in range(0, g.nx, block):
         x = g.x[i : i + block, None] - scene.position[0]
@@ -690,7 +692,7 @@ def _changes(old: dict, new: dict):
 
 def _simple(value) -> bool:
     return value is None or isinstance(value, (bool, int, float, str)) or (
-        isinstance(value, tuple) and all(isinstance(v, (int, float)) for v in value))
+        isinstance(value, (list, tuple)) and all(isinstance(v, (int, float, str)) for v in value))
 
 
 def _normal(value):

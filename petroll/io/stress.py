@@ -126,18 +126,6 @@ def _drain(depths, nx: int, comm) -> None:
             gather_field(field, nx, comm)
 
 
-def read_stress(path: str | pathlib.Path) -> dict:
-    """A stress.h5 file as a dict of numpy arrays (its datasets) and its attributes under ``attrs``."""
-    path = pathlib.Path(path)
-    try:
-        with h5py.File(path, "r") as f:
-            out = {name: f[name][()] for name in ("z", "x", "y", *STRESS_DATASETS)}
-            out["attrs"] = dict(f.attrs)
-            return out
-    except (OSError, KeyError) as exc:
-        raise PetrollError(f"{path}: not a readable petroll stress file ({reason(exc)})") from None
-
-
 def stress_planes(path: str | pathlib.Path, name: str) -> dict:
     """For figures: dataset ``name`` (von_mises or max_shear) of a stress file in the two planes through
     its maximum: ``section`` (nz, n) along the motion axis (attribute motion_axis) through the maximum's

@@ -69,8 +69,21 @@ def largest_penetration(scene) -> tuple[float, bool]:
     return (3 * float(scene.material.Jinf) * load / (4 * math.sqrt(radius))) ** (2 / 3), False
 
 
+LAYER_CELLS = 16
+"""A layer thinner than 1/LAYER_CELLS of the largest cell side is warned about: its coefficients' Gauss
+rule (petroll/solver/layer.py) then errs by more than about 1e-6 of the diagonal."""
+
+
 def check_scene(scene) -> None:
-    """Refuse (SceneError) or warn (PetrollWarning) for contact slopes beyond the linear theory."""
+    """Refuse (SceneError) or warn (PetrollWarning) for contact slopes beyond the linear theory, and warn
+    for a layer too thin for the grid's cells."""
+    g, layer = scene.grid, scene.layer
+    side = g.dx if g.line else max(g.dx, g.dy)
+    if layer is not None and layer.thickness < side / LAYER_CELLS:
+        warnings.warn(PetrollWarning(f"{scene.source}: [material] layer: thickness {layer.thickness:g} m is "
+                                     f"below 1/{LAYER_CELLS} of the cells' side {side:g} m: its influence "
+                                     "coefficients lose accuracy (docs/layer.md); refine [grid]"),
+                      stacklevel=2)
     delta, exact = largest_penetration(scene)
     if not delta > 0:
         return

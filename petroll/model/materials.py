@@ -161,6 +161,22 @@ class Tabulated:
         return self.t[-1]
 
 
+# -- a layer on a rigid base ------------------------------------------------------------------------------
+LAYER_BASES = ("bonded", "frictionless")
+"""How a layer's bottom is held by its rigid base ([material] layer base)."""
+
+
+@dataclass(frozen=True)
+class Layer:
+    """A layer of ``thickness`` (m) on a rigid base, its bottom ``base`` = "bonded" or "frictionless"; the
+    top (the contact surface) is frictionless. ``nu``: the material's Poisson's ratio, constant in time,
+    which the layer's kernel depends on (petroll/solver/layer.py)."""
+
+    thickness: float
+    base: str
+    nu: float
+
+
 # -- temperature: time-temperature superposition ---------------------------------------------------------
 GAS_CONSTANT = 8.314462618
 """Molar gas constant R, J/(mol K) (CODATA 2018, exact)."""

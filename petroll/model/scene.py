@@ -45,7 +45,7 @@ class Key:
     kind: str
     doc: str
     check: Callable[[Any], Any]
-    default: Any = MISSING  # MISSING: required
+    default: Any = MISSING  # as written in TOML, checked like a given value; None: unset; MISSING: required
     unit: str = "-"
 
 
@@ -226,11 +226,29 @@ def _shift(value: Any):
 TEMPERATURE_KEYS = {"temperature", "shift"}
 """[material] keys of time-temperature superposition, taken by every model with material times."""
 
+LAYER_FORM = '{thickness = h (m, > 0), base = "bonded" or "frictionless"}'
+"""What [material] layer may be written as."""
+
+
+def _layer(value: Any) -> tuple[float, str]:
+    """[material] layer: (thickness, base); nu is added once the model's keys are known."""
+    if not isinstance(value, dict) or set(value) != {"thickness", "base"}:
+        raise _Invalid(f"must be an inline table {LAYER_FORM}")
+    try:
+        thickness = _positive(value["thickness"])
+    except _Invalid:
+        raise _Invalid(f"thickness = {value['thickness']!r} must be a finite number > 0 (m); allowed: "
+                       f"{LAYER_FORM}") from None
+    if value["base"] not in materials.LAYER_BASES:
+        raise _Invalid(f"base = {value['base']!r} must be one of: "
+                       + ", ".join(repr(b) for b in materials.LAYER_BASES) + f"; allowed: {LAYER_FORM}")
+    return thickness, value["base"]
+
 MODEL_KEYS: dict[str, tuple[set[str], set[str]]] = {
-    "elastic": ({"E", "nu"}, set()),
-    "sls": ({"E0", "Einf", "nu"}, {"tau_creep", "tau_relax"} | TEMPERATURE_KEYS),
-    "prony": ({"series", "Einf", "nu", "times"}, {"compliances", "moduli"} | TEMPERATURE_KEYS),
-    "tabulated": ({"file", "quantity"}, {"nu"} | TEMPERATURE_KEYS),
+    "elastic": ({"E", "nu"}, {"layer"}),
+    "sls": ({"E0", "Einf", "nu"}, {"tau_creep", "tau_relax", "layer"} | TEMPERATURE_KEYS),
+    "prony": ({"series", "Einf", "nu", "times"}, {"compliances", "moduli", "layer"} | TEMPERATURE_KEYS),
+    "tabulated": ({"file", "quantity"}, {"nu", "layer"} | TEMPERATURE_KEYS),
 }
 """Per model: the [material] keys it requires, and those it may take."""
 
@@ -249,8 +267,8 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "nu": Key("number", "Poisson's ratio, -1 < nu <= 0.5 (all models; with quantity = \"J\" unused)",
                   _poisson, default=None),
         "E": Key("number > 0", "Young's modulus (elastic)", _positive, default=None, unit="Pa"),
-        "E0": Key("number > 0", "instantaneous Young's modulus (sls), E0 >= Einf", _positive, default=None,
-                  unit="Pa"),
+        "E0": Key("number > 0", "instantaneous Young's modulus (sls), Einf <= E0 <= 1e7 Einf", _positive,
+                  default=None, unit="Pa"),
         "Einf": Key("number > 0", "relaxed (long-time) Young's modulus (sls, prony)", _positive,
                     default=None, unit="Pa"),
         "tau_creep": Key("number > 0", "retardation time of the creep compliance (sls; or tau_relax)",
@@ -278,18 +296,22 @@ SCHEMA: dict[str, dict[str, Key]] = {
                      'C2 (K), T_ref (K)}: log10 a_T = -C1 (T - T_ref)/(C2 + T - T_ref), or {law = '
                      '"arrhenius", Ea (J/mol), T_ref (K)}: ln a_T = (Ea/R)(1/T - 1/T_ref), R = 8.314462618 '
                      'J/(mol K)', _shift, default=None),
+        "layer": Key("inline table", "the material is a layer of this thickness on a rigid base, its bottom "
+                     'bonded to it or sliding freely on it: {thickness = h (m), base = "bonded" or '
+                     '"frictionless"} (all models; needs nu; absent: a half-space; docs/layer.md)', _layer,
+                     default=None),
     },
     "body": {
         "shape": Key("string", "body shape: " + ", ".join(BODY_KEYS) + " (its own keys: see below)",
                      _choice(*BODY_KEYS)),
         "position": Key("[x, y]", "position of the body's reference point at t = 0", _point,
-                        default=(0.0, 0.0), unit="m"),
+                        default=[0.0, 0.0], unit="m"),
     },
     "motion": {
         "velocity": Key("[vx, vy] or program", "velocity of the body over the half-space (its path s(t) "
                         "starts at [body] position); line contact: along X only, a number, a program of "
                         "numbers, or [vx, 0]", _program(vector=True, positive=False),
-                        default=motion.Constant(np.zeros(2)), unit="m/s"),
+                        default=[0.0, 0.0], unit="m/s"),
         "penetration": Key("number or program", "penetration delta of the body's lowest point below the "
                            "undeformed surface (displacement control; exactly one of penetration, load; not in line "
                            "contact)",
@@ -394,6 +416,7 @@ class Scene:
     keep: int = 2  # checkpoints kept
     fields: tuple[str, ...] = ("pressure",)  # saved at the saved steps ([output] fields)
     shift_factor: float = 1.0  # a_T at [material] temperature: material's times / their values at T_ref
+    layer: materials.Layer | None = None  # [material] layer: a layer on a rigid base (None: a half-space)
 
     def replace(self, changes: str | dict[str, Any], value: Any = None) -> "Scene":
         """A copy with keys changed, validated again: ``scene.replace("motion.penetration", 3e-5)`` or,
@@ -491,7 +514,8 @@ def parse_scene(raw: dict, source: str = "<python>", base_dir: str | pathlib.Pat
                   output_dir=output_dir, every=values["output"]["every"], base_dir=base_dir,
                   checkpoint_every=values["output"]["checkpoint_every"], keep=values["output"]["keep"],
                   fields=_fields(values["output"]["fields"]),
-                  shift_factor=shift_factor)
+                  shift_factor=shift_factor,
+                  layer=_material_layer(values["material"], raw.get("material", {}), source))
     if time.mode == "steady":
         _check_steady(scene)
     _check_contact_inside(scene)
@@ -555,7 +579,7 @@ def _read_section(raw: dict, name: str, source: str) -> dict:
         if key not in table:
             if spec.default is MISSING:
                 raise SceneError(source, f"[{name}] {key}", MISSING, f"required: {spec.doc} ({spec.unit})")
-            values[key] = spec.default
+            values[key] = None if spec.default is None else spec.check(spec.default)
             continue
         try:
             values[key] = spec.check(table[key])
@@ -593,6 +617,7 @@ def _material(values: dict, table: dict, base_dir: pathlib.Path, source: str):
         if v["E0"] < v["Einf"]:
             raise SceneError(source, "[material] E0", v["E0"], f"must be >= Einf = {v['Einf']:g} (Pa): "
                              "the instantaneous modulus is the larger")
+        _check_stiffness_ratio(v["E0"] / v["Einf"], "[material] E0", v["E0"], source)
         return materials.sls(v["E0"], v["Einf"], v["nu"], v["tau_creep"], v["tau_relax"])
     if model == "prony":
         terms = "compliances" if v["series"] == "kelvin" else "moduli"
@@ -603,9 +628,41 @@ def _material(values: dict, table: dict, base_dir: pathlib.Path, source: str):
         if v[terms] is None or len(v[terms]) != len(v["times"]):
             raise SceneError(source, f"[material] {terms}", table.get(terms, MISSING),
                              f"required: one value per entry of times ({len(v['times'])})")
+        if terms == "moduli":
+            ratio = 1.0 + sum(v["moduli"]) / v["Einf"]
+        else:
+            rest = 1.0 / v["Einf"] - math.fsum(v["compliances"])  # D(0), 1/Pa
+            ratio = 1.0 / (v["Einf"] * rest) if rest > 0 else math.inf
+        _check_stiffness_ratio(ratio, f"[material] {terms}", table[terms], source)
         build = materials.kelvin if terms == "compliances" else materials.maxwell
         return build(v["Einf"], v["nu"], v[terms], v["times"])
     return _tabulated_material(v, base_dir, source)
+
+
+def _material_layer(values: dict, table: dict, source: str) -> materials.Layer | None:
+    """The [material] layer with the material's nu (required with a layer, even for quantity = "J")."""
+    if values["layer"] is None:
+        return None
+    if values["nu"] is None:
+        raise SceneError(source, "[material] nu", MISSING, "required with [material] layer: the layer's "
+                         "response depends on Poisson's ratio (-1 < nu <= 0.5)")
+    return materials.Layer(*values["layer"], values["nu"])
+
+
+MAX_STIFFNESS_RATIO = 1e7
+"""The largest E0/Einf = Jinf/J0 of a Prony material: J0 = Jinf - sum dJ then keeps its digits to about
+2e-9 (1e7 x the float's 2.2e-16), below the solver's default tolerance."""
+
+
+def _check_stiffness_ratio(ratio: float, key: str, value: Any, source: str) -> None:
+    """SceneError unless the instantaneous over the relaxed modulus, E0/Einf (inf: the creep compliances
+    leave no instantaneous one), is at most MAX_STIFFNESS_RATIO."""
+    if ratio <= MAX_STIFFNESS_RATIO:
+        return
+    what = ("leaves no instantaneous compliance (the compliances must sum to less than 1/Einf)"
+            if ratio == math.inf and key.endswith("compliances") else f"gives E0/Einf = {ratio:.3g}")
+    raise SceneError(source, key, value, f"{what}; allowed: E0/Einf <= {MAX_STIFFNESS_RATIO:g}, beyond which "
+                     "J0 = Jinf - sum dJ loses its digits in double precision")
 
 
 def _temperature(values: dict, table: dict, material, source: str):
@@ -719,18 +776,24 @@ def dumps(raw: dict) -> str:
     lines = []
     for section, table in raw.items():
         lines.append(f"[{section}]")
-        lines += [f"{key} = {_toml_value(value)}" for key, value in table.items()]
+        lines += [f"{key} = {toml_value(value)}" for key, value in table.items()]
         lines.append("")
     return "\n".join(lines)
 
 
-def _toml_value(value: Any) -> str:
-    if isinstance(value, bool):
+def toml_value(value: Any) -> str:
+    """``value`` written as a TOML value: bool, int, float, str, list or tuple (array), dict (inline table),
+    numpy scalars and arrays too. petroll's one TOML writer (with :func:`dumps`)."""
+    if isinstance(value, np.ndarray):
+        value = value.tolist()
+    if isinstance(value, (bool, np.bool_)):
         return "true" if value else "false"
     if isinstance(value, str):
         return '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
     if isinstance(value, (list, tuple)):
-        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
+        return "[" + ", ".join(toml_value(v) for v in value) + "]"
     if isinstance(value, dict):
-        return "{" + ", ".join(f"{k} = {_toml_value(v)}" for k, v in value.items()) + "}"
-    return repr(value)
+        return "{" + ", ".join(f"{k} = {toml_value(v)}" for k, v in value.items()) + "}"
+    if isinstance(value, (int, np.integer)):
+        return str(int(value))
+    return repr(float(value))

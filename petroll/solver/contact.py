@@ -12,9 +12,11 @@ p = p_hat w_ref / (J A_00) with w_ref the largest interference, so that the Hess
 diagonal and the scaled gap is O(1) whatever the units: ``tol`` is a relative tolerance on the contact
 conditions, max |min(p_hat, gap / w_ref)| <= tol, checked after every solve.
 
-Load control (a total force F instead of delta) finds delta by a safeguarded secant iteration on
-(F(delta) / F)^(2/3) - 1, which is linear in delta for a Hertzian contact (on F(delta) / F - 1 for line
-contact, where delta = (2 J F/pi) (ln(2 L/a) + 1/2) is nearly linear in F; L the grid's datum).
+Load control (a total force F instead of delta): with ``pk``, inside the QP (Polonsky & Keer's
+force-controlled form: sum p = F / cell area held, delta from the constraint's multiplier); with TAO's own
+types, by a safeguarded secant iteration on (F(delta) / F)^(2/3) - 1, which is linear in delta for a
+Hertzian contact (on F(delta) / F - 1 for line contact, where delta = (2 J F/pi) (ln(2 L/a) + 1/2) is
+nearly linear in F; L the grid's datum).
 """
 
 from __future__ import annotations
@@ -26,13 +28,15 @@ import weakref
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.fft
 from mpi4py import MPI
 
 from petroll.errors import SolverError
 from petroll.model.grid import Grid
 from petroll.model.scene import DEFAULT_TAO_TYPE, TAO_TYPES
 from petroll.solver.partition import RowPartition, move_rows
-from petroll.solver.influence import influence_operator, shell_matrix
+from petroll.solver.influence import shell_matrix, spare_cores
+from petroll.solver.layer import material_operator
 from petroll.solver.pk import PK_PYTHON_TYPE, PolonskyKeer, tao_reasons
 from petroll.solver.precondition import CirculantInverse
 
@@ -58,22 +62,31 @@ class ContactSolver:
     """Solves contact steps on ``grid`` (rows split over ``comm``) with TAO, options prefix ``prefix``.
 
     Command-line options with that prefix (``-petroll_tao_type tron``, ``-petroll_tao_monitor``, ...)
-    override the scene's settings; they never reach other solvers.
+    override the scene's settings; they never reach other solvers. ``-<prefix>fft_workers N``: FFT threads
+    per rank (default: the rank's share of its node's cores, :func:`petroll.solver.influence.spare_cores`).
     """
 
     def __init__(self, grid: Grid, comm: MPI.Comm, tao_type: str = DEFAULT_TAO_TYPE, tol: float = 1e-8,
-                 prefix: str = "petroll_", max_iterations: int = 10000, precondition: bool = True):
+                 prefix: str = "petroll_", max_iterations: int = 10000, precondition: bool = True,
+                 layer=None):
         from petsc4py import PETSc
 
         self.grid, self.comm, self.tol, self.prefix = grid, comm, tol, prefix
         options = PETSc.Options(prefix)  # read once here and when a window shape's TAO is built
         self.tao_type, self.max_iterations = self._resolve_type(tao_type, prefix, options), max_iterations
         self.precondition = options.getBool("pc_circulant", precondition)
-        self.influence = influence_operator(grid, comm)
+        workers = options.getInt("fft_workers", spare_cores(comm))
+        if workers < 1:
+            raise SolverError(f"-{prefix}fft_workers {workers}: the FFT threads per rank must be >= 1")
+        self.influence = material_operator(grid, comm, layer, workers)
+        self.lift = self.influence.lift_bound(grid.nx, grid.ny)  # upward displacement per unit pressure
         self.rows = RowPartition(grid.nx, comm.size)
         self.r0, self.r1 = self.rows.range(comm.rank)
         self.work = [0, 0]  # TAO iterations and operator applications of every QP solved so far
         self._qps: dict[tuple[int, int], WindowQP] = {}
+
+    MARGIN = 4
+    """Width in cells of the ring around a layer's QP window on which the gap is checked (_solve_qp)."""
 
     kept = 6
     """Window shapes whose TAO, shell matrix and vectors are kept (the most recently used)."""
@@ -101,7 +114,7 @@ class ContactSolver:
     def solve_penetration(self, height: np.ndarray, compliance: float, delta: float,
                           warm: np.ndarray | None = None) -> StepSolution:
         """Pressure for a given penetration ``delta`` (m); ``height`` is h = Z + u on this rank's rows (m)."""
-        pressure, its, apps, residual, window = self._solve_qp(delta - height, compliance, warm)
+        pressure, its, apps, residual, window, _ = self._solve_qp(delta - height, compliance, warm)
         force = self.comm.allreduce(float(pressure.sum())) * self.grid.cell_area
         return StepSolution(pressure, delta, force, its, apps, residual, window)
 
@@ -125,6 +138,12 @@ class ContactSolver:
             return StepSolution(np.zeros(self.local_shape), base, 0.0, 0, 0, 0.0, (0, 0, 0, 0))
         if delta_guess is None or delta_guess <= base:
             delta_guess = base + hertz_penetration(self.grid, compliance, load, radius_hint)
+        if self.tao_type == "pk":
+            if not reach > base:
+                raise BeyondReach(f"the load {load:g} N needs a penetration beyond {reach:g} m")
+            if warm is None:
+                warm = self._hertz_pressure(height, compliance, load, radius_hint)
+            return self._load_in_pk(height, compliance, load, min(delta_guess, reach), warm, reach)
         power = 1.0 if self.grid.line else 2 / 3
         rtol = 10 * self.tol
         iterations = applications = 0
@@ -163,13 +182,118 @@ class ContactSolver:
         raise SolverError(f"load control did not reach the load {load:g} N within 60 penetrations "
                           f"(last force {step.force:g} N); check the scene's load and body")
 
+    def _hertz_pressure(self, height: np.ndarray, compliance: float, load: float, radius: float) -> np.ndarray:
+        """Hertz's pressure (Pa) for ``load`` on a sphere (line contact: a cylinder, N/m) of ``radius`` (m)
+        centred on the lowest height: a cold start for load control (this rank's rows)."""
+        g = self.grid
+        local = np.unravel_index(np.argmin(height), height.shape) if height.size else (0, 0)
+        value = float(height[local]) if height.size else np.inf
+        _, rank = self.comm.allreduce((value, self.comm.rank), op=MPI.MINLOC)
+        centre = self.comm.bcast((g.x[self.r0 + local[0]], g.y[local[1]]) if rank == self.comm.rank else None,
+                                 root=rank)
+        x = g.x[self.r0 : self.r1, None] - centre[0]
+        if g.line:
+            a = math.sqrt(4 * load * radius * compliance / math.pi)
+            r2 = np.broadcast_to(x**2, self.local_shape)
+            p0 = 2 * load / (math.pi * a)
+        else:
+            a = (3 * load * radius * compliance / 4) ** (1 / 3)
+            r2 = x**2 + (g.y[None, :] - centre[1]) ** 2
+            p0 = 3 * load / (2 * math.pi * a * a)
+        return p0 * np.sqrt(np.clip(1 - r2 / (a * a), 0.0, None))
+
+    def _load_in_pk(self, height: np.ndarray, compliance: float, load: float, delta: float,
+                    warm: np.ndarray | None, reach: float) -> StepSolution:
+        """Load control inside pk: the force held in the QP (pk's ``total``), the penetration found from the
+        constraint's multiplier. The QP is posed on the window of the interference at the guess ``delta``;
+        where the penetration found interferes beyond that window, it is solved again on the larger one,
+        from the solution (both solves' work counted). BeyondReach as :meth:`solve_load`."""
+        iterations = applications = 0
+        for _ in range(20):
+            pressure, its, apps, residual, window, change = self._solve_qp(delta - height, compliance, warm, load)
+            iterations += its
+            applications += apps
+            found = delta + change
+            if found > reach:
+                raise BeyondReach(f"the load {load:g} N needs a penetration beyond {reach:g} m")
+            needed = self._box(found - height > 0)
+            if needed is None or (window[0] <= needed[0] and needed[1] <= window[1] and window[2] <= needed[2]
+                                  and needed[3] <= window[3]):
+                force = self.comm.allreduce(float(pressure.sum())) * self.grid.cell_area
+                if self.grid.line:
+                    self._check_inside(pressure)
+                return StepSolution(pressure, found, force, iterations, applications, residual, window)
+            # a window too small concentrates the pressure: the penetration found overshoots; halve the
+            # step while its interference would reach the grid's edge
+            for _ in range(30):
+                if not self._at_edge(self._box(found - height > 0)):
+                    break
+                found = 0.5 * (delta + found)
+            delta, warm = found, pressure
+        raise SolverError(f"load control did not settle its contact window within 20 solves (load {load:g} N); "
+                          "check the scene's load and body")
+
     # -- the QP -----------------------------------------------------------------------------------------
-    def _solve_qp(self, interference: np.ndarray, compliance: float, warm: np.ndarray | None):
+    def _solve_qp(self, interference: np.ndarray, compliance: float, warm: np.ndarray | None,
+                  load: float | None = None):
+        """The QP on the window of the cells that can touch (``interference`` in m); ``load`` (N, pk only):
+        the force held, the penetration found with the pressure. Returns the pressure, TAO's iterations,
+        the applications, the residual, the window and the penetration's change (m; 0 without load).
+
+        With all coefficients positive the cells that can touch are those With all coefficients positive 
+        of positive interference (exact). A layer's surface bulges up around a load, so cells beyond
+        them can touch too: the window then also covers the warm start's contact, and after each solve the
+        gap is checked on a ring of ``MARGIN`` cells around the window; cells found touching (gap below
+        -tol of the largest interference) join the window and the QP is solved again, until the ring is
+        clear. (A cell beyond a clear ring touching would need the bulge to rise faster than the body's
+        profile away from the contact; the thin incompressible layer's contact, 41 % wider than the
+        interference region, is found this way: tests/test_layer.py.)"""
+        candidates = interference > 0
+        if (not self.influence.positive and warm is not None
+                and self.comm.allreduce(bool(candidates.any()), op=MPI.LOR)):
+            candidates |= warm > 0
+        its = applications = 0
+        while True:
+            pressure, n, apps, residual, window, change = self._solve_window(interference, compliance, warm,
+                                                                             candidates, load)
+            its, applications = its + n, applications + apps
+            if self.influence.positive or window == (0, 0, 0, 0):
+                return pressure, its, applications, residual, window, change
+            touching = self._touching(pressure, interference + change, compliance, window)
+            if not self.comm.allreduce(bool(touching.any()), op=MPI.LOR):
+                return pressure, its, applications, residual, window, change
+            candidates = candidates | touching
+            warm = pressure
+
+    def _touching(self, pressure: np.ndarray, interference: np.ndarray, compliance: float,
+                  window: tuple[int, int, int, int]) -> np.ndarray:
+        """Cells outside ``window`` but within ``MARGIN`` cells of it whose gap J A p - interference is
+        below -tol times the largest interference (this rank's rows; booleans). No convolution when the
+        surface's largest possible lift, J max(p) ``lift``, cannot close the ring's gaps."""
+        g, m = self.grid, self.MARGIN
+        i0, i1, j0, j1 = window
+        box = (max(i0 - m, 0), min(i1 + m, g.nx), max(j0 - m, 0), min(j1 + m, g.ny))
+        ring = np.zeros(self.local_shape, dtype=bool)
+        rows = slice(max(box[0], self.r0) - self.r0, max(min(box[1], self.r1), self.r0) - self.r0)
+        ring[rows, box[2]:box[3]] = True
+        rows = slice(max(i0, self.r0) - self.r0, max(min(i1, self.r1), self.r0) - self.r0)
+        ring[rows, j0:j1] = False
+        extremes = np.array([interference.max(initial=0.0), np.max(interference, where=ring, initial=-np.inf),
+                             pressure.max(initial=0.0)])
+        self.comm.Allreduce(MPI.IN_PLACE, extremes, op=MPI.MAX)
+        w_ref, closest, p_max = extremes
+        if closest + compliance * p_max * self.lift < -self.tol * w_ref:
+            return np.zeros(self.local_shape, dtype=bool)
+        gap = compliance * self.convolve_box(pressure, box) - interference
+        return ring & (gap < -self.tol * w_ref)
+
+    def _solve_window(self, interference: np.ndarray, compliance: float, warm: np.ndarray | None,
+                      candidates: np.ndarray, load: float | None):
         grid, comm = self.grid, self.comm
         pressure = np.zeros(self.local_shape)
-        window = self._window(interference > 0)
+        window = self._window(candidates)
         if window is None:
-            return pressure, 0, 0, 0.0, (0, 0, 0, 0)
+            return pressure, 0, 0, 0.0, (0, 0, 0, 0), 0.0
         i0, i1, j0, j1 = window
         grid_ranges, window_ranges = self._box_ranges(i0, i1)
         target = move_rows(interference[:, j0:j1], grid_ranges, window_ranges, comm)
@@ -181,8 +305,9 @@ class ContactSolver:
         start = None
         if warm is not None:
             start = move_rows(warm[:, j0:j1], grid_ranges, window_ranges, comm).ravel() / to_pressure
+        total = None if load is None else load / (grid.cell_area * to_pressure)
         qp.tao.setTolerances(gatol=self.tol, grtol=0.0, gttol=0.0)  # self.tol may change between solves
-        x, gap, its, applications = qp.solve(-target.ravel() / w_ref, start)
+        x, gap, multiplier, its, applications = qp.solve(-target.ravel() / w_ref, start, total)
         natural = np.minimum(x, gap)
         residual = comm.allreduce(float(np.abs(natural).max(initial=0.0)), op=MPI.MAX)
         p_window = np.maximum(x, 0.0).reshape(-1, j1 - j0) * to_pressure
@@ -193,7 +318,7 @@ class ContactSolver:
                               f"{residual:.3g} (relative; [solver] tol = {self.tol:g}); try another "
                               f"-{self.prefix}tao_type or a larger [solver] tol")
         self._put_box(pressure, p_window, window)
-        return pressure, its, applications, residual, window
+        return pressure, its, applications, residual, window, multiplier * w_ref
 
     def convolve_box(self, field: np.ndarray, box: tuple[int, int, int, int]) -> np.ndarray:
         """A ``field`` with the Love coefficients (A field, m per unit of field), sources and results both
@@ -240,7 +365,7 @@ class ContactSolver:
             raise SolverError(f"[grid]: the contact reaches an end of the grid (X = {g.x0:g} or {g.x1:g}); "
                               "enlarge [grid] x or reduce the load")
 
-    def _window(self, candidates: np.ndarray) -> tuple[int, int, int, int] | None:
+    def _box(self, candidates: np.ndarray) -> tuple[int, int, int, int] | None:
         """Bounding box [i0, i1) x [j0, j1) of the candidate cells over all ranks; None when there are none."""
         rows = np.flatnonzero(candidates.any(axis=1)) + self.r0
         cols = np.flatnonzero(candidates.any(axis=0))
@@ -251,17 +376,29 @@ class ContactSolver:
         self.comm.Allreduce(MPI.IN_PLACE, hi, op=MPI.MAX)
         if hi[0] < 0:
             return None
-        i0, j0, i1, j1 = int(lo[0]), int(lo[1]), int(hi[0]) + 1, int(hi[1]) + 1
+        return int(lo[0]), int(hi[0]) + 1, int(lo[1]), int(hi[1]) + 1
+
+    def _at_edge(self, box: tuple[int, int, int, int]) -> bool:
+        """Whether a box touches the grid's edge (never for line contact, whose window may span the grid:
+        only the solved contact must stay inside, :meth:`_check_inside`)."""
         g = self.grid
-        if g.line:  # the window may span the grid: only the solved contact must stay inside (solve_load)
-            return i0, i1, j0, j1
-        if i0 == 0 or j0 == 0 or i1 == g.nx or j1 == g.ny:
+        return not g.line and (box[0] == 0 or box[2] == 0 or box[1] == g.nx or box[3] == g.ny)
+
+    def _window(self, candidates: np.ndarray) -> tuple[int, int, int, int] | None:
+        """The candidate cells' bounding box (:meth:`_box`) grown to fast FFT lengths (:func:`_fast_range`);
+        None when there are no candidates; SolverError when the box reaches the grid's edge."""
+        box = self._box(candidates)
+        if box is None:
+            return None
+        i0, i1, j0, j1 = box
+        g = self.grid
+        if self._at_edge(box):
             raise SolverError(
                 f"[grid]: the contact region (cells where the body interferes with the surface, X in "
                 f"[{g.x0 + i0 * g.dx:g}, {g.x0 + i1 * g.dx:g}], Y in [{g.y0 + j0 * g.dy:g}, "
                 f"{g.y0 + j1 * g.dy:g}]) reaches the grid edge; enlarge [grid] x and y or reduce the "
                 f"penetration or load")
-        return i0, i1, j0, j1
+        return (*_fast_range(i0, i1, g.nx, real=False), *_fast_range(j0, j1, g.ny, real=True))
 
 
 def hertz_penetration(grid: Grid, compliance: float, load: float, radius: float) -> float:
@@ -337,9 +474,11 @@ class WindowQP:
         grad.axpy(1.0, self.rhs)
         return 0.5 * (p.dot(grad) + p.dot(self.rhs))
 
-    def solve(self, rhs: np.ndarray, start: np.ndarray | None):
-        """Solve from ``start`` (p_hat, this rank's window entries; None: 0). Returns p_hat, the gap
-        H p_hat + rhs (local arrays), TAO's iterations and the operator applications."""
+    def solve(self, rhs: np.ndarray, start: np.ndarray | None, total: float | None = None):
+        """Solve from ``start`` (p_hat, this rank's window entries; None: 0). ``total`` (pk only): hold
+        sum p_hat = total (load control). Returns p_hat, the gap H p_hat + rhs - lambda (local arrays; lambda
+        the load constraint's multiplier, 0 without it), lambda, TAO's iterations and the operator
+        applications."""
         context = self.hessian.getPythonContext()
         before = context.applications
         self.rhs.setArray(rhs)
@@ -347,6 +486,8 @@ class WindowQP:
             self.x.set(0.0)
         else:
             self.x.setArray(np.maximum(start, 0.0))
+        if self.pk:
+            self.tao.getPythonContext().total = total
         self.tao.solve(self.x)
         reason, its = self.tao.getConvergedReason(), self.tao.getIterationNumber()
         if reason < 0:
@@ -354,12 +495,15 @@ class WindowQP:
             raise SolverError(f"TAO ({self.kind}) did not converge (reason {_reason_name(reason)} after {its} "
                               f"iterations{'; ' + why if why else ''}); try another -{self.prefix}tao_type, "
                               f"a larger [solver] tol or -{self.prefix}tao_max_it")
-        if self.pk:  # pk ends on a freshly computed gradient, left in TAO's gradient vector
+        multiplier = 0.0
+        if self.pk:  # pk ends on the gradient at the solution, left in TAO's gradient vector
             self.tao.getGradient()[0].copy(self.gap)
+            multiplier = self.tao.getPythonContext().multiplier
+            self.gap.shift(-multiplier)
         else:  # other types may keep a projected gradient there
             self.hessian.mult(self.x, self.gap)
             self.gap.axpy(1.0, self.rhs)
-        return self.x.array_r.copy(), self.gap.array_r.copy(), its, context.applications - before
+        return self.x.array_r.copy(), self.gap.array_r.copy(), multiplier, its, context.applications - before
 
     def destroy(self) -> None:
         for obj in (self.tao, self.hessian, self.x, self.rhs, self.grad, self.gap, *self._vecs):
@@ -380,6 +524,18 @@ def _destroy_live() -> None:
     collective; a set's order, by address, may differ between ranks and deadlock the exit)."""
     for qp in sorted(_LIVE, key=lambda qp: qp.created):
         qp.destroy()
+
+
+def _fast_range(i0: int, i1: int, n: int, real: bool) -> tuple[int, int]:
+    """[i0, i1) grown about its centre, within [0, n), to a length scipy.fft transforms fast (``real``: a
+    real transform's), where one fits: the window's preconditioner transforms it unpadded. The QP stays
+    exact on a larger box (its extra cells have no interference, so no pressure)."""
+    m = i1 - i0
+    length = scipy.fft.next_fast_len(m, real=real)
+    if length > n:
+        return i0, i1
+    a = min(max(0, i0 - (length - m) // 2), n - length)
+    return a, a + length
 
 
 def _clip(rows: tuple[int, int], i0: int, i1: int) -> tuple[int, int]:

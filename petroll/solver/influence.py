@@ -13,7 +13,9 @@ convolution, applied with zero-padded FFTs (DC-FFT) on a grid whose rows are spl
 A line-contact grid (plane strain, ny = 1) uses the same machinery with the strip kernel of
 :func:`strip_coefficients` in place of Love's (the Y transforms are then of length 1).
 
-The padded lengths are products of 2, 3 and 5 (fast FFT sizes). Only the nx x (ly/2 + 1) non-zero part
+The transforms are scipy.fft's (pocketfft: real transforms along Y, about 2.5x numpy's at these sizes),
+on ``workers`` threads (a rank's spare cores, :func:`spare_cores`); the padded lengths are
+``scipy.fft.next_fast_len`` (fast FFT sizes). Only the nx x (ly/2 + 1) non-zero part
 travels in each transpose (the X padding is added after it), so the communication is half that of a
 distributed FFT of the padded array (e.g. mpi4py-fft), and no rank ever holds the whole field.
 """
@@ -23,6 +25,7 @@ from __future__ import annotations
 from typing import Callable
 
 import numpy as np
+import scipy.fft
 from mpi4py import MPI
 
 from petroll.model.grid import Grid
@@ -114,12 +117,13 @@ class Convolution:
     """
 
     def __init__(self, coefficients: np.ndarray | None, nx: int, ny: int, comm: MPI.Comm = MPI.COMM_SELF,
-                 inverse: bool = False):
-        self.nx, self.ny, self.comm = nx, ny, comm
+                 inverse: bool = False, workers: int = 1):
+        self.nx, self.ny, self.comm, self.workers = nx, ny, comm, workers
         if inverse:
             self.lx, self.ly = nx, ny
-        else:  # padded lengths: >= 2n - 1 (no wrap-around), rounded up to 2^a 3^b 5^c (fast FFTs)
-            self.lx, self.ly = fft_length(2 * nx - 1), fft_length(2 * ny - 1)
+        else:  # padded lengths: >= 2n - 1 (no wrap-around), rounded up to fast FFT sizes
+            self.lx = scipy.fft.next_fast_len(2 * nx - 1)
+            self.ly = scipy.fft.next_fast_len(2 * ny - 1, real=True)
         self.rows = RowPartition(nx, comm.size)
         self.freqs = RowPartition(self.ly // 2 + 1, comm.size)  # Y-frequencies, split after transposing
         self.r0, self.r1 = self.rows.range(comm.rank)
@@ -158,22 +162,22 @@ class Convolution:
         for block in stack:
             values = np.zeros((k1 - k0, self.ly))
             values[np.ix_(rows, cols)] = block
-            half = np.fft.rfft(values, axis=1)
+            half = scipy.fft.rfft(values, axis=1, workers=self.workers)
             columns = _rows_to_columns(half, padded_rows, self.freqs, self.comm)
-            spectra.append(np.fft.fft(columns, axis=0))
+            spectra.append(scipy.fft.fft(columns, axis=0, overwrite_x=True, workers=self.workers))
         return np.stack(spectra).reshape(lead + spectra[0].shape)
 
     def forward(self, x: np.ndarray) -> np.ndarray:
         """The padded DFT of a field's local rows ``x`` (local rows, ny): this rank's Y-frequencies."""
-        half = np.fft.rfft(x, n=self.ly, axis=1)
+        half = scipy.fft.rfft(x, n=self.ly, axis=1, workers=self.workers)
         columns = _rows_to_columns(half, self.rows, self.freqs, self.comm)
-        return np.fft.fft(columns, n=self.lx, axis=0)
+        return scipy.fft.fft(columns, n=self.lx, axis=0, overwrite_x=True, workers=self.workers)
 
     def backward(self, spectrum: np.ndarray) -> np.ndarray:
         """This rank's rows (local rows, ny) of the field whose padded DFT is ``spectrum`` (:meth:`forward`)."""
-        columns = np.fft.ifft(spectrum, axis=0)[: self.nx]
+        columns = scipy.fft.ifft(spectrum, axis=0, workers=self.workers)[: self.nx]
         half = _columns_to_rows(columns, self.rows, self.freqs, self.comm)
-        return np.fft.irfft(half, n=self.ly, axis=1)[:, : self.ny]
+        return scipy.fft.irfft(half, n=self.ly, axis=1, workers=self.workers)[:, : self.ny]
 
     def __call__(self, x: np.ndarray) -> np.ndarray:
         spectrum = self.forward(x)
@@ -181,20 +185,15 @@ class Convolution:
         return self.backward(spectrum)
 
 
-def fft_length(n: int) -> int:
-    """The smallest 2^a 3^b 5^c >= n: an FFT length numpy transforms fast."""
-    best = 1 << max(n - 1, 0).bit_length()
-    p5 = 1
-    while p5 < best:
-        p35 = p5
-        while p35 < best:
-            p235 = p35
-            while p235 < n:
-                p235 *= 2
-            best = min(best, p235)
-            p35 *= 3
-        p5 *= 5
-    return best
+def spare_cores(comm: MPI.Comm) -> int:
+    """FFT threads for each rank of ``comm``: the cores this process may run on, shared among the ranks on
+    its node (at least 1). Collective."""
+    import os
+
+    node = comm.Split_type(MPI.COMM_TYPE_SHARED)
+    ranks = node.size
+    node.Free()
+    return max(1, len(os.sched_getaffinity(0)) // ranks)
 
 
 def _wrapped_offsets(n: int) -> np.ndarray:
@@ -250,9 +249,11 @@ class InfluenceOperator:
     """Largest Love table kept (8 MiB)."""
 
     def __init__(self, dx: float, dy: float, comm: MPI.Comm = MPI.COMM_SELF,
-                 coefficients: Callable[[int, int], np.ndarray] | None = None):
-        self.dx, self.dy, self.comm = dx, dy, comm
+                 coefficients: Callable[[int, int], np.ndarray] | None = None, workers: int = 1,
+                 positive: bool = True):
+        self.dx, self.dy, self.comm, self.workers = dx, dy, comm, workers
         self.love = coefficients is None
+        self.positive = positive  # every coefficient > 0 (a layer's are not: its surface bulges)
         self.coefficients = coefficients or (lambda nx, ny: love_coefficients(nx, ny, dx, dy))
         self._table = self.coefficients(1, 1)
         self._windows: dict[tuple[int, int], Convolution] = {}
@@ -269,21 +270,33 @@ class InfluenceOperator:
     def window(self, nx: int, ny: int, inverse: bool = False) -> Convolution:
         """A on an nx x ny block; ``inverse``: the inverse of its circulant approximation (a preconditioner)."""
         key = (nx, ny, inverse)
-        conv = self._windows.pop(key, None) or Convolution(self.table_rows(nx, ny), nx, ny, self.comm, inverse)
+        conv = self._windows.pop(key, None) or Convolution(self.table_rows(nx, ny), nx, ny, self.comm, inverse,
+                                                                  self.workers)
         self._windows[key] = conv  # the newest last
         while len(self._windows) > self.kept:
             del self._windows[next(iter(self._windows))]
         return conv
 
     def row_sum_bound(self, nx: int, ny: int) -> float:
-        """An upper bound of every row sum of A on an nx x ny block: sum_k A_ik <= this (unit compliance),
-        i.e. the largest displacement a unit field on every cell can cause: the sum over all offsets
-        |di| < nx, |dj| < ny. For Love's coefficients that is the displacement at the centre of a
+        """An upper bound of every row sum of |A| on an nx x ny block: sum_k |A_ik| <= this (unit
+        compliance), i.e. the largest displacement a field of unit magnitude can cause: the sum over all
+        offsets |di| < nx, |dj| < ny. For Love's coefficients that is the displacement at the centre of a
         (2 nx - 1) dx x (2 ny - 1) dy rectangle under unit pressure: Love's formula, no table."""
         if self.love:
             return float(rectangle_displacement(0.0, 0.0, (2 * nx - 1) * self.dx / 2,
                                                 (2 * ny - 1) * self.dy / 2))
-        t = self.table_rows(nx, ny)(np.arange(nx))
+        return self._offsets_sum(np.abs(self.table_rows(nx, ny)(np.arange(nx))))
+
+    def lift_bound(self, nx: int, ny: int) -> float:
+        """The sum of -A over the offsets |di| < nx, |dj| < ny where A < 0 (unit compliance): the most a
+        field of unit magnitude can lift a cell's surface (0 for positive coefficients)."""
+        if self.positive:
+            return 0.0
+        return self._offsets_sum(np.maximum(-self.table_rows(nx, ny)(np.arange(nx)), 0.0))
+
+    @staticmethod
+    def _offsets_sum(t: np.ndarray) -> float:
+        """The sum over all signed offsets of a table given for offsets >= 0 (even in both)."""
         return float(4 * t.sum() - 2 * t[0, :].sum() - 2 * t[:, 0].sum() + t[0, 0])
 
     def table_rows(self, nx: int, ny: int) -> Callable[[np.ndarray], np.ndarray]:
@@ -299,13 +312,15 @@ class InfluenceOperator:
         return lambda ix: table[ix, :ny]
 
 
-def influence_operator(grid: Grid, comm: MPI.Comm = MPI.COMM_SELF) -> InfluenceOperator:
+def influence_operator(grid: Grid, comm: MPI.Comm = MPI.COMM_SELF, workers: int = 1) -> InfluenceOperator:
     """The influence operator of ``grid``: Love's rectangles, or for a line-contact grid the plane-strain
-    strip kernel with the grid's datum (:func:`strip_coefficients`; the table is (nx, 1))."""
+    strip kernel with the grid's datum (:func:`strip_coefficients`; the table is (nx, 1)); ``workers``
+    FFT threads. A layer's: :func:`petroll.solver.layer.material_operator`."""
     if not grid.line:
-        return InfluenceOperator(grid.dx, grid.dy, comm)
+        return InfluenceOperator(grid.dx, grid.dy, comm, workers=workers)
     dx, datum = grid.dx, grid.datum
-    return InfluenceOperator(dx, grid.dy, comm, lambda nx, ny: strip_coefficients(nx, dx, datum)[:, None])
+    return InfluenceOperator(dx, grid.dy, comm, lambda nx, ny: strip_coefficients(nx, dx, datum)[:, None],
+                             workers)
 
 
 class ShellInfluence:

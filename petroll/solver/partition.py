@@ -42,7 +42,7 @@ def move_rows(local: np.ndarray, src: list[tuple[int, int]], dst: list[tuple[int
     """
     rank = comm.rank
     ncol = local.shape[1]
-    (s0, s1), (d0, d1) = src[rank], dst[rank]
+    s0, (d0, d1) = src[rank][0], dst[rank]
     if comm.size == 1:
         return local[d0 - s0 : d1 - s0]
     send = [_overlap(src[rank], dst[r]) for r in range(comm.size)]

@@ -7,25 +7,34 @@ on the free variables (strictly between their bounds), projection onto the bound
 variables at a bound whose gradient points into the box put back with a steepest-descent step (which,
 like any change of the free set, restarts the conjugacy). f and its gradient come from TAO's
 objective-gradient routine, H t from TAO's Hessian matrix: the type works for any such QP set up on a TAO.
-It ends with TAO's gradient vector holding the gradient at the solution, freshly computed.
+It ends with TAO's gradient vector holding the gradient at the solution (see Cost for its round-off).
 
 Preconditioned by the PC of the TAO's KSP (KSP type ``preonly``: one PC application per iteration,
 restricted to the free variables; PC type ``none`` by default, options prefix the TAO's). petroll's
 contact solver sets it to the inverse circulant of the window's kernel
 (:class:`petroll.solver.precondition.CirculantInverse`), so the iteration count hardly grows with the grid
-(Hertz, load control: 29 against 123 iterations at 512^2 cells; docs/benchmarks.md).
+(Hertz at 154^2 cells, cold: 30 against 72 applications without it; docs/benchmarks.md).
 
 Cost: one Hessian application per iteration plus one objective-gradient evaluation; once the free set
 stops changing (no variable clipped or put back) the gradient and f are updated exactly for a quadratic
 (g - tau H d, f - tau g.d + tau^2 d.Hd / 2) instead, so late iterations cost one application; the
-gradient is recomputed at least every ``-tao_pk_refresh`` (25) iterations against round-off.
+gradient is recomputed at least every ``-tao_pk_refresh`` (25) iterations, so that an updated gradient
+differs from a fresh one by round-off only (about 1e-15 of its scale, far below any useful gatol): the
+stop is judged on it, with no confirming evaluation (which would cost one application per solve).
+
+Load control (Polonsky & Keer's force-controlled form): with ``total`` set on the context, the solve also
+holds sum x = total (bounds must then be x >= 0, no upper bound). Its multiplier lambda (the mean gradient
+over the free variables; for the contact QP, the change of penetration) shifts the gradient, g - lambda,
+in everything above: directions are projected onto sum d = 0 over the free variables, variables clipped or
+put back are followed by a rescaling x <- x total / sum x. It is left in ``multiplier``; TAO's gradient
+vector holds g, and g - lambda is the gradient of the Lagrangian.
 
 Reports to TAO's monitors each iteration the true objective f and, as the residual, the projected
-gradient x - P(x - g) (P the projection onto the bounds) in the max norm; stops when it is <= gatol
-(checked on a freshly computed gradient): CONVERGED_GATOL. Other reasons: DIVERGED_MAXITS (the iteration
-limit), DIVERGED_MAXFCN (the objective-gradient evaluation limit), DIVERGED_NAN (a non-finite f or
-gradient), DIVERGED_USER (a search direction of zero or negative curvature, d^T H d <= 0: H is not
-positive definite; the context's ``breakdown`` says so in words).
+gradient x - P(x - (g - lambda)) (P the projection onto the bounds) in the max norm; stops when it is
+<= gatol: CONVERGED_GATOL. Other reasons: DIVERGED_MAXITS (the iteration limit), DIVERGED_MAXFCN (the
+objective-gradient evaluation limit), DIVERGED_NAN (a non-finite f or gradient), DIVERGED_USER (a search
+direction of zero or negative curvature, d^T H d <= 0: H is not positive definite; the context's
+``breakdown`` says so in words).
 """
 
 from __future__ import annotations
@@ -54,6 +63,8 @@ class PolonskyKeer:
     def __init__(self):
         self.refresh = 25  # recompute the gradient from scratch at least this often (-tao_pk_refresh)
         self.breakdown = ""  # why the last solve stopped with DIVERGED_USER, in words
+        self.total = None  # load control: sum x held at this value (None: no such constraint)
+        self.multiplier = 0.0  # its multiplier lambda at the last solve's end (0 without it)
 
     def setFromOptions(self, tao) -> None:
         """-<prefix>tao_pk_refresh N; the KSP (prefix the TAO's) is ``preonly`` and its PC ``none`` unless
@@ -75,6 +86,8 @@ class PolonskyKeer:
         lines = ["Polonsky-Keer conjugate gradients projected onto the variable bounds",
                  f"preconditioner: {pc.getType() or 'none'} (the KSP's PC below, applied once per iteration "
                  "to the free variables' gradient)",
+                 "load control: sum x = total when the context's total is set (now: "
+                 f"{'none' if self.total is None else format(self.total, '.6g')})",
                  "restart: conjugacy restarted whenever a variable reaches or leaves a bound; gradient "
                  f"recomputed at least every {self.refresh} iterations (-tao_pk_refresh)",
                  "step: exact minimiser along each direction, then projection (no line search: the "
@@ -108,6 +121,26 @@ class PolonskyKeer:
         def total(value) -> float:
             return comm.allreduce(float(value))
 
+        load = self.total
+        if load is not None:
+            if np.any(lo != 0) or np.any(hi != np.inf) or not load >= 0:
+                raise ValueError("pk: load control (total) needs bounds x >= 0 and total >= 0")
+            held = total(x.array_r.sum())
+            if held > 0:
+                x.scale(load / held)
+            else:  # uniform
+                x.set(load / x.getSize())
+
+        def shift(xa, ga) -> float:
+            """The multiplier: the mean gradient over the free variables (load control), else 0."""
+            if load is None:
+                return 0.0
+            free = xa > 0
+            count = total(np.count_nonzero(free))
+            if count == 0:
+                return comm.allreduce(float(ga.min(initial=np.inf)), op=MPI.MIN)
+            return total(ga[free].sum()) / count
+
         evaluations = 0
 
         def evaluate() -> float:
@@ -116,14 +149,13 @@ class PolonskyKeer:
             return tao.computeObjectiveGradient(x, g)
 
         f = evaluate()
-        fresh, conjugate, previous_gz, its, step = True, False, 1.0, 0, 0.0
+        conjugate, previous_gz, its, step = False, 1.0, 0, 0.0
         while True:
-            xa, ga = x.array_r, g.array_r
+            xa = x.array_r
+            lam = shift(xa, g.array_r)
+            ga = g.array_r - lam
             projected = xa - np.clip(xa - ga, lo, hi)
             res = comm.allreduce(float(np.abs(projected).max(initial=0.0)), op=MPI.MAX)
-            if res <= gatol and not fresh:
-                f, fresh = evaluate(), True  # confirm on an exact gradient
-                continue
             tao.setIterationNumber(its)
             tao.monitor(its, f, res, 0.0, step)
             if not (np.isfinite(f) and np.isfinite(res)):
@@ -149,6 +181,8 @@ class PolonskyKeer:
                 else:
                     pc.apply(r, z)
                 za = np.where(free, z.array_r, 0.0)
+                if load is not None:  # onto sum d = 0 over the free variables
+                    za[free] -= total(za.sum()) / total(np.count_nonzero(free))
                 gz = total(np.dot(gf, za))
                 beta = gz / previous_gz if conjugate else 0.0
                 d.setArray(np.where(free, za + beta * d.array_r, 0.0))
@@ -169,14 +203,16 @@ class PolonskyKeer:
             reenter = ((new <= lo) & (ga < 0)) | ((new >= hi) & (ga > 0))
             new[reenter] = np.clip(new[reenter] - step * ga[reenter], lo[reenter], hi[reenter])
             changed = comm.allreduce(bool(clipped.any() or reenter.any()), op=MPI.LOR)
+            if changed and load is not None:
+                new *= load / total(new.sum())
             x.setArray(new)
             conjugate = not (changed or steepest)
             if changed or its % self.refresh == 0:
-                f, fresh = evaluate(), True
+                f = evaluate()
             else:  # exact for a quadratic and an unchanged free set, up to round-off
                 f += -step * gd + 0.5 * step * step * dhd
                 g.axpy(-step, hd)
-                fresh = False
+        self.multiplier = lam
         tao.setIterationNumber(its)
         tao.setConvergedReason(reason)
         for v in (d, hd, r, z, *own):

@@ -21,7 +21,7 @@ from mpi4py import MPI
 from petroll.solver.contact import BeyondReach, ContactSolver
 from petroll.errors import SceneError, SolverError
 from petroll.solver.history import make_history
-from petroll.solver.influence import influence_operator
+from petroll.solver.layer import material_operator
 from petroll.solver.steady import Anderson, FarWake, SteadyMemory
 from petroll.model.materials import Prony
 from petroll.model.scene import Scene
@@ -70,7 +70,8 @@ class Simulation:
 
     def __init__(self, scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD):
         self.scene, self.comm = scene, comm
-        self.solver = ContactSolver(scene.grid, comm, tao_type=scene.solver.tao_type, tol=scene.solver.tol)
+        self.solver = ContactSolver(scene.grid, comm, tao_type=scene.solver.tao_type, tol=scene.solver.tol,
+                                    layer=scene.layer)
         self.history = make_history(scene.material, scene.solver.integrator, self.solver.local_shape)
         g = scene.grid
         self.x = g.x[self.solver.r0 : self.solver.r1, None]
@@ -232,14 +233,14 @@ class Simulation:
         n_along = (g.nx, g.ny)[axis]
         needed = min(math.ceil(30 * speed * material.longest_time / cell), WAKE_CELLS)
         behind = min(needed, 4 * n_along if g.line else max(2 * n_along, 64))
-        far = needed - behind if not g.line else 0
+        far = needed - behind if not g.line and scene.layer is None else 0  # a layer's kernel fades within reach
         shape = [g.nx, g.ny]
         shape[axis] += behind
         pad = [(0, 0), (0, 0)]
         pad[axis] = (behind, 0) if sign > 0 else (0, behind)
         inside = [slice(None), slice(None)]
         inside[axis] = slice(pad[axis][0], pad[axis][0] + n_along)
-        extended = influence_operator(g).window(*shape)
+        extended = material_operator(g, layer=scene.layer).window(*shape)
         memory = SteadyMemory(material, scene.solver.integrator, speed, dt, cell, axis, sign,
                               n_along + behind + far + 1)
         wake = None

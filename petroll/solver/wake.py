@@ -11,8 +11,10 @@ track's length:
   on a 1000-cell track), so the default cutoff 1e-9 bounds the change at about 1e-8 of the penetration,
   the default tolerance's level; with a tighter [solver] tol lower the cutoff too. A cutoff of 0 keeps
   every non-zero cell (exact).
-* targets: cells the body can touch. A > 0, so u >= -S max(-v, 0) everywhere; a cell whose rigid
-  interference reach - Z is below that bound cannot be in contact at a penetration <= reach (exact).
+* targets: cells the body can touch. A > 0, so u >= -S max(-v, 0) everywhere; a layer's A has negative
+  coefficients too, summing to at most -S_lift over a row (InfluenceOperator.lift_bound), so then
+  u >= -S max(-v, 0) - S_lift max(v, 0) (S the row sum of |A|). A cell whose rigid interference
+  reach - Z is below that bound cannot be in contact at a penetration <= reach (exact).
 
 u is computed on the bounding box of both (its sides rounded up to multiples of ``QUANTUM`` cells, so
 that few kernel shapes are built) and is zero outside it, where no cell can touch.
@@ -35,19 +37,21 @@ class Wake:
         self.solver, self.cutoff = solver, cutoff
         g = solver.grid
         self.row_sum = solver.influence.row_sum_bound(g.nx, g.ny)
+        self.lift = solver.influence.lift_bound(g.nx, g.ny)
         self.boxes = 0
 
     def displacement(self, v: np.ndarray, profile: np.ndarray, reach: float) -> np.ndarray:
         """u = A v (m; this rank's rows) where it matters for a penetration <= ``reach`` (m) of a body of
         rigid heights ``profile`` (m, this rank's rows); see the module docstring for the error bound."""
         comm, g = self.solver.comm, self.solver.grid
-        extremes = np.array([np.abs(v).max(initial=0.0), (-v).max(initial=0.0)])
+        extremes = np.array([np.abs(v).max(initial=0.0), (-v).max(initial=0.0), v.max(initial=0.0)])
         comm.Allreduce(MPI.IN_PLACE, extremes, op=MPI.MAX)
-        largest, negative = extremes
+        largest, negative, positive = extremes
         if largest == 0:
             return np.zeros_like(v)
         with np.errstate(invalid="ignore"):  # inf - inf where a body has no surface: never needed there
-            needed = (np.abs(v) > self.cutoff * largest) | (reach - profile > -self.row_sum * negative)
+            lowest = -self.row_sum * negative - self.lift * positive  # the least u can be
+            needed = (np.abs(v) > self.cutoff * largest) | (reach - profile > lowest)
         box = self._box(needed)
         if box == (0, g.nx, 0, g.ny):
             return self.solver.influence.window(g.nx, g.ny)(v)

@@ -1,27 +1,30 @@
 """Benchmarks that print tables and write CSV files (never timed unit tests).
 
 ``petroll bench peers [--out DIR]``: the elastic Hertz step under load control on the same grids (N x N
-cells over 3.2 contact radii, non-periodic), same tolerance, solved by petroll (``pk``), by Tamaas
-(``PolonskyKeerRey`` with its non-periodic ``dcfft`` operator) and by ContactMechanics
-(``constrained_conjugate_gradients`` on a ``FreeFFTElasticHalfSpace``), each checked against Hertz, timed
-side by side in one invocation (median of 3; set-up such as kernels excluded for all three). Writes
-``peers.csv`` and ``peers.png`` (time against cells). The peers run in their own virtual environment,
-``.venv-peers`` (created or completed on first use with pip: they need numpy 2, which must not enter
-petroll's environment), through the standalone scripts ``peers/tamaas.py`` and ``peers/contactmechanics.py``.
+cells over 3.2 contact radii, non-periodic), solved by petroll (``pk``), by Tamaas (``PolonskyKeerRey``
+with its non-periodic ``dcfft`` operator) and by ContactMechanics (``constrained_conjugate_gradients`` on a
+``FreeFFTElasticHalfSpace``), timed the same two ways (whole process cold; second solve in process), each
+converged to within 1e-6 (relative L2) of a reference solved to 1e-12 on the same grid (:func:`peers`).
+Writes ``peers.csv`` and ``peers.png``. The peers run in their own virtual environment, ``.venv-peers``
+(created or completed on first use with pip: they need numpy 2, which must not enter petroll's
+environment); every solver runs through its script ``peers/solve_<name>.py``.
 
-``petroll bench warm [--out DIR]``: the rolling sphere of runs/sphere.toml on square cells at a/dx = 16 (the
-Hertz radius over 16 cells), rolled one cell per step to steady state, with every step's QP started from
-p = 0 (``cold``), from the last solution carried along with the body (``carried``) and from the last three
-extrapolated in the body's frame (``extrapolated``, the default; petroll/warm.py): operator applications
-per step (all warm steps, and the last 20, at steady state), time per step, and the steady force and mu_r
-(the guess changes the cost, not the answer). Writes warm.csv and warm.png (applications per step).
+``petroll bench warm [--out DIR] [--quick]``: the rolling sphere of runs/sphere.toml on square cells at
+a/dx = 16 (the Hertz radius over 16 cells), rolled one cell per step to steady state, with every step's QP
+started from p = 0 (``cold``), from the last solution carried along with the body (``carried``) and from
+the last three extrapolated in the body's frame (``extrapolated``, the default; petroll/solver/warm.py):
+operator applications per step (all warm steps, and the last 20, at steady state), time per step, and the
+steady force and mu_r (the guess changes the cost, not the answer). Writes warm.csv and warm.png
+(applications per step). ``--quick``: a/dx = 6 and one repeat, a check that it runs (tests/test_install.py).
 
 ``petroll bench tao [--out DIR]``: every TAO type on the elastic Hertz step (sphere, displacement control)
-at two resolutions, cold (from p = 0) and warm (from the solution at a 1 % smaller penetration): TAO
-iterations, operator applications, median wall time of repeated solves, and the force error against Hertz.
-Then every type on the default rolling scene (runs/sphere.toml to steady state): iterations,
-applications and time per step (tao_rolling.csv). All types are measured side by side in one run, so
-their ratios are meaningful on a noisy machine.
+at two resolutions, cold (from p = 0) and warm (from the solution at a 1 % smaller penetration), the types
+that run a KSP on the Hessian with the inverse-circulant PC and without: TAO iterations, operator
+applications, median wall time of repeated solves, and the force error against Hertz (tao_types.csv).
+Then load control against displacement control (tao_load.csv, :func:`load_control`), and every type and
+PC on the default rolling scene (runs/sphere.toml to steady state): iterations, applications and time
+per step (tao_rolling.csv). All are measured side by side in one run, so their ratios are meaningful on
+a noisy machine.
 """
 
 from __future__ import annotations
@@ -36,7 +39,7 @@ from mpi4py import MPI
 
 from petroll.model.bodies import Sphere
 from petroll.model.scene import TAO_TYPES
-from petroll.solver.contact import ContactSolver
+from petroll.solver.contact import KRYLOV_TYPES, ContactSolver
 from petroll.errors import PetrollError
 from petroll.model.grid import Grid
 from petroll.solver.warm import DEPTH, WarmStart
@@ -55,8 +58,8 @@ def tao_types(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, repeats: int =
         half = 1.6 * a
         n = int(round(2 * half / (a / ratio)))
         grid = Grid(n, n, -half, half, -half, half)
-        for kind in TAO_TYPES:
-            solver = ContactSolver(grid, comm, tao_type=kind, tol=1e-8)
+        for kind, pc in _tao_variants():
+            solver = ContactSolver(grid, comm, tao_type=kind, tol=1e-8, precondition=pc == "circulant")
             height = Sphere(_R).height(grid.x[solver.r0 : solver.r1, None], grid.y[None, :])
             for start in ("cold", "warm"):
                 times = []
@@ -69,16 +72,42 @@ def tao_types(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, repeats: int =
                         step = solver.solve_penetration(height, _J, _DELTA, warm)
                         times.append(time.perf_counter() - t0)
                 except PetrollError as exc:
-                    rows.append(dict(cells=f"{n}x{n}", tao_type=kind, start=start, iterations="-",
+                    rows.append(dict(cells=f"{n}x{n}", tao_type=kind, pc=pc, start=start, iterations="-",
                                      applications="-", seconds="-", force_error=f"failed: {exc}"))
                     continue
-                rows.append(dict(cells=f"{n}x{n}", tao_type=kind, start=start, iterations=step.iterations,
-                                 applications=step.applications, seconds=f"{statistics.median(times):.4f}",
+                rows.append(dict(cells=f"{n}x{n}", tao_type=kind, pc=pc, start=start,
+                                 iterations=step.iterations, applications=step.applications,
+                                 seconds=f"{statistics.median(times):.4f}",
                                  force_error=f"{step.force / force - 1:+.2e}"))
     if comm.rank == 0:
         write_table(rows, out / "tao_types.csv")
         _plot_tao(rows, out / "tao_types.png")
+    rows += load_control(out, comm)
     rows += tao_types_rolling(out, comm)
+    return rows
+
+
+def load_control(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, cells: int = 256,
+                 types: tuple[str, ...] = ("pk", "tron")) -> list[dict]:
+    """The cost of load control against displacement control on the Hertz step (N x N cells over 3.2
+    contact radii, cold): operator applications of ``solve_penetration`` at delta and of ``solve_load`` at
+    the force it found, their ratio, and the penetration found (relative to delta). pk holds the force
+    inside its QP; TAO's own types run the secant on the penetration. Writes ``out/tao_load.csv``."""
+    a = math.sqrt(_R * _DELTA)
+    grid = Grid(cells, cells, -1.6 * a, 1.6 * a, -1.6 * a, 1.6 * a)
+    rows = []
+    for kind in types:
+        solver = ContactSolver(grid, comm, tao_type=kind, tol=1e-8)
+        height = Sphere(_R).height(grid.x[solver.r0 : solver.r1, None], grid.y[None, :])
+        shifted = ContactSolver(grid, comm, tao_type=kind, tol=1e-8)  # its own kernels and TAOs: both cold
+        by_delta = solver.solve_penetration(height, _J, _DELTA)
+        by_load = shifted.solve_load(height, _J, by_delta.force, _R)
+        rows.append(dict(cells=f"{cells}x{cells}", tao_type=kind, displacement_applications=by_delta.applications,
+                         load_applications=by_load.applications,
+                         ratio=f"{by_load.applications / by_delta.applications:.2f}",
+                         delta_error=f"{by_load.delta / _DELTA - 1:+.1e}"))
+    if comm.rank == 0:
+        write_table(rows, out / "tao_load.csv")
     return rows
 
 
@@ -86,7 +115,8 @@ def tao_types_rolling(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD,
                       distance: float | None = None) -> list[dict]:
     """Every TAO type on the default rolling scene (runs/sphere.toml, to steady state or ``distance`` m):
     TAO iterations, operator applications and wall time per step (means over the steps after the first),
-    and the last step's force; writes ``out/tao_rolling.csv``."""
+    the applications per step over the last 20 (steady rolling), and the last step's force; writes
+    ``out/tao_rolling.csv``."""
     from petroll.model.scene import load_scene, shipped_scene
     from petroll.solver.simulation import Simulation
 
@@ -94,19 +124,21 @@ def tao_types_rolling(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD,
     if distance is not None:
         scene = scene.replace("time.distance", distance)
     rows = []
-    for kind in TAO_TYPES:
+    for kind, pc in _tao_variants():
         sim = Simulation(scene.replace("solver.tao_type", kind), comm)
+        sim.solver.precondition = pc == "circulant"  # read when each window's TAO is built
         try:
             records = list(sim.steps())
         except PetrollError as exc:
             done = len(sim.records)
-            rows.append(dict(tao_type=kind, steps=done, iterations="-", applications="-",
+            rows.append(dict(tao_type=kind, pc=pc, steps=done, iterations="-", applications="-",
                              ms_per_step="-", force=f"failed at step {done}: {exc}"))
             continue
         warm = records[1:]
-        rows.append(dict(tao_type=kind, steps=len(records),
+        rows.append(dict(tao_type=kind, pc=pc, steps=len(records),
                          iterations=f"{np.mean([r.iterations for r in warm]):.1f}",
                          applications=f"{np.mean([r.applications for r in warm]):.1f}",
+                         apps_last_20=f"{np.mean([r.applications for r in warm[-20:]]):.1f}",
                          ms_per_step=f"{1e3 * np.mean([r.solve_time for r in warm]):.2f}",
                          force=f"{records[-1].force:.7g}"))
     if comm.rank == 0:
@@ -114,19 +146,29 @@ def tao_types_rolling(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD,
     return rows
 
 
+def _tao_variants() -> list[tuple[str, str]]:
+    """(TAO type, PC) pairs measured: every type, those that run a KSP on the Hessian with the
+    inverse-circulant PC and without (``none``); the others have none to set (``-``)."""
+    return [(kind, pc) for kind in TAO_TYPES
+            for pc in (("circulant", "none") if kind in KRYLOV_TYPES else ("-",))]
+
+
 def _plot_tao(rows: list[dict], path: pathlib.Path) -> None:
-    """Operator applications of each type, cold and warm, one panel per grid (failed solves left out)."""
-    figure = new_figure(10, 3.6)
+    """Operator applications of each type (and PC), cold and warm, one panel per grid (failed solves left
+    out)."""
+    figure = new_figure(12, 3.8)
     if figure is None:
         return
+    variants = _tao_variants()
+    labels = [kind if pc in ("-", "circulant") else f"{kind}, no PC" for kind, pc in variants]
     grids = list(dict.fromkeys(r["cells"] for r in rows))
     for ax, cells in zip(figure.subplots(1, len(grids), squeeze=False)[0], grids):
         for k, start in enumerate(("cold", "warm")):
             done = [r for r in rows
                     if r["cells"] == cells and r["start"] == start and r["applications"] != "-"]
-            ax.bar([TAO_TYPES.index(r["tao_type"]) + 0.4 * k for r in done],
+            ax.bar([variants.index((r["tao_type"], r["pc"])) + 0.4 * k for r in done],
                    [r["applications"] for r in done], width=0.4, label=start)
-        ax.set_xticks([i + 0.2 for i in range(len(TAO_TYPES))], TAO_TYPES, rotation=45)
+        ax.set_xticks([i + 0.2 for i in range(len(variants))], labels, rotation=60, fontsize=7)
         ax.set(yscale="log", ylabel="operator applications", title=f"Hertz step, {cells} cells")
         ax.legend()
     save_figure(figure, path)
@@ -176,87 +218,103 @@ def _median_total(runs: list[list[float]]) -> float:
 
 
 PEERS_VENV = pathlib.Path(".venv-peers")
-PEERS = {"tamaas": "tamaas.py", "contactmechanics": "contactmechanics.py"}  # CSV prefix: script in peers/
+PEERS = ("petroll", "tamaas", "contactmechanics")
+"""The solvers ``petroll bench peers`` times, each by its script ``peers/solve_<name>.py``."""
 _PEER_PACKAGES = {"tamaas": "tamaas", "ContactMechanics": "ContactMechanics"}  # import name: pip name
+PEER_TOLERANCES = (1e-6, 3e-7, 1e-7, 3e-8, 1e-8, 3e-9, 1e-9)
+"""The tolerances tried, loosest first, until a solver's pressure is within the target of the reference."""
 
 
 def peers(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, cells: tuple[int, ...] = (128, 256, 512),
-          tol: float = 1e-8, repeats: int = 3) -> list[dict]:
-    """petroll against Tamaas and ContactMechanics on the Hertz step (rank 0 runs the peers).
+          repeats: int = 3, target: float = 1e-6, solvers: tuple[str, ...] = PEERS) -> list[dict]:
+    """petroll, Tamaas and ContactMechanics on the Hertz step under load control, timed like for like.
 
-    Times in s (median of ``repeats`` solves, kernels built before timing), pressure error = max |p - p_Hertz|
-    / p0 over the cell centres, force error = F / F_Hertz - 1. Columns ``ratio`` (petroll / Tamaas, the
-    original name) and ``ratio_contactmechanics`` (petroll / ContactMechanics): < 1 means petroll is faster.
-    Writes ``out/peers.csv`` and ``out/peers.png``.
+    Every solver runs through its script (``peers/solve_<name>.py``; petroll's with this Python, the peers'
+    with .venv-peers'), which solves from p = 0, saves the pressure, then solves again from p = 0 in the
+    same process. ``cold_s``: the whole process (interpreter, imports, set-up, first solve), timed here;
+    ``warm_s``: the second solve, timed by the script. Each solver's tolerance is the loosest of
+    PEER_TOLERANCES whose pressure lies within ``target`` (relative L2) of a reference solved on the same
+    grid by petroll to tol 1e-12 (``difference``): all are equally converged. Medians of ``repeats`` runs;
+    ratios petroll / solver (< 1: petroll faster). Rank 0 runs the scripts; writes ``out/peers.csv`` and
+    ``out/peers.png``.
     """
-    width = 3.2  # grid side in contact radii
-    nu, E = 0.5, 1e7
-    J = (1 - nu**2) / E
-    a = math.sqrt(_R * _DELTA)
-    force = 4 * math.sqrt(_R) * _DELTA**1.5 / (3 * J)
-    p0 = 2 * math.sqrt(_DELTA / _R) / (math.pi * J)
-    python = _peers_python() if comm.rank == 0 else None
+    rows = _peer_rows(out, cells, repeats, target, solvers) if comm.rank == 0 else None
+    return comm.bcast(rows)
+
+
+def _peer_rows(out: pathlib.Path, cells, repeats: int, target: float, solvers) -> list[dict]:
+    import sys
+    import tempfile
+
+    width, nu, E = 3.2, 0.5, 1e7  # grid side in contact radii; rubber
+    python = {name: sys.executable for name in solvers}
+    if set(solvers) - {"petroll"}:
+        python.update(dict.fromkeys(set(solvers) - {"petroll"}, _peers_python()))
     rows = []
-    for n in cells:
-        grid = Grid(n, n, -width * a / 2, width * a / 2, -width * a / 2, width * a / 2)
-        solver = ContactSolver(grid, comm, tao_type="pk", tol=tol)
-        height = Sphere(_R).height(grid.x[solver.r0 : solver.r1, None], grid.y[None, :])
-        solver.solve_load(height, J, force, _R)  # untimed: builds the kernels of the windows it uses, as
-        # the peers build theirs in set-up (each timed solve below starts from p = 0 all the same)
-        times = []
-        for _ in range(repeats):
-            t0 = time.perf_counter()
-            step = solver.solve_load(height, J, force, _R)
-            times.append(time.perf_counter() - t0)
-        r = np.hypot(grid.x[solver.r0 : solver.r1, None], grid.y[None, :])
-        hertz = p0 * np.sqrt(np.clip(1 - r**2 / a**2, 0, None))
-        error = comm.allreduce(float(np.abs(step.pressure - hertz).max()), op=MPI.MAX) / p0
-        ours = statistics.median(times)
-        row = dict(cells=f"{n}x{n}", petroll_s=f"{ours:.3f}", petroll_pressure_error=f"{error:.3e}",
-                   petroll_force_error=f"{step.force / force - 1:+.1e}")
-        if comm.rank == 0:
-            args = [str(v) for v in (n, tol, _R, E, nu, _DELTA, width)]
-            for name, script in PEERS.items():
-                run = _peer(python, script, args, repeats)
-                row.update({f"{name}_s": f"{run['seconds']:.3f}",
-                            f"{name}_pressure_error": f"{run['pressure_error']:.3e}",
-                            f"{name}_force_error": f"{run['force_error']:+.1e}"})
-                row["ratio" if name == "tamaas" else f"ratio_{name}"] = f"{ours / run['seconds']:.2f}"
-        rows.append(row)
-    if comm.rank == 0:
-        write_table(rows, out / "peers.csv")
-        _plot_peers(rows, out / "peers.png")
+    with tempfile.TemporaryDirectory() as scratch:
+        field = pathlib.Path(scratch) / "pressure.npy"
+        for n in cells:
+            args = [str(v) for v in (n, 1e-12, _R, E, nu, _DELTA, width)]
+            _peer(sys.executable, "petroll", args, field)
+            reference = np.load(field)
+            scale = np.linalg.norm(reference)
+            done = {}
+            for name in solvers:
+                for tol in PEER_TOLERANCES:
+                    args[1] = f"{tol:g}"
+                    runs = [_peer(python[name], name, args, field)]
+                    difference = float(np.linalg.norm(np.load(field) - reference) / scale)
+                    if difference <= target:
+                        break
+                runs += [_peer(python[name], name, args, field) for _ in range(repeats - 1)]
+                done[name] = dict(cells=f"{n}x{n}", solver=name, tol=f"{tol:g}", difference=f"{difference:.1e}",
+                                  cold_s=statistics.median(r["cold_s"] for r in runs),
+                                  warm_s=statistics.median(r["warm_s"] for r in runs),
+                                  force_error=f"{runs[0]['force_error']:+.1e}")
+            for row in done.values():
+                if "petroll" in done:
+                    row["cold_ratio"] = f"{done['petroll']['cold_s'] / row['cold_s']:.3f}"
+                    row["warm_ratio"] = f"{done['petroll']['warm_s'] / row['warm_s']:.3f}"
+                rows.append(row)
+    for row in rows:
+        row["cold_s"], row["warm_s"] = f"{row['cold_s']:.3f}", f"{row['warm_s']:.4f}"
+    write_table(rows, out / "peers.csv")
+    _plot_peers(rows, out / "peers.png")
     return rows
 
 
-def _peer(python: str, script: str, args: list[str], repeats: int) -> dict:
-    """Run a peer script ``repeats`` times; its first JSON answer with the median time in s."""
+def _peer(python: str, name: str, args: list[str], field: pathlib.Path) -> dict:
+    """One whole run of ``peers/solve_<name>.py``: its JSON answer, with the process's wall time as cold_s."""
     import importlib.resources
     import json
     import subprocess
 
-    runs = []
-    for _ in range(repeats):
-        with importlib.resources.as_file(importlib.resources.files("petroll.studies.peers") / script) as path:
-            done = subprocess.run([python, str(path), *args], capture_output=True, text=True, check=True)
-        runs.append(json.loads(done.stdout.strip().splitlines()[-1]))
-    return dict(runs[0], seconds=statistics.median(r["seconds"] for r in runs))
+    script = importlib.resources.files("petroll.studies.peers") / f"solve_{name}.py"
+    with importlib.resources.as_file(script) as path:
+        start = time.perf_counter()
+        done = subprocess.run([python, str(path), *args, str(field)], capture_output=True, text=True)
+        seconds = time.perf_counter() - start
+    if done.returncode:
+        raise PetrollError(f"bench peers: {name} failed: {(done.stderr or done.stdout).strip().splitlines()[-1:]}")
+    return dict(json.loads(done.stdout.strip().splitlines()[-1]), cold_s=seconds)
 
 
 def _plot_peers(rows: list[dict], path: pathlib.Path) -> None:
-    """Log-log plot of the solve time (s) against the number of cells N^2, one line per solver."""
-    figure = new_figure(5, 4)
+    """Log-log plots of the cold and warm times (s) against the number of cells, one line per solver."""
+    figure = new_figure(9, 4)
     if figure is None:
         return
-    ax = figure.subplots()
-    cells = [int(r["cells"].split("x")[0]) ** 2 for r in rows]
-    for key, label in (("petroll_s", "petroll (pk)"), ("tamaas_s", "Tamaas"),
-                       ("contactmechanics_s", "ContactMechanics")):
-        ax.loglog(cells, [float(r[key]) for r in rows], "o-", label=label)
-    ax.set_xticks(cells, [r["cells"] for r in rows], minor=False)
-    ax.set_xticks([], minor=True)
-    ax.set(xlabel="cells", ylabel="solve time (s)", title="Hertz step, load control, tol 1e-8")
-    ax.legend()
+    grids = list(dict.fromkeys(r["cells"] for r in rows))
+    cells = [int(g.split("x")[0]) ** 2 for g in grids]
+    for ax, key in zip(figure.subplots(1, 2), ("cold_s", "warm_s")):
+        for name in dict.fromkeys(r["solver"] for r in rows):
+            ax.loglog(cells, [float(r[key]) for g in grids for r in rows if r["cells"] == g and r["solver"] == name],
+                      "o-", label=name)
+        ax.set_xticks(cells, grids, minor=False)
+        ax.set_xticks([], minor=True)
+        ax.set(xlabel="cells", ylabel=f"{key[:-2]} time (s)",
+               title={"cold_s": "whole process, cold", "warm_s": "second solve, in process"}[key])
+        ax.legend()
     save_figure(figure, path)
 
 

@@ -1,2 +1,2 @@
-"""Standalone peer scripts for ``petroll bench peers`` (run with the peers' own Python; they import no
-petroll)."""
+"""The scripts ``petroll bench peers`` runs, one per solver (``solve_<name>.py``), each in a fresh process:
+petroll's with petroll's Python, the peers' with their own (.venv-peers; those import no petroll)."""
