@@ -64,7 +64,7 @@ def _parser() -> argparse.ArgumentParser:
     stability.add_argument("--out", default="results/stability", help="directory for stability.csv and .md")
     bench = verbs.add_parser("bench", help="run a benchmark, print its table and write CSV (docs/benchmarks.md)")
     bench.add_argument("which", choices=["tao", "warm", "skips", "peers", "precision", "growth", "mpi", "memory",
-                                         "append", "layer"],
+                                         "append", "layer", "steady"],
                        help="tao: every TAO type on the Hertz step; warm: operator applications per rolling "
                        "step for each first guess; skips: each saving on and off; peers: petroll against Tamaas and "
                        "ContactMechanics on the Hertz step; precision: error against run time of the "
@@ -73,7 +73,8 @@ def _parser() -> argparse.ArgumentParser:
                        "rolling step against the rank count; memory: peak memory of every rank against the "
                        "grid's cells at 1, 2 and 4 ranks (--ranks); append: results.h5 writing time per "
                        "saved step over 1000 steps; layer: cost per step of layer scenes against the "
-                       "half-space (docs/layer.md)")
+                       "half-space (docs/layer.md); steady: the direct steady solve against the transient "
+                       "run to the same steady tolerance, V tau/a 1e-3 to 1e3")
     bench.add_argument("--out", default="results/bench", help="directory for the CSV (and PNG) files")
     bench.add_argument("--ranks", type=_ranks, help="mpi and memory only: rank counts to run side by side as "
                        "mpirun children, e.g. 1,2 (default: mpi: the current communicator only; memory: 1,2,4)")
@@ -90,6 +91,8 @@ def _parser() -> argparse.ArgumentParser:
                        "motion.velocity=1e-4..1e-1:log:7 (a vector key varies its magnitude)")
     sweep.add_argument("--out", help="output directory (default: the scene's [output] dir + -sweep)")
     sweep.add_argument("--quiet", action="store_true", help="no progress line (also off when not a terminal)")
+    sweep.add_argument("--transient", action="store_true", help="run every point from rest to steady state, "
+                       "even where its steady state can be solved directly (the default there)")
     material = verbs.add_parser("material", help="materials from measurements (docs/materials.md)")
     material_verbs = material.add_subparsers(dest="material_verb", required=True, metavar="fit")
     fit = material_verbs.add_parser("fit", help="fit a Maxwell (relaxation) Prony series with non-negative "
@@ -360,7 +363,11 @@ def _main(args: argparse.Namespace, comm) -> int:
         if args.quick and args.which != "warm":
             raise PetrollError(f"petroll bench {args.which}: --quick applies to petroll bench warm only")
         out = pathlib.Path(args.out)
-        if args.which == "mpi":
+        if args.which == "steady":
+            from petroll.studies.bench_steady import steady
+
+            steady(out, comm)
+        elif args.which == "mpi":
             bench_rolling.mpi_scaling(out, comm, ranks=args.ranks)
         elif args.which in ("memory", "append"):
             from petroll.studies import bench_memory
@@ -380,7 +387,7 @@ def _main(args: argparse.Namespace, comm) -> int:
     if args.verb == "sweep":
         from petroll.studies.sweep import command
 
-        return command(args.scene, args.vary, args.out, args.quiet, comm)
+        return command(args.scene, args.vary, args.out, args.quiet, comm, args.transient)
     if args.verb == "stress":
         return _stress(args, comm)
     if args.verb == "stability":
@@ -451,14 +458,17 @@ def summary(scene, results, wall: float) -> str:
     """One paragraph on a finished run: its extent, the last (steady) values, wall time and output path."""
     s = results.series
     n = len(s["t"])
+    if scene.time.mode == "steady":
+        how = "the steady state solved directly ([time] mode = \"steady\")"
+    else:
+        how = f"{n} step{'s' * (n != 1)} to t = {s['t'][-1]:.4g} s over {s['distance'][-1]:.4g} m of rolling"
     steady = scene.time.steady is not None and (
         (scene.time.end is not None and s["t"][-1] < scene.time.end * (1 - 1e-9))
         or (scene.time.distance is not None and s["distance"][-1] < scene.time.distance * (1 - 1e-9)))
     state = "steady state reached, " if steady else ""
     line = scene.grid.line  # plane strain: per unit length, the penetration relative to the datum
     force, area = ("N/m", "contact width {:.4g} m") if line else ("N", "contact area {:.4g} m^2")
-    return (f"petroll: {scene.source}: {n} step{'s' * (n != 1)} to t = {s['t'][-1]:.4g} s over {s['distance'][-1]:.4g} m "
-            f"of rolling ({state}wall time {wall:.1f} s). Last step: force {s['force'][-1]:.6g} {force} at "
+    return (f"petroll: {scene.source}: {how} ({state}wall time {wall:.1f} s). Last step: force {s['force'][-1]:.6g} {force} at "
             f"penetration {s['delta'][-1]:.6g} m{' (to the datum)' if line else ''}, mu_r {s['mu_r'][-1]:.4e}, "
             f"{area.format(s['area'][-1])}, "
             f"patch from {s['trail'][-1]:.4g} to {s['lead'][-1]:.4g} m along the motion, max pressure "

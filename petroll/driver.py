@@ -25,7 +25,7 @@ from petroll.solver.simulation import Simulation, StepRecord
 
 
 def run(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, out: str | pathlib.Path | None = None,
-        progress: bool = False, restart=None, stop=None, on_step=None) -> Results:
+        progress: bool = False, restart=None, stop=None, on_step=None, steady_start=None) -> Results:
     """Run a scene to its end and write ``<out>/results.h5`` (default out: the scene's [output] dir).
 
     Returns the results read back from the file, on every rank. ``progress`` prints a status line on
@@ -40,13 +40,17 @@ def run(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, out: str | pathlib.Path |
     first if that is another directory) and then holds the whole run, identical to an uninterrupted one. ``stop`` (a :class:`petroll.io.checkpoint.StopRequest`)
     is agreed on by the ranks after every step: once set, the run writes a checkpoint and the results so
     far and raises :class:`petroll.io.checkpoint.RunInterrupted`. ``on_step(record)`` is called on every rank
-    after every step.
+    after every step. ``steady_start`` ([time] mode = "steady" only): the first guess of the steady solve,
+    (whole-grid pressure in Pa, penetration in m), e.g. a neighbouring steady state (continuation).
     """
     out = pathlib.Path(out) if out is not None else scene.output_dir
     prepare_output(out, comm)
     sim = Simulation(scene, comm)
+    sim.steady_start = steady_start
     g = scene.grid
-    results = ResultsFile(out / "results.h5", scene.text, g.x, g.y, comm, fields=scene.fields, line=g.line)
+    steady = scene.time.mode == "steady"
+    results = ResultsFile(out / "results.h5", scene.text, g.x, g.y, comm, fields=scene.fields, line=g.line,
+                          steady=steady)
     if restart is not None:
         t, field_steps = restart.restore(sim)
         results.resume(run_directory(restart.path) / "results.h5", len(sim.records), field_steps)
@@ -62,7 +66,7 @@ def run(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, out: str | pathlib.Path |
             on_step(record)
         signum = stop.agreed(comm) if stop is not None else 0
         interrupted = bool(signum) and not stop_now
-        every = scene.checkpoint_every
+        every = 0 if steady else scene.checkpoint_every  # a steady solve is one step: nothing to resume
         due = every and not resumed and ((record.step > 0 and record.step % every == 0) or stop_now)
         if progress and comm.rank == 0:
             _show_progress(scene, record, clock.perf_counter() - wall)

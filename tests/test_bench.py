@@ -149,3 +149,28 @@ def test_load_control_bench_finds_the_same_penetration(tmp_path):
         assert float(row["ratio"]) == pytest.approx(row["load_applications"] / row["displacement_applications"],
                                                    abs=0.006)
     assert (tmp_path / "tao_load.csv").exists()
+
+
+def test_steady_compares_the_direct_solve_with_the_transient_run(tmp_path):
+    """bench steady on a 32 x 32 window (a/dx = 9): both methods against the exact steady state (the direct
+    solve at 1e-10), the direct one far cheaper in operator applications at the same tolerance."""
+    from petroll.model.scene import parse_scene
+    from petroll.studies.bench_steady import steady
+
+    scene = parse_scene({
+        "grid": {"nx": 32, "ny": 32, "x": [-0.8e-3, 0.8e-3], "y": [-0.8e-3, 0.8e-3]},
+        "material": {"model": "sls", "E0": 10e6, "Einf": 2e6, "nu": 0.5, "tau_relax": 0.01},
+        "body": {"shape": "sphere", "radius": 0.01},
+        "motion": {"velocity": [0.01, 0.0], "penetration": 2e-5},
+        "time": {"steps_per_cell": 1, "distance": 1e-3, "steady": 1e-3},
+    })
+    rows = steady(tmp_path, speeds=(0.01, 1.0), track=16, scene=scene)
+    for row in rows:
+        # a change-based stop (both methods): errors of the order of the tolerance, 1e-4; it tests the
+        # resisting force against the force, so mu_r's error is small in absolute terms
+        assert float(row["direct_force_error"]) < 1e-3, row
+        assert float(row["direct_mu_r_error"]) * float(row["mu_r"]) < 1e-4, row
+        assert row["transient_steady"] == 1 and float(row["transient_force_error"]) < 1e-3, row
+        assert row["direct_applications"] < row["transient_applications"], row
+    with open(tmp_path / "steady.csv") as fh:
+        assert [float(r["v_tau_a"]) for r in csv.DictReader(fh)] == [0.01, 1.0]

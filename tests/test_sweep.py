@@ -140,14 +140,14 @@ def test_an_interrupted_sweep_resumes_its_point_from_the_checkpoint(comm, shared
     scene = petroll.parse_scene(RAW_X)
     spec = "motion.velocity=0.002,0.01"
     with pytest.raises(SweepInterrupted) as info:  # point 1 runs 13 steps; stop in point 2's 6th step
-        sweep(scene, spec, shared_dir / "cut", comm, stop=StopAfter(1 + 13 + 1 + 6), plot=False)
+        sweep(scene, spec, shared_dir / "cut", comm, stop=StopAfter(1 + 13 + 1 + 6), plot=False, transient=True)
     assert info.value.index == 1 and info.value.exit_code == 143 and "resumes" in str(info.value)
     point = shared_dir / "cut" / "points" / "motion.velocity=0.01"
     assert len(list((point / "checkpoints").glob("step-*.h5"))) == 1
     assert not petroll.Results.open(point / "results.h5").complete
-    resumed = sweep(scene, spec, shared_dir / "cut", comm, plot=False)
+    resumed = sweep(scene, spec, shared_dir / "cut", comm, plot=False, transient=True)
     assert resumed.computed == [1]
-    whole = sweep(scene, spec, shared_dir / "whole", comm, plot=False)
+    whole = sweep(scene, spec, shared_dir / "whole", comm, plot=False, transient=True)
     cut = petroll.Results.open(point / "results.h5")
     full = petroll.Results.open(shared_dir / "whole" / "points" / "motion.velocity=0.01" / "results.h5")
     assert cut.complete and len(cut.series["t"]) == len(full.series["t"]) > 6
@@ -155,6 +155,34 @@ def test_an_interrupted_sweep_resumes_its_point_from_the_checkpoint(comm, shared
         if name != "solve_time":
             assert np.array_equal(cut.series[name], full.series[name]), name
     assert np.array_equal(resumed.columns["mu_r"], whole.columns["mu_r"])
+
+
+def test_a_constant_speed_sweep_solves_each_point_directly_from_its_neighbour(comm, shared_dir):
+    """Each point of a sweep along X is the steady state solved directly ([time] mode = "steady", one
+    step), started from the previous point's pressure: the same values as each point solved from scratch
+    (to the fixed point's tolerance), in fewer operator applications; --transient runs them from rest."""
+    from petroll.solver.simulation import Simulation
+
+    shared = shared_dir
+    scene = petroll.parse_scene({**RAW_X, "solver": {"tol": 1e-10}})
+    spec = "motion.velocity=0.001,0.002,0.004"
+    table = sweep(scene, spec, shared / "direct", comm, plot=False)
+    assert list(table.columns["steps"]) == [1, 1, 1] and list(table.columns["steady"]) == [1, 1, 1]
+    continued = alone = 0
+    for k, speed in enumerate((0.001, 0.002, 0.004)):
+        point = point_scene(scene, "motion.velocity", speed)
+        assert point.time.mode == "steady" and point.time.steps_per_cell == 1 and point.time.distance is None
+        record = Simulation(point, comm).solve_steady(tol=1e-10)
+        assert table.columns["force"][k] == pytest.approx(record.force, rel=1e-8)
+        assert table.columns["mu_r"][k] == pytest.approx(record.mu_r, rel=1e-7)
+        results = petroll.Results.open(shared / "direct" / table.points[k] / "results.h5")
+        continued += int(results.series["applications"][0])
+        alone += record.applications
+    assert continued < alone
+    rolled = sweep(scene, spec, shared / "rolled", comm, plot=False, transient=True)
+    assert all(rolled.columns["steps"] > 5)
+    assert rolled.columns["mu_r"] == pytest.approx(table.columns["mu_r"], rel=0.05)  # [time] steady = 1e-3
+
 
 
 

@@ -8,7 +8,9 @@
     attributes            scene (the scene's TOML text), petroll_version, format_version, complete
                           (False while the run goes on), steps_written, fields_written, last_step,
                           line_contact (True: a plane-strain run; fields (n_saved, nx, 1) on strips of
-                          unit length, y = [0]; series per unit length, force_y and cop_y absent)
+                          unit length, y = [0]; series per unit length, force_y and cop_y absent),
+                          steady (True: the steady state solved directly, [time] mode = "steady": one
+                          step, step 0 at t = 0)
 
 The file grows as the run goes (:class:`ResultsFile`): its datasets are resizable and chunked, the series
 and fields are appended, never rewritten, every rank writing its own rows of a field (parallel HDF5, or
@@ -62,7 +64,8 @@ class SteadyState:
     rolling, as ``[time] steady`` does: ``window`` = the last step's patch length along the motion
     (lead - trail), compared with the last step at least ``window`` earlier along the path (step 0, the
     sudden start, excluded). The changes are NaN when there is no such step (a run that did not roll one
-    contact length, or lost contact).
+    contact length, or lost contact). A steady state solved directly ([time] mode = "steady") has changes
+    0 and ``reached`` True.
     """
 
     force: float  # normal force, N
@@ -98,7 +101,14 @@ def steady_state(series: dict[str, np.ndarray], scene_text: str = "") -> SteadyS
     force, mu_r, distance = (float(s[name][last]) for name in ("force", "mu_r", "distance"))
     window = float(s["lead"][last] - s["trail"][last])
     changes = (math.nan, math.nan, math.nan)
-    if math.isfinite(window) and force != 0:
+    try:
+        time = tomllib.loads(scene_text).get("time", {}) if scene_text else {}
+    except tomllib.TOMLDecodeError:
+        time = {}
+    direct = time.get("mode") == "steady"  # solved directly: steady by construction
+    if direct:
+        changes = (0.0, 0.0, 0.0)
+    elif math.isfinite(window) and force != 0:
         # a step exactly one window back counts (1e-9 of slack for round-off in the distances): with k
         # steps per cell it sits at the same place relative to the cells as the last one
         earlier = np.flatnonzero(s["distance"][1:last] <= distance - window * (1 - 1e-9))
@@ -109,12 +119,8 @@ def steady_state(series: dict[str, np.ndarray], scene_text: str = "") -> SteadyS
             changes = (abs(force - f0) / abs(force),
                        dm / abs(mu_r) if mu_r != 0 else (0.0 if dm == 0 else math.inf),
                        abs(mu_r * force - m0 * f0) / abs(force))
-    try:
-        time = tomllib.loads(scene_text).get("time", {}) if scene_text else {}
-    except tomllib.TOMLDecodeError:
-        time = {}
     end, length = time.get("end"), time.get("distance")
-    reached = bool("steady" in time and (
+    reached = direct or bool("steady" in time and (
         (end is not None and float(s["t"][last]) < end * (1 - 1e-9))
         or (length is not None and distance < length * (1 - 1e-9))))
     return SteadyState(force=force, mu_r=mu_r, delta=float(s["delta"][last]), area=float(s["area"][last]),
@@ -142,6 +148,7 @@ class Results:
     complete: bool = True  # False: the run goes on (or was interrupted); the file holds steps_written steps
     line: bool = False  # a line-contact (plane-strain) run: series per unit length, pressure (n, nx, 1)
     fields: tuple[str, ...] = ("pressure",)  # the saved fields in the file (keys of FIELD_UNITS)
+    solved_steady: bool = False  # the steady state solved directly ([time] mode = "steady"; attribute steady)
 
     @classmethod
     def open(cls, path: str | pathlib.Path) -> "Results":
@@ -154,7 +161,7 @@ class Results:
             fields = f["fields"]
             return cls(path, series, fields["step"][:k], fields["x"][()], fields["y"][()], str(f.attrs["scene"]),
                        bool(f.attrs.get("complete", True)), bool(f.attrs.get("line_contact", False)),
-                       tuple(name for name in FIELD_UNITS if name in fields))
+                       tuple(name for name in FIELD_UNITS if name in fields), bool(f.attrs.get("steady", False)))
 
     def field(self, name: str) -> np.ndarray:
         """The saved fields ``name`` (a key of FIELD_UNITS), (n_saved, nx, ny), read from the file."""
@@ -186,16 +193,18 @@ class ResultsFile:
     of the fields. The file is closed between calls: each :meth:`append` opens it, extends the series and
     the fields, sets ``steps_written``/``fields_written`` last and closes it; a process killed while no
     append is under way leaves a file holding every step up to the last append. ``fields`` names the
-    fields a run saves (keys of FIELD_UNITS); ``line``: a line-contact run. Raises :class:`OutputError` (on every rank).
+    fields a run saves (keys of FIELD_UNITS); ``line``: a line-contact run; ``steady``: a direct steady
+    solve (attribute steady). Raises :class:`OutputError` (on every rank).
     """
 
     def __init__(self, path: str | pathlib.Path, scene_text: str, x: np.ndarray, y: np.ndarray, comm,
-                 fields: tuple[str, ...] = ("pressure",), line: bool = False):
+                 fields: tuple[str, ...] = ("pressure",), line: bool = False, steady: bool = False):
         from petroll.solver.partition import RowPartition
 
         self.path, self.scene_text, self.comm = pathlib.Path(path), scene_text, comm
         self.x, self.y, self.fields = np.asarray(x, dtype=float), np.asarray(y, dtype=float), tuple(fields)
         self.rows = RowPartition(len(self.x), comm.size)
+        self.steady = bool(steady)
         self.line = bool(line)  # a line-contact run: the series of LINE_SERIES_UNITS, with their units
         self.names = [n for n in _series_names() if not (line and n in LINE_ABSENT)]
         self.steps = 0  # series rows in the file
@@ -213,7 +222,7 @@ class ResultsFile:
             if f.writer:
                 h = f.file
                 h.attrs.update(scene=self.scene_text, petroll_version=__version__, format_version=FORMAT_VERSION,
-                               line_contact=self.line)
+                               line_contact=self.line, steady=self.steady)
                 units = LINE_SERIES_UNITS if self.line else SERIES_UNITS
                 group = h.create_group("series")
                 for name in self.names:

@@ -31,7 +31,7 @@ class PetrollWarning(UserWarning):
     """A scene that runs but lies where the formulation loses accuracy (the message says why)."""
 
 
-def contact_slope(scene, delta: float, points: int = 401) -> float:
+def contact_slope(scene, delta: float, points: int = 201) -> float:
     """The largest |grad Z| where the body, at its start position, lies within delta / 2 of its lowest
     point (the Hertz contact edge for a penetration delta).
 

@@ -320,6 +320,11 @@ SCHEMA: dict[str, dict[str, Key]] = {
                     "penetration, load); line contact: force per unit length, N/m", _program(vector=False, positive=True), default=None, unit="N"),
     },
     "time": {
+        "mode": Key("string", '"transient" (march from the start in time steps) or "steady" (the steady '
+                    "rolling state at constant velocity solved directly, one step: constant non-zero velocity "
+                    "along X or Y, constant penetration or load, a Prony/SLS/elastic material; takes "
+                    "steps_per_cell or dt only, the integrator's step, default 1 step per cell; "
+                    'docs/rolling.md)', _choice("transient", "steady"), default="transient"),
         "dt": Key("number > 0", "time step (or steps_per_cell); without [time]: one step at t = 0",
                   _positive, default=None, unit="s"),
         "steps_per_cell": Key("number > 0", "time step tied to the motion: dt = min(dx, dy) / (|V| "
@@ -385,6 +390,7 @@ class Time:
     distance: float | None
     steady: float | None
     max_steps: int
+    mode: str = "transient"  # "steady": the steady state solved directly (one step)
 
 
 @dataclass(frozen=True)
@@ -510,6 +516,8 @@ def parse_scene(raw: dict, source: str = "<python>", base_dir: str | pathlib.Pat
                   fields=_fields(values["output"]["fields"]),
                   shift_factor=shift_factor,
                   layer=_material_layer(values["material"], raw.get("material", {}), source))
+    if time.mode == "steady":
+        _check_steady(scene)
     _check_contact_inside(scene)
     from petroll.model.limits import check_scene  # slopes beyond the linear theory: refused or warned
 
@@ -701,8 +709,21 @@ def _tabulated_material(v: dict, base_dir: pathlib.Path, source: str) -> materia
     return materials.Tabulated(tuple(t), tuple(value))
 
 
+STEADY_TIME_KEYS = ("mode", "steps_per_cell", "dt")
+"""The [time] keys a scene with mode = "steady" may give (the integrator's step; no clock)."""
+
+
 def _check_time(time: Time, table: dict, source: str) -> None:
     if not table:
+        return
+    if time.mode == "steady":
+        for key in table:
+            if key not in STEADY_TIME_KEYS:
+                raise SceneError(source, f"[time] {key}", table[key], 'not with mode = "steady" (one step, the '
+                                 "steady state, no clock); allowed with it: " + ", ".join(STEADY_TIME_KEYS))
+        if time.dt is not None and time.steps_per_cell is not None:
+            raise SceneError(source, "[time] dt / steps_per_cell", [time.dt, time.steps_per_cell],
+                             'at most one of dt (s) or steps_per_cell with mode = "steady"')
         return
     if (time.dt is None) == (time.steps_per_cell is None):
         raise SceneError(source, "[time] dt / steps_per_cell", MISSING, "exactly one of dt (s) or "
@@ -714,6 +735,26 @@ def _check_time(time: Time, table: dict, source: str) -> None:
         raise SceneError(source, "[time] dt", time.dt, f"too small: end / dt = {time.end / time.dt:.3g} "
                          f"steps, more than [time] max_steps = {time.max_steps}; raise max_steps or the "
                          "time step")
+
+
+def _check_steady(scene: Scene) -> None:
+    """[time] mode = "steady": a constant, non-zero velocity along X or Y, a constant penetration or load
+    and a Prony (SLS, elastic) material; anything else refused naming its key."""
+    raw, source = scene.raw.get("motion", {}), scene.source
+    velocity = scene.velocity
+    allowed = 'with [time] mode = "steady" it must be a constant non-zero [vx, 0] or [0, vy] (m/s)'
+    if not isinstance(velocity, motion.Constant):
+        raise SceneError(source, "[motion] velocity", raw.get("velocity"), f"varies in time; {allowed}")
+    if np.count_nonzero(velocity.value) != 1:
+        raise SceneError(source, "[motion] velocity", raw.get("velocity", [0.0, 0.0]), allowed)
+    for key in ("penetration", "load"):
+        if getattr(scene, key) is not None and not isinstance(getattr(scene, key), motion.Constant):
+            raise SceneError(source, f"[motion] {key}", raw[key], 'varies in time; with [time] mode = '
+                             '"steady" it must be a constant number')
+    if not isinstance(scene.material, materials.Prony):
+        raise SceneError(source, "[material] model", scene.raw["material"].get("model"), 'with [time] mode = '
+                         '"steady" it must be "elastic", "sls" or "prony" (a tabulated J needs mode = '
+                         '"transient")')
 
 
 def _check_contact_inside(scene: Scene) -> None:

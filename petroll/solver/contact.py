@@ -22,6 +22,7 @@ nearly linear in F; L the grid's datum).
 from __future__ import annotations
 
 import atexit
+import itertools
 import math
 import weakref
 from dataclasses import dataclass
@@ -306,6 +307,7 @@ class ContactSolver:
         if warm is not None:
             start = move_rows(warm[:, j0:j1], grid_ranges, window_ranges, comm).ravel() / to_pressure
         total = None if load is None else load / (grid.cell_area * to_pressure)
+        qp.tao.setTolerances(gatol=self.tol, grtol=0.0, gttol=0.0)  # self.tol may change between solves
         x, gap, multiplier, its, applications = qp.solve(-target.ravel() / w_ref, start, total)
         natural = np.minimum(x, gap)
         residual = comm.allreduce(float(np.abs(natural).max(initial=0.0)), op=MPI.MAX)
@@ -464,6 +466,7 @@ class WindowQP:
         self._vecs = (lower, upper)
         if not _LIVE:  # registered after PETSc started: runs before its finalisation
             atexit.register(_destroy_live)
+        self.created = next(_CREATED)
         _LIVE.add(self)
 
     def _objective_gradient(self, tao, p, grad) -> float:
@@ -513,8 +516,14 @@ _LIVE: weakref.WeakSet[WindowQP] = weakref.WeakSet()
 """WindowQPs not yet destroyed: destroyed at exit, while PETSc still runs (later, their callbacks crash it)."""
 
 
+_CREATED = itertools.count()
+"""Creation numbers of WindowQPs: every rank creates the collective ones in the same order."""
+
+
 def _destroy_live() -> None:
-    for qp in list(_LIVE):
+    """Destroy the live WindowQPs in the order they were created: the same on every rank (destroying is
+    collective; a set's order, by address, may differ between ranks and deadlock the exit)."""
+    for qp in sorted(_LIVE, key=lambda qp: qp.created):
         qp.destroy()
 
 

@@ -110,6 +110,13 @@ class PronyHistory(History):
         """Set the state (a restart): p^n and the fields q_r."""
         self.pressure, self.q = pressure, q
 
+    def state(self) -> list[np.ndarray]:
+        """The whole state as a list of fields, [p^n, q_1, ...]: what :meth:`load_state` takes back."""
+        return [self.pressure, *self.q]
+
+    def load_state(self, fields: list[np.ndarray]) -> None:
+        self.restore(fields[0], list(fields[1:]))
+
 
 class RelaxationHistory(History):
     """The relaxation form for a Prony material: p = G * dW with G(t) = Ginf + sum_k dG_k exp(-t/theta_k)
@@ -171,6 +178,13 @@ class RelaxationHistory(History):
         if displacement is None:
             displacement = (pressure - sum((d * s for d, s in zip(self.dG, q)), 0.0)) / self.Ginf
         self.displacement = displacement
+
+    def state(self) -> list[np.ndarray]:
+        """The whole state as a list of fields, [p^n, s_1, ..., W^n]: what :meth:`load_state` takes back."""
+        return [self.pressure, *self.q, self.displacement]
+
+    def load_state(self, fields: list[np.ndarray]) -> None:
+        self.restore(fields[0], list(fields[1:-1]), fields[-1])
 
 
 class HereditaryHistory(History):

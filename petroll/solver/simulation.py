@@ -22,11 +22,16 @@ from petroll.solver.contact import BeyondReach, ContactSolver
 from petroll.errors import SceneError, SolverError
 from petroll.solver.history import make_history
 from petroll.solver.layer import material_operator
-from petroll.solver.steady import Anderson, memory
+from petroll.solver.steady import Anderson, FarWake, SteadyMemory
 from petroll.model.materials import Prony
 from petroll.model.scene import Scene
 from petroll.solver.wake import Wake
 from petroll.solver.warm import WarmStart
+
+
+WAKE_CELLS = 2**22
+"""The longest wake (cells behind the grid) a steady solve keeps: 30 V tau up to V tau/a ~ 1e4 at a/dx = 10;
+beyond, a wake of relative weight ~ (a / V tau) E1(WAKE_CELLS dx / V tau) is dropped."""
 
 
 @dataclass
@@ -77,7 +82,9 @@ class Simulation:
         self.warm = WarmStart(scene.grid, self.solver.rows, comm)
         self.wake = Wake(self.solver, scene.solver.history_cutoff)
         self.t, self.dt_next = 0.0, None
-        self._newest = None  # the newest step's (profile, v, J_eff, delta): what surface() needs
+        self.steady_start = None  # a first guess for solve_steady: (whole-grid pressure in Pa, penetration in m)
+        self._newest = None  # the newest step's (profile, v, J_eff, delta): what surface() needs (a steady
+        # solve: (profile, w, None, delta))
 
     # -- the run ----------------------------------------------------------------------------------------
     def steps(self, t: float = 0.0, dts: Iterable[float] | None = None) -> Iterator[StepRecord]:
@@ -89,8 +96,14 @@ class Simulation:
         record again, unsolved, then the steps after it. While a record is out, ``self.t`` is its time and
         ``self.dt_next`` the length of the next step (None: it is the last). ``dts``: the step lengths
         after the sudden start (s), instead of the scene's clock and steady stop. A step numbered beyond
-        [time] max_steps raises SceneError.
+        [time] max_steps raises SceneError. A scene with [time] mode = "steady" yields its one step,
+        the steady state solved directly (:meth:`solve_steady`).
         """
+        if self.scene.time.mode == "steady":
+            record = self.solve_steady(tol=self.scene.solver.tol)
+            self.t, self.dt_next = 0.0, None
+            yield record
+            return
         lengths = iter(dts) if dts is not None else None
         resumed, dt = bool(self.records), 0.0
         while True:
@@ -171,18 +184,29 @@ class Simulation:
         self.records.append(record)
         return record
 
-    def solve_steady(self, tol: float = 1e-10, max_iterations: int = 500) -> StepRecord:
+    def solve_steady(self, tol: float = 1e-10, max_iterations: int = 500,
+                     start: tuple[np.ndarray, float] | None = None, steady: float | None = None) -> StepRecord:
         """The constant-velocity steady state solved directly in the body frame (petroll.solver.steady),
-        recorded as step 0 at t = 0 with the body at [motion] position. Velocity, penetration or load are
-        taken at t = 0 and must be constant (the caller checks); the motion must be along X or Y. ``tol``:
-        relative change of the memory field (scaled by the QP compliance x p_max) at which the fixed point
-        stops. The wake behind the grid (up to 25 V tau) is included; surface() is not available after it."""
+        recorded as step 0 at t = 0 with the body at [body] position. Velocity, penetration or load are
+        taken at t = 0 and must be constant (the scene checks this for [time] mode = "steady"); the motion
+        must be along X or Y. The memory is the scene's integrator at its time step: dt from [time] dt or
+        steps_per_cell (default 1 step per cell), so that with one step per cell crossed this is exactly
+        the state the transient run converges to. ``tol``: relative change of the memory field (scaled by
+        the QP compliance x p_max) at which the fixed point stops; the QPs are solved to 1 % of the memory's
+        last change until then (at least [solver] tol), the last ones to max([solver] tol, tol / 100).
+        ``steady``: stop also once force and resisting force change by at most ``steady`` x force
+        from one fixed-point iteration to the next (the [time] steady test of a transient run, applied to
+        the iterations; petroll bench steady). ``start``: a first guess (the whole
+        grid's pressure, Pa, and its penetration, m), e.g. a neighbouring steady state (continuation; default
+        ``self.steady_start``, else the elastic problem with the QP compliance). The wake behind the grid up
+        to 30 V tau is included (cell by cell up to 2 grid lengths, in blocks beyond: FarWake; line contact:
+        up to 4 grid lengths). Collective: the memory is computed whole on every rank."""
         scene, solver, comm, g = self.scene, self.solver, self.comm, self.scene.grid
         material = scene.material
         if not isinstance(material, Prony):
             raise SceneError(scene.source, "[material] model", "tabulated",
                              'the direct steady solve needs a Prony series: use [time] mode = "transient"')
-        start = clock.perf_counter()
+        began = clock.perf_counter()
         velocity = np.asarray(scene.velocity(0.0), dtype=float)
         speed = float(np.hypot(*velocity))
         axis = 0 if abs(velocity[1]) == 0 else 1
@@ -191,11 +215,10 @@ class Simulation:
                              "the steady solve needs a non-zero velocity along X or Y")
         sign = 1 if velocity[axis] > 0 else -1
         cell = g.dx if axis == 0 else g.dy
+        dt = scene.time.dt or g.cell / ((scene.time.steps_per_cell or 1.0) * speed)
         self.direction = velocity / speed
         sx, sy = scene.position
         profile = scene.body.height(self.x - sx, self.y - sy)
-        # the wake behind the grid (no pressure, memory decaying over V tau) pushes on the contact too:
-        # the memory and its displacement are computed on the grid extended behind by ``behind`` cells
         # the QPs' compliance: J at the time the material takes to cross a Hertz half-width (relaxed when
         # rolling slowly, instantaneous when fast); the rest of the operator is the memory, lagged
         if scene.penetration is not None:
@@ -203,25 +226,52 @@ class Simulation:
         else:
             half_width = (0.75 * float(scene.load(0.0)) * scene.body.radius_hint * material.Jinf) ** (1 / 3)
         compliance = float(material(half_width / speed))
+        # the wake behind the grid (no pressure, memory decaying over V tau) pushes on the contact too, up
+        # to 30 V tau: the memory and its displacement are computed on the grid extended behind by
+        # ``behind`` cells, the rest (3-D) lumped in blocks (FarWake)
         r0, r1 = solver.r0, solver.r1
         n_along = (g.nx, g.ny)[axis]
-        behind = min(math.ceil(25 * speed * material.longest_time / cell), 4 * n_along)
+        needed = min(math.ceil(30 * speed * material.longest_time / cell), WAKE_CELLS)
+        behind = min(needed, 4 * n_along if g.line else max(2 * n_along, 64))
+        far = needed - behind if not g.line and scene.layer is None else 0  # a layer's kernel fades within reach
+        shape = [g.nx, g.ny]
+        shape[axis] += behind
         pad = [(0, 0), (0, 0)]
         pad[axis] = (behind, 0) if sign > 0 else (0, behind)
         inside = [slice(None), slice(None)]
-        inside[axis] = slice(behind, None) if sign > 0 else slice(0, n_along)
-        extended = material_operator(g, layer=scene.layer).window(g.nx + (behind if axis == 0 else 0),
-                                                          g.ny + (behind if axis == 1 else 0))
+        inside[axis] = slice(pad[axis][0], pad[axis][0] + n_along)
+        extended = material_operator(g, layer=scene.layer).window(*shape)
+        memory = SteadyMemory(material, scene.solver.integrator, speed, dt, cell, axis, sign,
+                              n_along + behind + far + 1)
+        wake = None
+        if far > 0:
+            wake = FarWake(memory.kernel, n_along, (g.ny, g.nx)[axis], behind, far, cell,
+                           g.dy if axis == 0 else g.dx, axis, sign)
 
-        def displacement(field):  # A m on this rank's rows, m given on the extended grid
-            return extended(field)[tuple(inside)][r0:r1]
+        def lagged(field):  # (W - compliance) field on the extended grid
+            return memory(field) - compliance * field
 
-        m = np.zeros((g.nx + (behind if axis == 0 else 0), g.ny + (behind if axis == 1 else 0)))
+        def displacement(field, p):  # A field + the far wake of p on this rank's rows (field extended)
+            u = extended(field)[tuple(inside)]
+            return (u if wake is None else u + wake(p))[r0:r1]
+
+        # the fixed point is over the pressure x the memory is lagged from: Anderson-mixed, m = lagged(x)
+        p = np.zeros((g.nx, g.ny))
         mixer, work = Anderson(), list(solver.work)
-        solution, delta = None, None
+        solution, warm, delta = None, None, None
+        start = start if start is not None else self.steady_start
+        if start is not None:
+            p = np.asarray(start[0], dtype=float).reshape(g.nx, g.ny)
+            warm, delta = p[r0:r1], start[1]
+        x = np.pad(p, pad)
+        m = lagged(x)
+        scene_tol, change, scale, previous = solver.tol, math.inf, 1.0, None
+        final = max(scene_tol, min(0.01 * tol, 1e-3))  # the last QPs' tolerance
         for _ in range(max_iterations):
-            height = profile + displacement(m)
-            warm = None if solution is None else solution.pressure
+            height = profile + displacement(m, x[tuple(inside)])
+            warm = warm if solution is None else solution.pressure
+            # inexact QPs while the memory is far from converged: 1 % of its last change, at least final
+            solver.tol = max(final, min(1e-3, 0.01 * change / scale))
             if scene.penetration is not None:
                 solution = solver.solve_penetration(height, compliance, float(scene.penetration(0.0)), warm)
             else:
@@ -229,23 +279,40 @@ class Simulation:
                                              scene.body.radius_hint, delta, warm)
             delta = solution.delta
             p = np.vstack(comm.allgather(solution.pressure))
-            p = np.pad(p, pad)
-            target = memory(p, material, speed, cell, axis, sign) - (compliance - material.J0) * p
+            padded = np.pad(p, pad)
+            target = lagged(padded)
             scale = compliance * float(p.max(initial=0.0))
             change = float(np.abs(target - m).max(initial=0.0))
-            if change <= tol * scale:
+            if change <= tol * scale and solver.tol == final:
                 m = target
                 break
-            m = mixer.next(m, target)
+            forces = self._forces(solution.pressure, sx, sy, velocity / speed)
+            if steady is not None and previous is not None and all(
+                    abs(now - then) <= steady * forces[0] for now, then in zip(forces, previous)):
+                break
+            previous = forces
+            x = mixer.next(x, padded)
+            m = lagged(x)
         else:
+            solver.tol = scene_tol
             raise SolverError(f"the steady solve did not converge within {max_iterations} iterations")
+        solver.tol = scene_tol
         solution.iterations = solver.work[0] - work[0]
         solution.applications = solver.work[1] - work[1]
         self.pressure = solution.pressure
-        self._newest = None  # surface() is not kept for a steady solve (its wake lies beyond the grid)
-        record = self._diagnose(0, 0.0, sx, sy, solution, velocity, 0.0, clock.perf_counter() - start)
+        w = displacement(memory(padded), p)
+        self._newest = (profile, w, None, delta)
+        record = self._diagnose(0, 0.0, sx, sy, solution, velocity, 0.0, clock.perf_counter() - began)
         self.records.append(record)
         return record
+
+    def _forces(self, p: np.ndarray, sx: float, sy: float, d: np.ndarray) -> tuple[float, float]:
+        """(normal force, resisting force along d) of the pressure p (this rank's rows) of a body at (sx,
+        sy), N (collective)."""
+        slope_x, slope_y = self.scene.body.slope(self.x - sx, self.y - sy)
+        sums = np.array([p.sum(), (p * (slope_x * d[0] + slope_y * d[1])).sum()]) * self.scene.grid.cell_area
+        self.comm.Allreduce(MPI.IN_PLACE, sums, op=MPI.SUM)
+        return float(sums[0]), float(sums[1])
 
     def surface(self) -> tuple[np.ndarray, np.ndarray]:
         """The newest solved step's surface displacement w (m, positive into the half-space) and gap
@@ -257,6 +324,8 @@ class Simulation:
         if self._newest is None:
             raise RuntimeError("no solved step: the surface of a restored step is not kept")
         profile, v, compliance, delta = self._newest
+        if compliance is None:  # a steady solve: v is already w (its wake lies beyond the grid)
+            return v, profile + v - delta
         g = self.scene.grid
         source = compliance * self.pressure if v is None else compliance * self.pressure + v
         w = self.solver.influence.window(g.nx, g.ny)(source)

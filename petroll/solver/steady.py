@@ -1,56 +1,147 @@
 """Steady rolling at constant velocity solved directly in the body frame (no transient).
 
-For J(t) = Jinf - sum_i dJ_i exp(-t / tau_i) and a body moving at constant speed V along the direction d,
-a material point now at body-frame position x was, a time s ago, at x + V s d (ahead of the body: the
-material arrives from ahead). The steady surface displacement is therefore
+A body moving at constant speed V along the direction d (+X, -X, +Y or -Y): in its frame the material
+streams backwards, and a material point now at body-frame cell j was at j + V s d a time s ago (the
+material arrives from ahead). The transient run's time integrator ([solver] integrator, step dt) turns a
+point's pressure history into its displacement in pressure space W (w = A W, formulation §4): a linear,
+time-invariant, causal filter of that history, whose response to a unit pressure pulse is h[s] (s steps
+later; :func:`pulse_response`, computed by the integrator itself). In steady state the history of the point
+at j is the body-frame field ahead of it, so
 
-    u = A (J0 p + sum_i dJ_i E_i p),    (E_i p)(x) = int_0^inf exp(-eta / L_i) p(x + eta d) deta / L_i,
+    W_j = sum_s h[s] p(j + s c),     c = V dt / (cell along d),
 
-L_i = V tau_i. With p interpolated linearly between cell centres along d (so that a filter length far
-below the cell still shifts the field by L: E p = p + L dp/dx + ...), E_i at a cell centre is exact as the
-one-sided recursion
+with p interpolated linearly between cell centres along d: a correlation with a per-cell kernel H
+(:func:`memory_kernel`). With c = 1 (the body crosses one cell per step: [time] steps_per_cell = 1 on square
+cells) there is no interpolation and this is exactly the steady state of the transient run with that step
+and integrator: the long transient converges to it. Smaller c refines the time integration of the same
+body-frame field (c -> 0: the exact hereditary law for p linear between cell centres).
 
-    (E p)_k = alpha p_k + beta p_{k+1} + r (E p)_{k+1},   r = e^{-t}, t = dx / L,
-    beta = (1 - e^{-t} (1 + t)) / t,   alpha = 1 - e^{-t} - beta,
-
-(k + 1 the next cell ahead). With the memory m(p) = sum_i dJ_i E_i p,
-the steady state is a fixed point of elastic contact problems with a compliance Jc (Simulation.solve_steady:
-J at the time to cross the contact) and the known height Z + A (m(p_old) - (Jc - J0) p_old), solved by the
-ContactSolver; Anderson mixing of that field accelerates it.
+Simulation.solve_steady finds p by a fixed point over elastic contact problems: compliance Jc (J at the
+time to cross the contact) and the known height Z + A (W(p_old) - Jc p_old), Anderson-mixed.
 """
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
+from scipy.signal import fftconvolve
+
+from petroll.solver.history import make_history
 
 
-def creep_filter(p: np.ndarray, length: float, cell: float, axis: int, sign: int) -> np.ndarray:
-    """E p of the module docstring on a whole (nx, ny) field: ``length`` = V tau (m), ``cell`` the cell
-    size along ``axis`` (m), ``sign`` = +1 when the motion is towards increasing index along ``axis``."""
-    q = np.moveaxis(p, axis, 0)
-    if sign < 0:
-        q = q[::-1]
-    t = cell / length
-    r = np.exp(-t)
-    beta = -np.expm1(-t) / t - r if t > 1e-3 else t / 2 - t * t / 3  # (1 - e^-t (1 + t)) / t
-    alpha = -np.expm1(-t) - beta
-    out = np.empty_like(q)
-    ahead = np.zeros(q.shape[1:])  # (E p) and p of the next cell ahead; none beyond the grid (p = 0)
-    p_ahead = np.zeros(q.shape[1:])
-    for k in range(q.shape[0] - 1, -1, -1):  # from the front backwards
-        ahead = alpha * q[k] + beta * p_ahead + r * ahead
-        out[k], p_ahead = ahead, q[k]
-    if sign < 0:
-        out = out[::-1]
-    return np.moveaxis(out, 0, axis)
+def pulse_response(material, integrator: str, dt: float, steps: int) -> np.ndarray:
+    """W (1/Pa) of one material point at steps 0 ... steps - 1 after it carried a unit pressure over step
+    0 only (zero before and after), as ``integrator`` computes it with steps of dt (s): h[0] = J_eff.
+    The history is guarded: a step at which the integrator cannot hold a penetration is refused
+    (SolverError), as in a transient run.
+
+    The integrator is a linear state machine: after the pulse (state S_1) a step at p = 0 maps the state
+    S to M S and outputs W = c S. M and c are measured by one step of the integrator itself from every
+    basis state at once (a field of d cells); then h[1 + j K + r] = (c M^r) (M^K)^j S_1 for r < K ~
+    sqrt(steps): about 2 sqrt(steps) products of d x d matrices instead of ``steps`` integrator steps."""
+    history = make_history(material, integrator, (1, 1))
+    h = np.zeros(steps)
+    h[0] = history.compliance(dt)
+    history.advance(np.ones((1, 1)), dt)
+    rest = steps - 1
+    if rest <= 0 or history.preceding(dt) is None:
+        return h
+    after = np.array([f[0, 0] for f in history.state()])  # S_1, just after the pulse
+    d = len(after)
+    history.load_state([row.reshape(1, d).copy() for row in np.eye(d)])  # cell j holds the state e_j
+    c = history.preceding(dt)[0].copy()
+    history.advance(np.zeros((1, d)), dt)
+    M = np.array([f[0] for f in history.state()])  # column j = M e_j
+    K = math.isqrt(rest - 1) + 1
+    outputs, power = np.empty((K, d)), np.eye(d)  # rows c M^r; M^r
+    for r in range(K):
+        outputs[r] = c @ power
+        power = power @ M
+    J = -(-rest // K)
+    states = np.empty((d, J))  # (M^K)^j S_1
+    states[:, 0] = after
+    for b in range(1, J):
+        states[:, b] = power @ states[:, b - 1]
+    h[1:] = (outputs @ states).T.ravel()[:rest]
+    return h
 
 
-def memory(p: np.ndarray, material, speed: float, cell: float, axis: int, sign: int) -> np.ndarray:
-    """m(p) = sum_i dJ_i E_i p (Pa * 1/Pa, >= 0 for p >= 0): J0 A p + A m(p) is the steady displacement."""
-    m = np.zeros_like(p)
-    for dJ, tau in zip(material.dJ, material.tau):
-        m += dJ * creep_filter(p, speed * tau, cell, axis, sign)
-    return m
+def memory_kernel(h: np.ndarray, c: float, cells: int) -> np.ndarray:
+    """H[m], m = 0 ... cells - 1: W_j = sum_m H[m] p_{j+m} (module docstring) from the pulse response h
+    of steps that cross c cells each (p linear between cell centres; c = 1: H = h)."""
+    if c == 1:
+        return np.concatenate([h, np.zeros(max(cells - len(h), 0))])[:cells]
+    position = np.arange(len(h)) * c
+    i = np.floor(position + 1e-12).astype(int)
+    f = np.clip(position - i, 0.0, 1.0)
+    inside = i < cells
+    i, f, h = i[inside], f[inside], h[inside]
+    return (np.bincount(i, (1 - f) * h, cells + 1) + np.bincount(i + 1, f * h, cells + 1))[:cells]
+
+
+class SteadyMemory:
+    """W(p) of the module docstring on a body-frame field, motion along ``axis`` (0: X, 1: Y) with ``sign``
+    +1 towards increasing index; ``kernel`` (H) holds ``cells`` values. ``__call__`` takes and returns
+    fields extended behind by cells where p = 0 (the near wake), along the motion at most ``cells`` long."""
+
+    def __init__(self, material, integrator: str, speed: float, dt: float, cell: float, axis: int,
+                 sign: int, cells: int):
+        c = speed * dt / cell
+        steps = math.ceil(cells / c) + 1
+        self.kernel = memory_kernel(pulse_response(material, integrator, dt, steps), c, cells)
+        self.axis, self.sign = axis, sign
+
+    def __call__(self, p: np.ndarray) -> np.ndarray:
+        q = np.moveaxis(p, self.axis, 0)
+        if self.sign > 0:  # reversed so that "ahead" is towards lower index: a causal convolution
+            q = q[::-1]
+        w = fftconvolve(q, self.kernel[: q.shape[0], None], axes=0)[: q.shape[0]]
+        if self.sign > 0:
+            w = w[::-1]
+        return np.moveaxis(w, 0, self.axis)
+
+
+class FarWake:
+    """The displacement on the grid of the wake far behind it: cells ``near`` < t <= ``near + far`` behind
+    the grid's rear row (t in cells along the motion), where p = 0 and W_{-t} = sum_k H[k + t] p_k varies
+    only over V tau. They are lumped into blocks growing geometrically (by ``ratio``), each carrying its
+    mean W (exact, from the cumulative sums of H) as line sources along the motion, one per column of cells
+    across (blocks are at least ``near`` cells from the grid, where W is smooth). 3-D grids only. ``along``, ``across``: cell sides (m) along and
+    across the motion; ``n_across`` cells across; ``axis``, ``sign`` as :class:`SteadyMemory`."""
+
+    def __init__(self, kernel: np.ndarray, n_along: int, n_across: int, near: int, far: int, along: float,
+                 across: float, axis: int, sign: int, ratio: float = 1.05):
+        edges = [near + 1]
+        while edges[-1] <= near + far:
+            edges.append(min(max(edges[-1] + 1, round(edges[-1] * ratio)), near + far + 1))
+        e = np.array(edges)
+        cumulative = np.concatenate([[0.0], np.cumsum(kernel)])
+        k = np.arange(n_along)[None, :]
+        width = np.diff(e)[:, None]
+        self.mean = (cumulative[k + e[1:, None]] - cumulative[k + e[:-1, None]]) / width  # (blocks, n_along)
+        self.length = 2 * n_across
+        # a block's strip of cells across as a line source along the motion (exact along it; across, its
+        # width dy is lumped at its centre line: the blocks are >= near cells away): per unit compliance
+        # (dy / pi) ln((x2 + r2) / (x1 + r1)), x1, x2 the block's ends ahead of the target, r = sqrt(x^2 + y^2)
+        x1 = (np.arange(n_along)[:, None, None] + e[None, :-1, None] - 0.5) * along
+        x2 = x1 + width[None, :, :] * along
+        y = np.arange(n_across)[None, None, :] * across
+        half = across / np.pi * np.log((x2 + np.hypot(x2, y)) / (x1 + np.hypot(x1, y)))
+        r = np.concatenate([half, half[:, :, :1] * 0, half[:, :, :0:-1]], axis=2)  # even across: wrap-around
+        self.spectrum = np.fft.rfft(r, axis=2)  # (n_along, blocks, frequencies)
+        self.axis, self.sign, self.n_across = axis, sign, n_across
+
+    def __call__(self, p: np.ndarray) -> np.ndarray:
+        """The far wake's displacement (m per unit compliance x Pa) on the grid, from its pressure p."""
+        q = np.moveaxis(p, self.axis, 0)
+        if self.sign < 0:  # so that the rear row is row 0
+            q = q[::-1]
+        blocks = np.fft.rfft(self.mean @ q, n=self.length, axis=1)
+        u = np.fft.irfft(np.einsum("kbf,bf->kf", self.spectrum, blocks), n=self.length, axis=1)[:, : self.n_across]
+        if self.sign < 0:
+            u = u[::-1]
+        return np.moveaxis(u, 0, self.axis)
 
 
 class Anderson:
@@ -70,5 +161,7 @@ class Anderson:
             return gx
         df = np.array([a - b for a, b in zip(self.fs[1:], self.fs[:-1])]).reshape(len(self.fs) - 1, -1)
         dg = np.array([a - b for a, b in zip(self.xs[1:], self.xs[:-1])]).reshape(len(self.xs) - 1, -1)
-        gamma = np.linalg.lstsq(df.T, f.ravel(), rcond=None)[0]
+        gram = df @ df.T  # the least-squares problem min |f - gamma df| by its normal equations (k <= depth)
+        gram += 1e-14 * np.trace(gram) * np.eye(len(gram))
+        gamma = np.linalg.solve(gram, df @ f.ravel())
         return gx - (gamma @ dg).reshape(gx.shape)

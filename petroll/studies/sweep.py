@@ -13,11 +13,15 @@ varies its magnitude along the scene's own direction: the scene's ``velocity = [
 0.5 runs ``velocity = [0.5, 0]``. Varying one key of an exclusive pair drops the other (penetration/load,
 tau_creep/tau_relax, dt/steps_per_cell, end/distance).
 
-Each point is the scene with that value, run to steady state: a scene with a [time] table but no
-``steady`` gets ``steady = 1e-3`` (:data:`DEFAULT_STEADY`); the scene's ``distance`` (or ``end``) must
-leave room to reach it, and a point that ends before is flagged (column ``steady`` = 0, a warning). A
-scene without [time] gives one instantaneous step per point (a static sweep, e.g. force against
-penetration).
+Each point is the scene with that value, at steady state. Where the steady state can be solved directly
+(a [time] table, a constant non-zero velocity along X or Y, a constant penetration or load, a Prony/SLS
+material: docs/rolling.md), the point's scene is the scene with [time] mode = "steady" (its steps_per_cell
+or dt kept, its clock dropped), one step, and its solve starts from the previous point's pressure
+(continuation). Otherwise, or with ``transient=True`` (``--transient``), it is run from rest to steady
+state: a scene with a [time] table but no ``steady`` gets ``steady = 1e-3`` (:data:`DEFAULT_STEADY`); the
+scene's ``distance`` (or ``end``) must leave room to reach it, and a point that ends before is flagged
+(column ``steady`` = 0, a warning). A scene without [time] gives one instantaneous step per point (a
+static sweep, e.g. force against penetration).
 
 Output in DIR (default: the scene's output directory + ``-sweep``)::
 
@@ -52,7 +56,7 @@ from mpi4py import MPI
 
 from petroll import __version__
 from petroll.model import motion as motions
-from petroll.errors import PetrollError, reason
+from petroll.errors import PetrollError, SceneError, reason
 from petroll.model.materials import Prony
 from petroll.io.results import Results, atomic_write
 from petroll.model.scene import DEFAULT_STEADY, SCHEMA, Scene
@@ -89,7 +93,9 @@ COLUMNS: dict[str, tuple[str, str]] = {
     "speed": ("m/s", "|V| of a constant velocity (NaN otherwise)"),
     "tau": ("s", "longest creep (retardation) time of a Prony/SLS material (NaN otherwise)"),
     "a_T": ("-", "time-temperature shift factor at the point's [material] temperature (1 without one)"),
-    "a": ("m", "Hertz radius of the first step: sqrt(R delta_0) for a sphere, else sqrt(area_0/pi)"),
+    "a": ("m", "Hertz radius of the first step: sqrt(R delta_0) for a sphere, else sqrt(area_0/pi) (line "
+          "contact: half the width); a point solved directly has no first step: Hertz with J0 at its "
+          "force (sphere under load control, cylinder in line contact)"),
     "v_tau_a": ("-", "V tau / a (NaN where speed or tau is)"),
     "mu_r_slow": ("-", "slow-rolling limit V sum(dJ_r tau_r) / (Jinf R) (sphere, Prony; = V tau (1 - "
                   "J0/Jinf)/R for an SLS)"),
@@ -193,8 +199,27 @@ def key_unit(scene: Scene, key: str) -> str:
     return "m" if re.search(r", m\b", doc) else "-"
 
 
-def point_scene(scene: Scene, key: str, value: float) -> Scene:
-    """The scene of one sweep point: ``key`` set to ``value`` (module docstring), [time] steady added."""
+STEADY_DROPPED = ("end", "distance", "steady", "max_steps")
+"""The [time] keys a sweep point solved directly drops (the clock of a transient run)."""
+
+
+def point_scene(scene: Scene, key: str, value: float, transient: bool = False) -> Scene:
+    """The scene of one sweep point: ``key`` set to ``value`` (module docstring); solved directly ([time]
+    mode = "steady") where that applies and ``transient`` is False, else [time] steady added."""
+    point = _transient_point(scene, key, value)
+    time = point.raw.get("time")
+    if transient or not time or time.get("mode") == "steady":
+        return point
+    changes = {f"time.{name}": None for name in STEADY_DROPPED}
+    changes["time.mode"] = "steady"
+    try:
+        return point.replace(changes)
+    except SceneError:  # not a constant-velocity steady state: run from rest
+        return point
+
+
+def _transient_point(scene: Scene, key: str, value: float) -> Scene:
+    """The scene with ``key`` set to ``value``, [time] steady added (run from rest to steady state)."""
     section, _, name = key.partition(".")
     current = scene.raw.get(section, {}).get(name)
     if isinstance(current, dict):
@@ -217,7 +242,8 @@ def point_scene(scene: Scene, key: str, value: float) -> Scene:
     changes: dict[str, object] = {key: new}
     if key in EXCLUSIVE:
         changes[EXCLUSIVE[key]] = None
-    if "time" in scene.raw and "steady" not in scene.raw["time"] and key != "time.steady":
+    time = scene.raw.get("time")
+    if time is not None and "steady" not in time and time.get("mode") != "steady" and key != "time.steady":
         changes["time.steady"] = DEFAULT_STEADY
     return scene.replace(changes)
 
@@ -274,7 +300,7 @@ class SweepTable:
 
 def sweep(scene: Scene, vary: Vary | str, out: str | pathlib.Path | None = None,
           comm: MPI.Comm = MPI.COMM_WORLD, progress: bool = False, stop=None,
-          log: Callable[[str], None] | None = None, plot: bool = True) -> SweepTable:
+          log: Callable[[str], None] | None = None, plot: bool = True, transient: bool = False) -> SweepTable:
     """Run ``scene`` at every value of ``vary`` (a :class:`Vary` or its ``KEY=SPEC`` text), each point to
     steady state, and write the table (sweep.csv, sweep.h5) and the plot (sweep.png) in ``out`` (default:
     the scene's output directory + ``-sweep``). Points already finished there are read, not run again.
@@ -282,7 +308,8 @@ def sweep(scene: Scene, vary: Vary | str, out: str | pathlib.Path | None = None,
     Collective. ``progress``: each run's status line on rank 0's stderr; ``stop``: a
     :class:`petroll.io.checkpoint.StopRequest` (SIGTERM/SIGINT): the sweep then raises
     :class:`SweepInterrupted` after the running point's checkpoint; ``log(line)``: called on rank 0 after
-    each point. Every point's scene is built and validated before the first run.
+    each point. Every point's scene is built and validated before the first run. ``transient``: run every
+    point from rest, even where its steady state can be solved directly (module docstring).
     """
     from petroll.io.checkpoint import RunInterrupted
     from petroll.model.limits import PetrollWarning
@@ -293,7 +320,7 @@ def sweep(scene: Scene, vary: Vary | str, out: str | pathlib.Path | None = None,
     if out is None:
         out = scene.output_dir.with_name(scene.output_dir.name + "-sweep")
     out = pathlib.Path(out)
-    scenes = [point_scene(scene, vary.key, v) for v in vary.values]
+    scenes = [point_scene(scene, vary.key, v, transient) for v in vary.values]
     names = [point_name(vary.key, v) for v in vary.values]
     if len(set(names)) != len(names):
         raise SweepError(f"--vary {vary.spec or vary.key}: values closer than 10 significant digits")
@@ -301,6 +328,7 @@ def sweep(scene: Scene, vary: Vary | str, out: str | pathlib.Path | None = None,
     unit = key_unit(scene, vary.key)
     rows, computed = [], []
     total = len(scenes)
+    start = None  # the previous point's steady state (pressure, penetration): the next one starts there
     for index, (value, point, name) in enumerate(zip(vary.values, scenes, names)):
         label = f"{vary.key} = {value:.6g}" + (f" {unit}" if unit != "-" else "")
         signum = stop.agreed(comm) if stop is not None else 0
@@ -310,10 +338,14 @@ def sweep(scene: Scene, vary: Vary | str, out: str | pathlib.Path | None = None,
         results = _finished(directory, point, comm)
         if results is None:
             try:
-                results = _run_point(point, directory, comm, progress, stop)
+                results = _run_point(point, directory, comm, progress, stop, start)
             except RunInterrupted as exc:
                 raise SweepInterrupted(exc.signum, index, total, label) from None
             computed.append(index)
+        direct = point.time.mode == "steady"
+        following = scenes[index + 1].grid if index + 1 < total else None
+        same_grid = following is not None and (following.nx, following.ny) == (point.grid.nx, point.grid.ny)
+        start = (results.pressure[-1], float(results.series["delta"][-1])) if direct and same_grid else None
         row = table_row(point, results, value)
         rows.append(row)
         if point.time.steady is not None and not row["steady"]:
@@ -324,7 +356,8 @@ def sweep(scene: Scene, vary: Vary | str, out: str | pathlib.Path | None = None,
         if log is not None and comm.rank == 0:
             done = "ran" if computed and computed[-1] == index else "kept (finished earlier)"
             static = point.time.dt is None and point.time.steps_per_cell is None
-            state = "steady" if row["steady"] else "one step (no [time])" if static else "NOT steady"
+            state = ("steady (solved directly)" if direct else "steady" if row["steady"] else
+                     "one step (no [time])" if static else "NOT steady")
             log(f"point {index + 1}/{total} {label}: {done}; mu_r {row['mu_r']:.4e}, force "
                 f"{row['force']:.5g} N, {int(row['steps'])} steps, "
                 f"{state}"
@@ -352,8 +385,10 @@ def _finished(directory: pathlib.Path, scene: Scene, comm: MPI.Comm) -> Results 
     return Results.open(path)
 
 
-def _run_point(scene: Scene, directory: pathlib.Path, comm: MPI.Comm, progress: bool, stop) -> Results:
-    """Run one point, continuing from its newest checkpoint if that holds this scene."""
+def _run_point(scene: Scene, directory: pathlib.Path, comm: MPI.Comm, progress: bool, stop,
+               start=None) -> Results:
+    """Run one point, continuing from its newest checkpoint if that holds this scene; ``start``: the
+    first guess of a steady solve (petroll.driver.run's steady_start)."""
     from petroll.io.checkpoint import CheckpointError, list_checkpoints, read_checkpoint, restart_scene
     from petroll.driver import run
 
@@ -366,7 +401,7 @@ def _run_point(scene: Scene, directory: pathlib.Path, comm: MPI.Comm, progress: 
                 return run(restart_scene(check), comm, directory, progress=progress, restart=check, stop=stop)
         except CheckpointError:
             pass  # a damaged checkpoint (raised on every rank): run the point from its start
-    return run(scene, comm, directory, progress=progress, stop=stop)
+    return run(scene, comm, directory, progress=progress, stop=stop, steady_start=start)
 
 
 def table_row(scene: Scene, results: Results, value: float) -> dict[str, float]:
@@ -390,7 +425,12 @@ def table_row(scene: Scene, results: Results, value: float) -> dict[str, float]:
     sphere = isinstance(scene.body, Sphere)
     line = scene.grid.line  # plane strain: force per length, area a width, delta relative to the datum
     delta0 = float(s["delta"][0])
-    if line:
+    direct = scene.time.mode == "steady"  # no first (instantaneous) step: Hertz with J0 at its load
+    if direct and line and isinstance(scene.body, CylinderSection) and isinstance(material, Prony):
+        a = math.sqrt(4 * st.force * scene.body.radius * material.J0 / math.pi)
+    elif direct and sphere and scene.load is not None and isinstance(material, Prony):
+        a = (0.75 * st.force * scene.body.radius * material.J0) ** (1 / 3)
+    elif line:
         a = float(s["area"][0]) / 2
     elif sphere and delta0 > 0:
         a = math.sqrt(scene.body.radius * delta0)
@@ -474,7 +514,8 @@ def _on_rank0(comm: MPI.Comm, action: Callable[[], None]) -> None:
         raise SweepError(message)
 
 
-def command(scene_path: str, vary_text: Sequence[str], out: str | None, quiet: bool, comm: MPI.Comm) -> int:
+def command(scene_path: str, vary_text: Sequence[str], out: str | None, quiet: bool, comm: MPI.Comm,
+            transient: bool = False) -> int:
     """``petroll sweep``: every rank; prints one line per point and a summary on rank 0."""
     import sys
     import time
@@ -493,7 +534,7 @@ def command(scene_path: str, vary_text: Sequence[str], out: str | None, quiet: b
     try:
         with stop.handling():
             table = sweep(scene, vary, out, comm, progress=not quiet and sys.stderr.isatty(), stop=stop,
-                          log=say)
+                          log=say, transient=transient)
     except SweepInterrupted as exc:
         if comm.rank == 0:
             print(f"petroll: {scene.source}: sweep {exc}", file=sys.stderr, flush=True)
