@@ -22,6 +22,7 @@ nearly linear in F; L the grid's datum).
 from __future__ import annotations
 
 import atexit
+import gc
 import itertools
 import math
 import weakref
@@ -522,7 +523,11 @@ _CREATED = itertools.count()
 
 def _destroy_live() -> None:
     """Destroy the live WindowQPs in the order they were created: the same on every rank (destroying is
-    collective; a set's order, by address, may differ between ranks and deadlock the exit)."""
+    collective; a set's order, by address, may differ between ranks and deadlock the exit). Unreachable
+    objects are collected first, at this same point on every rank: PETSc objects freed by Python's cyclic
+    collector (at moments that differ between ranks) are queued for PETSc's collective clean-up at
+    finalisation, which hung `mpirun -n 4` at exit when the queues differed."""
+    gc.collect()
     for qp in sorted(_LIVE, key=lambda qp: qp.created):
         qp.destroy()
 
