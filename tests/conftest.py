@@ -1,7 +1,7 @@
 """Tests run serially and under `mpirun -n 2` (scripts/test.sh). Collective tests use ``comm``: under
 mpirun every rank runs every test, and comparisons against COMM_SELF check rank-count independence.
-Shared fixtures: ``comm``, ``shared_dir`` (one directory for all ranks), ``cli`` (the command line in
-a child process) and ``cli_main`` (in this process)."""
+Shared fixtures: ``comm``, ``shared_dir`` (one directory for all ranks), ``api_and_cli`` (a scene run from
+Python and from its TOML), ``cli`` (the command line in a child process) and ``cli_main`` (in this process)."""
 
 import os
 import pathlib
@@ -25,6 +25,28 @@ def comm():
 def shared_dir(comm, tmp_path) -> pathlib.Path:
     """Rank 0's tmp_path on every rank (the ranks share a file system): where collective tests write."""
     return pathlib.Path(comm.bcast(str(tmp_path) if comm.rank == 0 else None, root=0))
+
+
+@pytest.fixture
+def api_and_cli(comm, shared_dir, capsys):
+    """Runs a raw scene (a dict) twice: ``petroll.run`` from Python (into shared_dir/api) and ``petroll run``
+    on its TOML in this process (shared_dir/cli). Returns (api Results, cli Results, the command's stdout;
+    "" on ranks other than 0)."""
+    import petroll
+    from petroll.cli import main
+    from petroll.model.scene import dumps
+
+    def run(raw: dict):
+        api = petroll.run(petroll.parse_scene(raw), comm, out=shared_dir / "api")
+        if comm.rank == 0:
+            (shared_dir / "scene.toml").write_text(dumps(raw), encoding="utf-8")
+        comm.Barrier()
+        capsys.readouterr()
+        assert main(["run", str(shared_dir / "scene.toml"), "--out", str(shared_dir / "cli"), "--quiet"]) == 0
+        out = capsys.readouterr().out if comm.rank == 0 else ""
+        return api, petroll.Results.open(shared_dir / "cli" / "results.h5"), out
+
+    return run
 
 
 class PetrollCommand:

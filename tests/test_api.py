@@ -7,9 +7,7 @@ import numpy as np
 import pytest
 
 import petroll
-from petroll.cli import main
 from petroll.errors import SceneError
-from petroll.model.scene import dumps
 
 RAW = {
     "grid": {"nx": 40, "ny": 16, "x": [-0.8e-3, 3.2e-3], "y": [-0.8e-3, 0.8e-3]},
@@ -22,17 +20,10 @@ RAW = {
 }
 
 
-def test_a_scene_built_in_python_runs_exactly_as_its_toml_through_the_command_line(comm, capsys, shared_dir):
-    scene = petroll.parse_scene(RAW)
-    api = petroll.run(scene, comm, out=shared_dir / "api")
+def test_a_scene_built_in_python_runs_exactly_as_its_toml_through_the_command_line(comm, api_and_cli):
+    api, cli, out = api_and_cli(RAW)
     if comm.rank == 0:
-        (shared_dir / "scene.toml").write_text(dumps(RAW), encoding="utf-8")
-    comm.Barrier()
-    capsys.readouterr()
-    assert main(["run", str(shared_dir / "scene.toml"), "--out", str(shared_dir / "cli"), "--quiet"]) == 0
-    if comm.rank == 0:
-        assert "steady state reached" in capsys.readouterr().out
-    cli = petroll.Results.open(shared_dir / "cli" / "results.h5")
+        assert "steady state reached" in out
     assert set(api.series) == set(cli.series)
     assert len(api.series["t"]) > 5
     for name in api.series:
@@ -40,7 +31,7 @@ def test_a_scene_built_in_python_runs_exactly_as_its_toml_through_the_command_li
             assert np.array_equal(api.series[name], cli.series[name]), name
     assert np.array_equal(api.pressure, cli.pressure) and np.array_equal(api.field_steps, cli.field_steps)
     assert np.array_equal(api.x, cli.x) and np.array_equal(api.y, cli.y)
-    assert api.scene_text == cli.scene_text == scene.text
+    assert api.scene_text == cli.scene_text == petroll.parse_scene(RAW).text
     assert api.steady == cli.steady
 
 

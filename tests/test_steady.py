@@ -3,7 +3,6 @@ with Jinf, the slow-rolling mu_r of formulation §7), the transient run rolled t
 grid (a second algorithm), mirrored and transposed motion, and rank counts."""
 
 import math
-import pathlib
 
 import pytest
 
@@ -106,7 +105,7 @@ RAW = {
 }
 
 
-def test_a_steady_scene_runs_as_one_step_with_the_series_and_fields_of_a_run(comm, tmp_path, capsys):
+def test_a_steady_scene_runs_as_one_step_with_the_series_and_fields_of_a_run(comm, api_and_cli):
     """petroll run and petroll.run: results.h5 holds step 0 at t = 0, attribute steady = true, every series
     and the saved fields; the values are those of Simulation.solve_steady, the gap is >= 0 and 0 under
     pressure (to the tolerance), and the steady values report no change."""
@@ -114,21 +113,12 @@ def test_a_steady_scene_runs_as_one_step_with_the_series_and_fields_of_a_run(com
     import numpy as np
 
     import petroll
-    from petroll.cli import main
     from petroll.io.results import SERIES_UNITS
-    from petroll.model.scene import dumps
 
-    shared = pathlib.Path(comm.bcast(str(tmp_path) if comm.rank == 0 else None, root=0))
+    api, cli, out = api_and_cli(RAW)
+    if comm.rank == 0:
+        assert "the steady state solved directly" in out
     scene = petroll.parse_scene(RAW)
-    api = petroll.run(scene, comm, out=shared / "api")
-    if comm.rank == 0:
-        (shared / "scene.toml").write_text(dumps(RAW), encoding="utf-8")
-    comm.Barrier()
-    capsys.readouterr()
-    assert main(["run", str(shared / "scene.toml"), "--out", str(shared / "cli"), "--quiet"]) == 0
-    if comm.rank == 0:
-        assert "the steady state solved directly" in capsys.readouterr().out
-    cli = petroll.Results.open(shared / "cli" / "results.h5")
     direct = Simulation(scene, comm).solve_steady(tol=1e-10)
     for results in (api, cli):
         s = results.series
@@ -149,16 +139,15 @@ def test_a_steady_scene_runs_as_one_step_with_the_series_and_fields_of_a_run(com
     assert api.series["mu_r"][0] > 0.01
 
 
-def test_a_steady_run_on_two_ranks_is_the_one_rank_run(comm, tmp_path):
+def test_a_steady_run_on_two_ranks_is_the_one_rank_run(comm, tmp_path, shared_dir):
     """The rows split over ``comm`` (2 ranks under mpirun) against every rank's own COMM_SELF run."""
     import numpy as np
 
     import petroll
     from mpi4py import MPI
 
-    shared = pathlib.Path(comm.bcast(str(tmp_path) if comm.rank == 0 else None, root=0))
     scene = petroll.parse_scene({**RAW, "motion": {"velocity": [0.0, -0.01], "load": 0.04}})
-    both = petroll.run(scene, comm, out=shared / "both")
+    both = petroll.run(scene, comm, out=shared_dir / "both")
     alone = petroll.run(scene, MPI.COMM_SELF, out=tmp_path / f"alone-{comm.rank}")
     for name in ("force", "mu_r", "delta", "force_y", "p_max", "area", "lead", "trail"):
         assert both.series[name][0] == pytest.approx(alone.series[name][0], rel=1e-9, abs=1e-18), name
