@@ -398,6 +398,10 @@ def plot_sweep(table, path: str | pathlib.Path) -> pathlib.Path:
     dense = np.geomspace(x.min(), x.max(), 200) if logx else np.linspace(x.min(), x.max(), 200)
     secondary = _secondary_axis(x, c["v_tau_a"], logx)
     style = {"marker": "o", "markersize": 4}
+    # titles at a fixed height (matplotlib's own placement measures every tick label: about 1 s here), the
+    # top row's above the V tau/a axis
+    title = {"fontsize": 10, "y": 1.0}
+    top_title = dict(title, pad=40 if secondary is not None else 6)
 
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
@@ -421,7 +425,7 @@ def plot_sweep(table, path: str | pathlib.Path) -> pathlib.Path:
         mu_ax.axhline(0.0, color="grey", linewidth=0.6)
     mu_ax.set_ylim(bottom - 0.05 * (top - bottom), top + 0.25 * (top - bottom))
     mu_ax.set_ylabel(r"rolling resistance $\mu_r$ (-)")
-    mu_ax.set_title(r"$\mu_r$ = resisting force / normal force (steady)", fontsize=10)
+    mu_ax.set_title(r"$\mu_r$ = resisting force / normal force (steady)", **top_title)
     mu_ax.legend(fontsize=8, loc="upper left")
 
     positive = c["mu_r"] > 0
@@ -440,7 +444,7 @@ def plot_sweep(table, path: str | pathlib.Path) -> pathlib.Path:
         log_ax.text(0.5, 0.5, r"no positive $\mu_r$", transform=log_ax.transAxes, ha="center")
     log_ax.set_ylabel(r"$\mu_r$ (-), log scale")
     log_ax.set_title(r"$\mu_r$ on a log scale" + (" (the slow limit is a slope-1 line)" if limits else ""),
-                     fontsize=10)
+                     **top_title)
 
     if load_control:
         force_ax.plot(x, c["delta"] * 1e6, color="tab:orange", label="petroll, steady", **style)
@@ -461,14 +465,14 @@ def plot_sweep(table, path: str | pathlib.Path) -> pathlib.Path:
     force_ax.legend(fontsize=8)
     force_ax.set_ylabel(what)
     force_ax.set_title(("penetration under the given load" if load_control else
-                        "normal force at the given penetration") + " (steady)", fontsize=10)
+                        "normal force at the given penetration") + " (steady)", **title)
 
     area_ax.plot(x, c["area"] * MM**2, color="tab:purple", label="contact area", **style)
     if np.all(np.isfinite(c["a"])):
         area_ax.plot(x, np.pi * c["a"] ** 2 * MM**2, color="grey", linestyle=":",
                      label=r"$\pi a^2$ ($a$: Hertz radius of the first step)")
     area_ax.set_ylabel("contact area (mm²)")
-    area_ax.set_title("contact area (steady)", fontsize=10)
+    area_ax.set_title("contact area (steady)", **title)
     area_ax.legend(fontsize=8)
 
     edge_ax.plot(x, c["lead"] * MM, color="tab:red", label="leading edge", **style)
@@ -478,41 +482,48 @@ def plot_sweep(table, path: str | pathlib.Path) -> pathlib.Path:
         edge_ax.plot(x, -c["a"] * MM, color="grey", linestyle=":")
     edge_ax.axhline(0.0, color="black", linewidth=0.6)
     edge_ax.set_ylabel("along the motion, relative\nto the body (mm)")
-    edge_ax.set_title("contact-patch edges (steady)", fontsize=10)
+    edge_ax.set_title("contact-patch edges (steady)", **title)
     edge_ax.legend(fontsize=8)
     edge_ax.set_xlabel(xlabel)
 
-    for name, color, text in (("force_change", "tab:blue", "force"), ("mu_r_change", "tab:green", r"$\mu_r$"),
-                              ("resisting_change", "tab:red", r"$\mu_r F$ / F")):
-        values = np.where(c[name] > 0, c[name], np.nan)
-        conv_ax.plot(x, values, label=text, color=color, **style)
-    if tol is not None:
-        conv_ax.axhline(tol, color="black", linestyle="--", linewidth=0.8, label=f"[time] steady = {tol:g}")
-    unsteady = c["steady"] == 0
-    if np.any(unsteady) and tol is not None:
-        conv_ax.plot(x[unsteady], np.full(int(unsteady.sum()), tol), linestyle="none", marker="x",
-                     color="red", markersize=9, label="not steady at its end")
-    if np.any(np.isfinite(np.where(c["force_change"] > 0, c["force_change"], np.nan))):
-        conv_ax.set_yscale("log")
-    if not np.any(np.isfinite(c["force_change"])):
-        conv_ax.text(0.5, 0.5, "no convergence measure:\nno run rolled one contact length",
+    if np.all((c["steps"] == 1) & (c["force_change"] == 0)):  # every point solved directly
+        conv_ax.text(0.5, 0.5, 'every point solved directly ([time] mode = "steady"):\nno transient to converge',
                      transform=conv_ax.transAxes, ha="center", va="center")
+        conv_ax.set_yticks([])
+    else:
+        for name, color, text in (("force_change", "tab:blue", "force"), ("mu_r_change", "tab:green", r"$\mu_r$"),
+                                  ("resisting_change", "tab:red", r"$\mu_r F$ / F")):
+            values = np.where(c[name] > 0, c[name], np.nan)
+            conv_ax.plot(x, values, label=text, color=color, **style)
+        if tol is not None:
+            conv_ax.axhline(tol, color="black", linestyle="--", linewidth=0.8, label=f"[time] steady = {tol:g}")
+        unsteady = c["steady"] == 0
+        if np.any(unsteady) and tol is not None:
+            conv_ax.plot(x[unsteady], np.full(int(unsteady.sum()), tol), linestyle="none", marker="x",
+                         color="red", markersize=9, label="not steady at its end")
+        if np.any(np.isfinite(np.where(c["force_change"] > 0, c["force_change"], np.nan))):
+            conv_ax.set_yscale("log")
+        if not np.any(np.isfinite(c["force_change"])):
+            conv_ax.text(0.5, 0.5, "no convergence measure:\nno run rolled one contact length",
+                         transform=conv_ax.transAxes, ha="center", va="center")
+        conv_ax.legend(fontsize=8)
     conv_ax.set_ylabel("relative change over the\nlast contact length (-)")
-    conv_ax.set_title("convergence of the steady values", fontsize=10)
-    conv_ax.legend(fontsize=8)
+    conv_ax.set_title("convergence of the steady values", **title)
     conv_ax.set_xlabel(xlabel)
 
-    from matplotlib.ticker import LogLocator
+    from matplotlib.ticker import NullLocator
 
     for ax in axes.ravel():
         if logx:
             ax.set_xscale("log")
-            ax.xaxis.set_minor_locator(LogLocator(subs=(2.0, 5.0)))  # fewer ticks: each costs time
+            ax.xaxis.set_minor_locator(NullLocator())  # decades only: each tick costs time
         ax.grid(alpha=0.3)
     if secondary is not None:
         for ax in axes[0]:
             top_axis = ax.secondary_xaxis("top", functions=secondary)
             top_axis.set_xlabel(r"$V\tau/a$ (-)")
+            if logx:
+                top_axis.xaxis.set_minor_locator(NullLocator())
     label = pathlib.Path(table.directory).resolve().name
     figure.suptitle(f"{label}: steady state against {table.key} ({len(x)} runs)")
     path = pathlib.Path(path)

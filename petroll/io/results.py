@@ -212,8 +212,9 @@ class ResultsFile:
         self.started = False  # the file exists (create or resume); the first append creates it otherwise
 
     # -- starting ---------------------------------------------------------------------------------------
-    def create(self) -> None:
-        """A new file with empty series and fields (atomically replacing a results.h5 already there)."""
+    def create(self, then=None) -> None:
+        """A new file with empty series and fields (atomically replacing a results.h5 already there);
+        ``then(f)`` (a RowFile) adds to it before it replaces the old one."""
         nx, ny = len(self.x), len(self.y)
         r0, r1 = self.rows.range(self.comm.rank)
         tmp = self.path.with_name(f".{self.path.name}.tmp{self._pid()}")
@@ -244,6 +245,8 @@ class ResultsFile:
             last = r1 + 1 if r1 == nx else r1  # the last rank writes the corners' last row too
             corners = cell_corners(self.x, self.y, r0, last)
             f.put("mesh/xy", (), r0 * (ny + 1), corners)
+            if then is not None:
+                then(f)
 
         self._guarded(lambda: self._write(tmp, "w", build), tmp)
         self._guarded(lambda: self._replace(tmp), tmp)
@@ -283,9 +286,11 @@ class ResultsFile:
         """Append the series of ``records`` (StepRecords) not yet in the file and, with ``saved`` ({field
         name: this rank's rows}), the fields of the last record's step; then mark the file (``complete``:
         the run is over). ``describe`` rewrites results.xdmf too (atomically). The first append of a file
-        neither created nor resumed creates it (so a run failing in its first step leaves none)."""
-        if not self.started:
-            self.create()
+        neither created nor resumed creates it with these records (so a run failing in its first step
+        leaves none)."""
+        first = not self.started
+        if first:
+            self.steps, self.field_steps = 0, []
         names = self.names
         new = records[self.steps:]
         n = self.steps + len(new)
@@ -313,7 +318,10 @@ class ResultsFile:
                 h.flush()  # the data first, then the marks that make them count
                 self._mark(h, n, k, complete)
 
-        self._guarded(lambda: self._write(self.path, "r+", grow))
+        if first:
+            self.create(grow)
+        else:
+            self._guarded(lambda: self._write(self.path, "r+", grow))
         self.steps = n
         if saved is not None:
             self.field_steps.append(step)

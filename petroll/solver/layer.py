@@ -51,7 +51,6 @@ import functools
 import math
 
 import numpy as np
-from scipy.interpolate import CubicSpline
 from scipy.special import j0
 
 from mpi4py import MPI
@@ -102,7 +101,7 @@ def _nodes() -> tuple[np.ndarray, np.ndarray]:
 
 
 @functools.lru_cache(maxsize=8)
-def _remainder(nu: float, base: str, line: bool) -> CubicSpline:
+def _remainder(nu: float, base: str, line: bool) -> "CubicSpline":
     """The remainder's profile against s = r/h (3-D) or x/h (line) on [0, TABLE_END], in units of 1/h
     (3-D: (1/pi) int (L - 1 + g) J0(u s) du) or dimensionless (line: (2/pi) int (L - 1 + g)/u cos(u s) du)."""
     u, w = _nodes()
@@ -113,6 +112,8 @@ def _remainder(nu: float, base: str, line: bool) -> CubicSpline:
         weights, transform = w * spectrum / np.pi, j0
     s = np.arange(0.0, TABLE_END + TABLE_STEP / 2, TABLE_STEP)
     values = np.concatenate([transform(np.outer(part, u)) @ weights for part in np.array_split(s, 16)])
+    from scipy.interpolate import CubicSpline  # here: scipy.interpolate takes 40 ms to import
+
     return CubicSpline(s, values, bc_type=((1, 0.0), "not-a-knot"))
 
 

@@ -25,7 +25,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.signal import fftconvolve
+import scipy.fft
 
 from petroll.solver.history import make_history
 
@@ -91,12 +91,17 @@ class SteadyMemory:
         steps = math.ceil(cells / c) + 1
         self.kernel = memory_kernel(pulse_response(material, integrator, dt, steps), c, cells)
         self.axis, self.sign = axis, sign
+        self._spectra = {}  # the kernel's spectrum per field length along the motion
 
     def __call__(self, p: np.ndarray) -> np.ndarray:
         q = np.moveaxis(p, self.axis, 0)
         if self.sign > 0:  # reversed so that "ahead" is towards lower index: a causal convolution
             q = q[::-1]
-        w = fftconvolve(q, self.kernel[: q.shape[0], None], axes=0)[: q.shape[0]]
+        n = q.shape[0]
+        length = scipy.fft.next_fast_len(2 * n - 1, real=True)
+        if n not in self._spectra:
+            self._spectra[n] = scipy.fft.rfft(self.kernel[:n], length)[:, None]
+        w = scipy.fft.irfft(scipy.fft.rfft(q, length, axis=0) * self._spectra[n], length, axis=0)[:n]
         if self.sign > 0:
             w = w[::-1]
         return np.moveaxis(w, 0, self.axis)
