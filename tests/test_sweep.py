@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 import petroll
+from petroll.errors import SceneError
 from petroll.model.scene import dumps
 from petroll.studies.sweep import (COLUMNS, DEFAULT_STEADY, SweepError, SweepInterrupted, SweepTable, Vary,
                            parse_vary, point_scene, sweep)
@@ -184,6 +185,31 @@ def test_a_constant_speed_sweep_solves_each_point_directly_from_its_neighbour(co
     assert rolled.columns["mu_r"] == pytest.approx(table.columns["mu_r"], rel=0.05)  # [time] steady = 1e-3
 
 
+
+
+def test_a_sweep_varies_a_key_inside_an_inline_table(comm, shared_dir):
+    """``material.layer.thickness``: each point is the scene with that thickness written in its TOML
+    (parsed independently here), its unit is the thickness's (m), the layer's other keys are kept; keys
+    that are no inline table's, or unknown inside one, are refused in one line naming them."""
+    from petroll.solver.simulation import Simulation
+
+    layered = {**RAW_X, "material": {**RAW_X["material"], "layer": {"thickness": 1e-3, "base": "bonded"}},
+               "solver": {"tol": 1e-10}}
+    scene = petroll.parse_scene(layered)
+    table = sweep(scene, "material.layer.thickness=2e-4,5e-4", shared_dir / "layer", comm, plot=False)
+    assert table.unit == "m" and list(table.columns["steps"]) == [1, 1]
+    for k, h in enumerate((2e-4, 5e-4)):
+        written = {**layered, "material": {**layered["material"], "layer": {"thickness": h, "base": "bonded"}},
+                   "time": {"mode": "steady"}}
+        record = Simulation(petroll.parse_scene(written), comm).solve_steady(tol=1e-10)
+        assert table.columns["mu_r"][k] == pytest.approx(record.mu_r, rel=1e-7)
+        assert table.columns["force"][k] == pytest.approx(record.force, rel=1e-8)
+    assert table.columns["force"][0] > 1.2 * table.columns["force"][1]  # a thinner layer is stiffer
+    for key, reason in (("material.layer.depth", "[material] layer"), ("material.E0.x", "E0 is not a table"),
+                        ("material..x", "section.key")):
+        with pytest.raises(SceneError) as info:
+            scene.replace(key, 1.0)
+        assert reason in str(info.value) and "\n" not in str(info.value)
 
 
 def test_the_sweep_command_runs_and_refuses_bad_specs_in_one_line(comm, capsys, cli_main, shared_dir):

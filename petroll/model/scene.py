@@ -47,6 +47,7 @@ class Key:
     check: Callable[[Any], Any]
     default: Any = MISSING  # as written in TOML, checked like a given value; None: unset; MISSING: required
     unit: str = "-"
+    fields: tuple[tuple[str, str], ...] = ()  # an inline table's (key, unit) where the unit is not "-"
 
 
 class _Invalid(ValueError):
@@ -295,11 +296,11 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "shift": Key("inline table", 'time-temperature shift law a_T (with temperature): {law = "wlf", C1, '
                      'C2 (K), T_ref (K)}: log10 a_T = -C1 (T - T_ref)/(C2 + T - T_ref), or {law = '
                      '"arrhenius", Ea (J/mol), T_ref (K)}: ln a_T = (Ea/R)(1/T - 1/T_ref), R = 8.314462618 '
-                     'J/(mol K)', _shift, default=None),
+                     'J/(mol K)', _shift, default=None, fields=(("C2", "K"), ("T_ref", "K"), ("Ea", "J/mol"))),
         "layer": Key("inline table", "the material is a layer of this thickness on a rigid base, its bottom "
                      'bonded to it or sliding freely on it: {thickness = h (m), base = "bonded" or '
                      '"frictionless"} (all models; needs nu; absent: a half-space; docs/layer.md)', _layer,
-                     default=None),
+                     default=None, fields=(("thickness", "m"),)),
     },
     "body": {
         "shape": Key("string", "body shape: " + ", ".join(BODY_KEYS) + " (its own keys: see below)",
@@ -421,16 +422,21 @@ class Scene:
     def replace(self, changes: str | dict[str, Any], value: Any = None) -> "Scene":
         """A copy with keys changed, validated again: ``scene.replace("motion.penetration", 3e-5)`` or,
         for changes that are only valid together, ``scene.replace({"motion.penetration": None,
-        "motion.load": 0.2})``. A value of None removes the key.
+        "motion.load": 0.2})``; a key inside an inline table is written with one more dot
+        (``material.layer.thickness``). A value of None removes the key.
         """
         if isinstance(changes, str):
             changes = {changes: value}
         raw = copy.deepcopy(self.raw)
         for key, new in changes.items():
-            section, _, name = key.partition(".")
-            if not name:
+            *path, name = key.split(".")
+            if not path or not all(path) or not name:
                 raise SceneError(self.source, key, new, "must be written section.key, e.g. motion.load")
-            table = raw.setdefault(section, {})
+            table = raw
+            for part in path:
+                table = table.setdefault(part, {})
+                if not isinstance(table, dict):
+                    raise SceneError(self.source, key, new, f"{part} is not a table: write {part} itself")
             if new is None:
                 table.pop(name, None)
             else:

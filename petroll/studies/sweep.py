@@ -188,11 +188,13 @@ def parse_vary(text: str) -> Vary:
 
 
 def key_unit(scene: Scene, key: str) -> str:
-    """The unit of a scene key (``section.key``), from the schema ("-" when unknown)."""
+    """The unit of a scene key (``section.key``, or ``section.key.field`` in an inline table), from the
+    schema ("-" when unknown)."""
     section, _, name = key.partition(".")
+    name, _, field = name.partition(".")
     spec = SCHEMA.get(section, {}).get(name)
     if spec is not None:
-        return spec.unit
+        return dict(spec.fields).get(field, "-") if field else spec.unit
     from petroll.model.bodies import BODY_KEYS
 
     doc = BODY_KEYS.get(str(scene.raw.get("body", {}).get("shape")), {}).get(name, "")
