@@ -14,6 +14,7 @@ from scipy.special import ellipe, ellipk, j0, j1
 from petroll.errors import SceneError
 from petroll.model.materials import Layer
 from petroll.model.scene import parse_scene
+from petroll.solver.influence import dense_influence
 from petroll.solver.layer import layer_coefficients, layer_strip_coefficients, response, thin_compliance
 from petroll.solver.partition import gather_field
 from petroll.solver.simulation import Simulation
@@ -228,6 +229,34 @@ def cylinder(comm, layer, load, nx=128, half=2e-3, nu=0.3):
     sim = Simulation(parse_scene(raw, source="test"), comm)
     [record] = list(sim.steps())
     return sim, record, np.concatenate(comm.allgather(sim.pressure[:, 0]))
+
+
+@pytest.mark.parametrize("line", [True, False])
+def test_the_ring_gap_summed_directly_or_convolved_is_the_dense_matrix_product(comm, line):
+    """ContactSolver._ring_displacement, A p on the ring of MARGIN cells around a QP window (the layer's
+    bulge check), by sums over the loaded cells (small rings: line contact) and by a convolution on the
+    box (large ones): both the dense matrix of the layer's coefficients times p, on every rank's rows."""
+    if line:
+        sim, window = cylinder(comm, {"thickness": 1e-3, "base": "bonded"}, 1000.0, nx=64)[0], (20, 36, 0, 1)
+    else:
+        sim, window = sphere(comm, {"thickness": A_HERTZ, "base": "bonded"}, n=24)[0], (8, 15, 9, 17)
+    solver, g, m = sim.solver, sim.scene.grid, sim.solver.MARGIN
+    i0, i1, j0, j1 = window
+    box = (i0 - m, i1 + m, max(j0 - m, 0), min(j1 + m, g.ny))
+    rng = np.random.default_rng(5)
+    p = np.zeros((g.nx, g.ny))
+    p[i0:i1, j0:j1] = rng.random((i1 - i0, j1 - j0)) * (rng.random((i1 - i0, j1 - j0)) < 0.7)
+    ring = np.zeros((g.nx, g.ny), dtype=bool)
+    ring[box[0] : box[1], box[2] : box[3]] = True
+    ring[i0:i1, j0:j1] = False
+    table = solver.influence.table_rows(g.nx, g.ny)(np.arange(g.nx))
+    expected = (dense_influence(table) @ p.ravel()).reshape(g.nx, g.ny)
+    r0, r1 = solver.r0, solver.r1
+    for direct in (10**9, -1):  # every ring summed directly; none
+        solver.DIRECT = direct
+        got = solver._ring_displacement(p[r0:r1], box, ring[r0:r1])
+        mine = ring[r0:r1]
+        assert np.abs(got[mine] - expected[r0:r1][mine]).max(initial=0.0) <= 1e-12 * np.abs(expected).max()
 
 
 @pytest.mark.parametrize("base", ["bonded", "frictionless"])

@@ -60,6 +60,23 @@ def test_circulant_pc_on_free_variables_against_dense_matrices(comm, nx, ny):
         obj.destroy()
 
 
+@pytest.mark.ranks4
+@pytest.mark.parametrize("nx,ny,torus", [(7, 5, (11, 8)), (8, 1, (12, 1)), (6, 6, (9, 10))])
+def test_inverse_circulant_on_a_torus_is_the_dense_torus_inverse_cut_to_the_block(comm, nx, ny, torus):
+    """Convolution(inverse=True, torus=(lx, ly)): the block's field zero-padded onto the lx x ly torus, the
+    inverse of the kernel's circulant there, cut back to the block: R C^-1 R^T, symmetric positive definite."""
+    dx, dy = 0.3, 0.2
+    lx, ly = torus
+    conv = Convolution(love_coefficients(lx, ly, dx, dy), nx, ny, comm, inverse=True, torus=torus)
+    block = (np.arange(nx)[:, None] * ly + np.arange(ny)[None, :]).ravel()
+    expected_matrix = np.linalg.inv(dense_circulant(lx, ly, dx, dy))[np.ix_(block, block)]
+    x = np.random.default_rng(nx).standard_normal((nx, ny))
+    got = np.concatenate(comm.allgather(conv(x[conv.r0 : conv.r1])))
+    expected = (expected_matrix @ x.ravel()).reshape(nx, ny)
+    assert np.abs(got - expected).max() <= 1e-12 * np.abs(expected).max()
+    assert np.linalg.eigvalsh(0.5 * (expected_matrix + expected_matrix.T)).min() > 0
+
+
 def hertz_solver(comm, **kwargs):
     a = (R * 1e-5) ** 0.5
     grid = Grid(40, 40, -1.6 * a, 1.6 * a, -1.6 * a, 1.6 * a)

@@ -22,6 +22,7 @@ distributed FFT of the padded array (e.g. mpi4py-fft), and no rank ever holds th
 
 from __future__ import annotations
 
+import math
 from typing import Callable
 
 import numpy as np
@@ -104,12 +105,15 @@ class Convolution:
     shape (local rows, ny). One instance per grid shape: the kernel spectrum is computed once.
 
     ``inverse=True`` gives instead y = C^-1 x, C the circulant (periodic, Strang) approximation of A on the
-    nx x ny torus: the kernel wrapped without padding. Its spectrum is positive in every case checked
-    (400 random shapes with dx/dy from 1e-3 to 1e3, all windows up to 8 x 8 and 8 x 256: smallest
-    eigenvalue >= 0.08 A_00; this is measured, not proven for a truncated wrap), and is floored at 1e-12
-    of its largest value. C^-1 is the preconditioner of the contact QP's conjugate gradients
-    (petroll/solver/precondition.py): it undoes A's 1/|k| smoothing, whose spread of scales makes plain conjugate
-    gradients need more iterations as the grid is refined.
+    nx x ny torus: the kernel wrapped without padding. For Love's coefficients its spectrum is positive in
+    every case checked (400 random shapes with dx/dy from 1e-3 to 1e3, all windows up to 8 x 8 and 8 x 256:
+    smallest eigenvalue >= 0.08 A_00; this is measured, not proven for a truncated wrap); it is floored at
+    1e-12 of its largest value, so C^-1 is symmetric positive definite. ``torus`` = (lx, ly) >= (nx, ny)
+    (with ``inverse``): C is instead the circulant of the kernel wrapped on an lx x ly torus, x is
+    zero-padded onto it and C^-1 x cut back to the block: R C^-1 R^T, symmetric positive definite too
+    (``coefficients`` must then cover the torus). C^-1 is the preconditioner of the contact QP's conjugate
+    gradients (petroll/solver/precondition.py): it undoes A's 1/|k| smoothing, whose spread of scales
+    makes plain conjugate gradients need more iterations as the grid is refined.
 
     ``coefficients=None`` builds no kernel: the instance then gives the padded transforms only
     (:meth:`forward`, :meth:`backward`, :meth:`kernel_spectrum`), e.g. for kernels that are not even
@@ -117,13 +121,14 @@ class Convolution:
     """
 
     def __init__(self, coefficients: np.ndarray | None, nx: int, ny: int, comm: MPI.Comm = MPI.COMM_SELF,
-                 inverse: bool = False, workers: int = 1):
+                 inverse: bool = False, workers: int = 1, torus: tuple[int, int] | None = None):
         self.nx, self.ny, self.comm, self.workers = nx, ny, comm, workers
         if inverse:
-            self.lx, self.ly = nx, ny
+            self.lx, self.ly = torus or (nx, ny)
         else:  # padded lengths: >= 2n - 1 (no wrap-around), rounded up to fast FFT sizes
             self.lx = scipy.fft.next_fast_len(2 * nx - 1)
             self.ly = scipy.fft.next_fast_len(2 * ny - 1, real=True)
+        self.kx, self.ky = (self.lx, self.ly) if inverse else (nx, ny)  # the kernel's offsets are below these
         self.rows = RowPartition(nx, comm.size)
         self.freqs = RowPartition(self.ly // 2 + 1, comm.size)  # Y-frequencies, split after transposing
         self.r0, self.r1 = self.rows.range(comm.rank)
@@ -132,7 +137,7 @@ class Convolution:
         if callable(coefficients):
             rows_of = coefficients
         else:
-            table = np.asarray(coefficients)[:nx, :ny]
+            table = np.asarray(coefficients)[: self.kx, : self.ky]
             rows_of = table.__getitem__
         self.diagonal = float(rows_of(np.zeros(1, dtype=int))[0, 0])
         self.spectrum = self.kernel_spectrum(
@@ -145,16 +150,16 @@ class Convolution:
         """The lx x ly DFT of a kernel given at signed cell offsets, for this rank's Y-frequencies.
 
         ``kernel(ox, oy)`` returns the kernel at integer offsets (target minus source cell; broadcast
-        arrays with |ox| < nx, |oy| < ny), or a stack of kernels (m, ...); they are zero beyond those
-        offsets. The spectrum (or the stack of m spectra) is complex in general, real for an even kernel.
+        arrays with |ox| < nx, |oy| < ny; an inverse's on a torus: every offset of the torus), or a stack of
+        kernels (m, ...); they are zero beyond those offsets. The spectrum (or the stack of m spectra) is complex in general, real for an even kernel.
         Collective.
         """
         padded_rows = RowPartition(self.lx, self.comm.size)
         k0, k1 = padded_rows.range(self.comm.rank)
         offsets_x = _wrapped_offsets(self.lx)[k0:k1]
         offsets_y = _wrapped_offsets(self.ly)
-        rows = np.flatnonzero(np.abs(offsets_x) < self.nx)
-        cols = np.flatnonzero(np.abs(offsets_y) < self.ny)
+        rows = np.flatnonzero(np.abs(offsets_x) < self.kx)
+        cols = np.flatnonzero(np.abs(offsets_y) < self.ky)
         inside = np.asarray(kernel(offsets_x[rows, None], offsets_y[None, cols]), dtype=float)
         lead = inside.shape[:-2]
         stack = inside.reshape((int(np.prod(lead)), len(rows), len(cols)))
@@ -240,7 +245,9 @@ class InfluenceOperator:
     ``window(nx, ny)`` returns the :class:`Convolution` for an nx x ny block of cells; each window shape's
     kernel spectrum is computed on first use and kept (the last ``kept`` shapes). ``coefficients(nx, ny)``
     gives the table A(|di|, |dj|) for offsets below (nx, ny); the default is Love's rectangles
-    (:func:`love_coefficients`); :func:`influence_operator` picks a grid's. Love's table is kept for blocks
+    (:func:`love_coefficients`); :func:`influence_operator` picks a grid's. ``torus``: the preconditioner's
+    circulant is built on a torus this many times a block along each of its axes longer than 1
+    (:meth:`torus`; 1: the block itself). Love's table is kept for blocks
     up to ``TABLE_CELLS`` cells; a larger block's kernel is computed from Love's formula for the rows each
     rank needs, so that no rank holds a table of a whole large grid.
     """
@@ -250,8 +257,9 @@ class InfluenceOperator:
 
     def __init__(self, dx: float, dy: float, comm: MPI.Comm = MPI.COMM_SELF,
                  coefficients: Callable[[int, int], np.ndarray] | None = None, workers: int = 1,
-                 positive: bool = True):
+                 positive: bool = True, torus: float = 1.0):
         self.dx, self.dy, self.comm, self.workers = dx, dy, comm, workers
+        self.torus_factor = torus
         self.love = coefficients is None
         self.positive = positive  # every coefficient > 0 (a layer's are not: its surface bulges)
         self.coefficients = coefficients or (lambda nx, ny: love_coefficients(nx, ny, dx, dy))
@@ -268,14 +276,28 @@ class InfluenceOperator:
     transient that changes the window every step would otherwise keep a spectrum per shape."""
 
     def window(self, nx: int, ny: int, inverse: bool = False) -> Convolution:
-        """A on an nx x ny block; ``inverse``: the inverse of its circulant approximation (a preconditioner)."""
+        """A on an nx x ny block; ``inverse``: the inverse of its circulant approximation (a preconditioner),
+        on the torus of :meth:`torus`."""
         key = (nx, ny, inverse)
-        conv = self._windows.pop(key, None) or Convolution(self.table_rows(nx, ny), nx, ny, self.comm, inverse,
-                                                                  self.workers)
+        conv = self._windows.pop(key, None)
+        if conv is None:
+            torus = self.torus(nx, ny) if inverse else None
+            conv = Convolution(self.table_rows(*(torus or (nx, ny))), nx, ny, self.comm, inverse, self.workers,
+                               torus)
         self._windows[key] = conv  # the newest last
         while len(self._windows) > self.kept:
             del self._windows[next(iter(self._windows))]
         return conv
+
+    def torus(self, nx: int, ny: int) -> tuple[int, int] | None:
+        """The torus of the preconditioner's circulant for an nx x ny block: None (the block itself) unless
+        the operator's ``torus`` factor exceeds 1; then each axis longer than 1 grown by that factor and
+        rounded up to a fast FFT length."""
+        if self.torus_factor <= 1:
+            return None
+        grown = [n if n == 1 else scipy.fft.next_fast_len(math.ceil(self.torus_factor * n), real=real)
+                 for n, real in ((nx, False), (ny, True))]
+        return grown[0], grown[1]
 
     def row_sum_bound(self, nx: int, ny: int) -> float:
         """An upper bound of every row sum of |A| on an nx x ny block: sum_k |A_ik| <= this (unit

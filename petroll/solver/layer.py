@@ -190,6 +190,18 @@ def layer_strip_coefficients(nx: int, dx: float, datum: float, layer: Layer) -> 
     return out
 
 
+TORUS = 1.5
+"""A layer's preconditioner: the circulant of its kernel on a torus 1.5 times the QP's window along each
+axis (:class:`petroll.solver.influence.InfluenceOperator`), not on the window itself, where the wrap folds
+the kernel's far side (negative, then fading over a few h) onto the window's edges. Applications per step
+of petroll bench layer (docs/layer.md#performance) on the window / at 1.5: idler 6 mm and 2 mm bonded,
+6 mm frictionless 6.59 / 5.45, 6.47 / 5.47, 5.42 / 4.92 (at 1.25: 5.65, 5.77, 5.17; at 2: 5.94, 5.50,
+4.90); spheres h = 4a, a, a/4 bonded, a frictionless 7.83 / 7.77, 7.03 / 5.90, 6.22 / 5.43, 5.83 / 5.80.
+The longer transforms cost little on these windows (the CPU per step fell with the applications, or
+stayed within the noise for h = 4a). A half-space's kernel gains nothing (idler 4.60 -> 4.57; its
+strip kernel's circulant on a torus twice the window fails: 124 applications per step)."""
+
+
 def material_operator(grid: Grid, comm: MPI.Comm = MPI.COMM_SELF, layer: Layer | None = None,
                       workers: int = 1) -> InfluenceOperator:
     """The influence operator of ``grid`` on a half-space (``layer`` None:
@@ -202,6 +214,6 @@ def material_operator(grid: Grid, comm: MPI.Comm = MPI.COMM_SELF, layer: Layer |
         def strips(nx: int, ny: int) -> np.ndarray:
             return layer_strip_coefficients(nx, dx, datum, layer)[:, None]
 
-        return InfluenceOperator(dx, dy, comm, strips, workers, positive=False)
+        return InfluenceOperator(dx, dy, comm, strips, workers, positive=False, torus=TORUS)
     return InfluenceOperator(dx, dy, comm, lambda nx, ny: layer_coefficients(nx, ny, dx, dy, layer), workers,
-                             positive=False)
+                             positive=False, torus=TORUS)

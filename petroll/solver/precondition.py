@@ -2,8 +2,9 @@
 
 The contact QP's Hessian is petroll's shell matrix (:class:`petroll.solver.influence.ShellInfluence`,
 scale A on a window of cells). Its preconditioner is (scale C)^-1, C the circulant approximation of A on
-the window (:class:`petroll.solver.influence.Convolution` with ``inverse=True``): it undoes A's 1/|k|
-smoothing, so Krylov iterations hardly grow with the grid.
+the window (:class:`petroll.solver.influence.Convolution` with ``inverse=True``; for a layer, on a torus
+1.5 times the window, cut back to it: petroll.solver.layer.TORUS): it undoes A's 1/|k| smoothing, so
+Krylov iterations hardly grow with the grid.
 
 TAO's active-set types (tron, gpcg, bnls, bntr, bntl) run their KSP on the free variables only: the
 Hessian's principal submatrix that ``MatCreateSubMatrix`` gives them. The shell answers that call with a
@@ -97,5 +98,6 @@ class CirculantInverse:
         self.apply(pc, x, y)
 
     def view(self, pc, viewer) -> None:
-        viewer.printfASCII("  petroll inverse circulant: (scale C)^-1, C the periodic (unpadded) wrap of the "
-                           "window's influence kernel, restricted to the free variables\n")
+        viewer.printfASCII("  petroll inverse circulant: (scale C)^-1, C the periodic wrap of the window's "
+                           "influence kernel (a layer's: on a torus around the window), restricted to the free "
+                           "variables\n")
