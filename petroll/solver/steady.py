@@ -166,7 +166,7 @@ class Anderson:
             return gx
         df = np.array([a - b for a, b in zip(self.fs[1:], self.fs[:-1])]).reshape(len(self.fs) - 1, -1)
         dg = np.array([a - b for a, b in zip(self.xs[1:], self.xs[:-1])]).reshape(len(self.xs) - 1, -1)
-        gram = df @ df.T  # the least-squares problem min |f - gamma df| by its normal equations (k <= depth)
-        gram += 1e-14 * np.trace(gram) * np.eye(len(gram))
-        gamma = np.linalg.solve(gram, df @ f.ravel())
+        # min |f - gamma df| by least squares: the minimum-norm gamma where differences are degenerate (two
+        # equal residuals: a zero row, gamma 0 for it)
+        gamma = np.linalg.lstsq(df.T, f.ravel(), rcond=None)[0]
         return gx - (gamma @ dg).reshape(gx.shape)
