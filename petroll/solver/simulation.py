@@ -255,7 +255,11 @@ class Simulation:
             u = extended(field)[tuple(inside)]
             return (u if wake is None else u + wake(p))[r0:r1]
 
-        # the fixed point is over the pressure x the memory is lagged from: Anderson-mixed, m = lagged(x)
+        def newton_step(residual, contact):  # Jc W_II^-1 on the contact cells I, the identity elsewhere
+            return np.where(contact, compliance * memory.solve_restricted(residual, contact), residual)
+
+        # the fixed point is over the pressure x the memory is lagged from, m = lagged(x); its residual
+        # g(x) - x (g: the QP's pressure) is mapped by newton_step, then Anderson-mixed
         p = np.zeros((g.nx, g.ny))
         mixer, work = Anderson(), list(solver.work)
         solution, warm, delta = None, None, None
@@ -263,12 +267,12 @@ class Simulation:
         if start is not None:
             p = np.asarray(start[0], dtype=float).reshape(g.nx, g.ny)
             warm, delta = p[r0:r1], start[1]
-        x = np.pad(p, pad)
-        m = lagged(x)
+        x = p
+        m = lagged(np.pad(x, pad))
         scene_tol, change, scale, previous = solver.tol, math.inf, 1.0, None
         final = max(scene_tol, min(0.01 * tol, 1e-3))  # the last QPs' tolerance
         for _ in range(max_iterations):
-            height = profile + displacement(m, x[tuple(inside)])
+            height = profile + displacement(m, x)
             warm = warm if solution is None else solution.pressure
             # inexact QPs while the memory is far from converged: 1 % of its last change, at least final
             solver.tol = max(final, min(1e-3, 0.01 * change / scale))
@@ -291,8 +295,8 @@ class Simulation:
                     abs(now - then) <= steady * forces[0] for now, then in zip(forces, previous)):
                 break
             previous = forces
-            x = mixer.next(x, padded)
-            m = lagged(x)
+            x = mixer.next(x, x + newton_step(p - x, p > 0))
+            m = lagged(np.pad(x, pad))
         else:
             solver.tol = scene_tol
             raise SolverError(f"the steady solve did not converge within {max_iterations} iterations")

@@ -26,6 +26,7 @@ import math
 
 import numpy as np
 import scipy.fft
+import scipy.linalg
 
 from petroll.solver.history import make_history
 
@@ -92,6 +93,7 @@ class SteadyMemory:
         self.kernel = memory_kernel(pulse_response(material, integrator, dt, steps), c, cells)
         self.axis, self.sign = axis, sign
         self._spectra = {}  # the kernel's spectrum per field length along the motion
+        self._toeplitz = {}  # W as a dense lower-triangular matrix per field length (solve_restricted)
 
     def __call__(self, p: np.ndarray) -> np.ndarray:
         q = np.moveaxis(p, self.axis, 0)
@@ -105,6 +107,28 @@ class SteadyMemory:
         if self.sign > 0:
             w = w[::-1]
         return np.moveaxis(w, 0, self.axis)
+
+
+    def solve_restricted(self, f: np.ndarray, on: np.ndarray) -> np.ndarray:
+        """y with W_II y_I = f_I on the cells I where ``on`` (W's principal submatrix on them: along each
+        line of cells along the motion a lower-triangular Toeplitz block, its diagonal H[0] > 0, solved by
+        substitution) and y = f elsewhere; fields of any length along the motion (W on them: I's cells alone
+        matter)."""
+        q, mask = (np.moveaxis(a, self.axis, 0) for a in (f, on))
+        if self.sign > 0:
+            q, mask = q[::-1], mask[::-1]
+        n = q.shape[0]
+        if n not in self._toeplitz:
+            offsets = np.subtract.outer(np.arange(n), np.arange(n))
+            self._toeplitz[n] = np.where(offsets >= 0, self.kernel[np.clip(offsets, 0, n - 1)], 0.0)
+        toeplitz, y = self._toeplitz[n], q.copy()
+        for line in np.flatnonzero(mask.any(axis=0)):
+            cells = np.flatnonzero(mask[:, line])
+            y[cells, line] = scipy.linalg.solve_triangular(toeplitz[np.ix_(cells, cells)], q[cells, line],
+                                                           lower=True, check_finite=False)
+        if self.sign > 0:
+            y = y[::-1]
+        return np.moveaxis(y, 0, self.axis)
 
 
 class FarWake:
@@ -153,20 +177,20 @@ class Anderson:
     """Anderson mixing of a fixed point x = g(x) keeping ``depth`` differences (type II)."""
 
     def __init__(self, depth: int = 6):
-        self.depth, self.xs, self.fs = depth, [], []
+        self.depth, self.last, self.df, self.dg = depth, None, [], []
 
     def next(self, x: np.ndarray, gx: np.ndarray) -> np.ndarray:
-        f = gx - x
-        self.xs.append(gx)
-        self.fs.append(f)
-        if len(self.fs) > self.depth + 1:
-            self.xs.pop(0)
-            self.fs.pop(0)
-        if len(self.fs) == 1:
+        f = (gx - x).ravel()
+        if self.last is not None:
+            self.df.append(f - self.last[0])
+            self.dg.append(gx.ravel() - self.last[1])
+            if len(self.df) > self.depth:
+                self.df.pop(0)
+                self.dg.pop(0)
+        self.last = (f, gx.ravel())
+        if not self.df:
             return gx
-        df = np.array([a - b for a, b in zip(self.fs[1:], self.fs[:-1])]).reshape(len(self.fs) - 1, -1)
-        dg = np.array([a - b for a, b in zip(self.xs[1:], self.xs[:-1])]).reshape(len(self.xs) - 1, -1)
-        # min |f - gamma df| by least squares: the minimum-norm gamma where differences are degenerate (two
-        # equal residuals: a zero row, gamma 0 for it)
-        gamma = np.linalg.lstsq(df.T, f.ravel(), rcond=None)[0]
-        return gx - (gamma @ dg).reshape(gx.shape)
+        # min |f - df gamma| by least squares: the minimum-norm gamma where differences are degenerate (two
+        # equal residuals: a zero column, gamma 0 for it)
+        gamma = np.linalg.lstsq(np.array(self.df).T, f, rcond=None)[0]
+        return gx - (gamma @ np.array(self.dg)).reshape(gx.shape)
