@@ -267,6 +267,11 @@ class Simulation:
         if start is not None:
             p = np.asarray(start[0], dtype=float).reshape(g.nx, g.ny)
             warm, delta = p[r0:r1], start[1]
+        elif scene.penetration is not None and not g.line:  # a cold start: Hertz's pressure at the penetration
+            lowest = comm.allreduce(float(np.min(profile, initial=np.inf)), op=MPI.MIN)
+            radius, penetration = scene.body.radius_hint, float(scene.penetration(0.0))
+            load = 4 * math.sqrt(radius) * max(penetration - lowest, 0.0) ** 1.5 / (3 * compliance)
+            warm = solver.hertz_pressure(profile, compliance, load, radius, penetration)
         x = p
         m = lagged(np.pad(x, pad))
         scene_tol, change, scale, previous = solver.tol, math.inf, 1.0, None
@@ -291,7 +296,7 @@ class Simulation:
                 m = target
                 break
             forces = self._forces(solution.pressure, sx, sy, velocity / speed)
-            if steady is not None and previous is not None and all(
+            if steady is not None and previous is not None and solver.tol <= steady / 3 and all(
                     abs(now - then) <= steady * forces[0] for now, then in zip(forces, previous)):
                 break
             previous = forces
