@@ -240,3 +240,27 @@ def test_anderson_solves_a_linear_fixed_point_and_survives_repeated_residuals():
     z = repeated.next(y, y)  # converged: residual 0
     w = repeated.next(z, z)  # residual 0 again: the difference of residuals is zero
     assert np.array_equal(w, np.ones(3)) and np.array_equal(z, np.ones(3))
+
+
+@pytest.mark.parametrize("axis, sign", [(0, 1), (0, -1), (1, 1), (1, -1)])
+def test_the_memory_restricted_to_the_contact_is_inverted_exactly(axis, sign):
+    """SteadyMemory.solve_restricted against numpy's dense solve of W's principal submatrix on a scattered
+    set of cells (W's columns from the FFT correlation, __call__: an independent path), the field kept off
+    the set."""
+    import numpy as np
+
+    from petroll.solver.steady import SteadyMemory
+    from test_viscoelastic import scene as make_scene
+
+    material = make_scene(half=HALF, n=N, motion={"velocity": [1e-3, 0.0], "penetration": DELTA}).material
+    shape = (12, 7) if axis == 0 else (7, 12)
+    memory = SteadyMemory(material, "relaxation", 0.02, 1.0, 1.0, axis, sign, 40)
+    columns = np.stack([memory(e.reshape(shape)).ravel() for e in np.eye(math.prod(shape))], axis=1)
+    rng = np.random.default_rng(5)
+    on = rng.random(shape) < 0.6
+    f = rng.standard_normal(shape)
+    cells = np.flatnonzero(on)
+    expected = f.ravel().copy()
+    expected[cells] = np.linalg.solve(columns[np.ix_(cells, cells)], f.ravel()[cells])
+    got = memory.solve_restricted(f, on).ravel()
+    assert np.abs(got - expected).max() <= 1e-9 * np.abs(expected).max()

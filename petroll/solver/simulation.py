@@ -83,6 +83,7 @@ class Simulation:
         self.wake = Wake(self.solver, scene.solver.history_cutoff)
         self.t, self.dt_next = 0.0, None
         self.steady_start = None  # a first guess for solve_steady: (whole-grid pressure in Pa, penetration in m)
+        self.fixed_point_iterations = 0  # the last solve_steady's QPs (each with its extended-grid convolution)
         self._newest = None  # the newest step's (profile, v, J_eff, delta): what surface() needs (a steady
         # solve: (profile, w, None, delta))
 
@@ -196,9 +197,12 @@ class Simulation:
         last change until then (at least [solver] tol), the last ones to max([solver] tol, tol / 100).
         ``steady``: stop also once force and resisting force change by at most ``steady`` x force
         from one fixed-point iteration to the next (the [time] steady test of a transient run, applied to
-        the iterations; petroll bench steady). ``start``: a first guess (the whole
-        grid's pressure, Pa, and its penetration, m), e.g. a neighbouring steady state (continuation; default
-        ``self.steady_start``, else the elastic problem with the QP compliance). The wake behind the grid up
+        the iterations; petroll bench steady), once the QPs are solved to steady / 3 or tighter (looser
+        QPs can agree by chance). ``start``: a first guess (the whole grid's pressure, Pa, and its
+        penetration, m), e.g. a neighbouring steady state (continuation; default ``self.steady_start``;
+        else, under penetration control in 3-D, Hertz's pressure for the QP compliance as the first QP's
+        warm start). The fixed point's step is Newton-like (petroll.solver.steady); its iterations are
+        kept in ``self.fixed_point_iterations``. The wake behind the grid up
         to 30 V tau is included (cell by cell up to 2 grid lengths, in blocks beyond: FarWake; line contact:
         up to 4 grid lengths). Collective: the memory is computed whole on every rank."""
         scene, solver, comm, g = self.scene, self.solver, self.comm, self.scene.grid
@@ -276,7 +280,7 @@ class Simulation:
         m = lagged(np.pad(x, pad))
         scene_tol, change, scale, previous = solver.tol, math.inf, 1.0, None
         final = max(scene_tol, min(0.01 * tol, 1e-3))  # the last QPs' tolerance
-        for _ in range(max_iterations):
+        for self.fixed_point_iterations in range(1, max_iterations + 1):
             height = profile + displacement(m, x)
             warm = warm if solution is None else solution.pressure
             # inexact QPs while the memory is far from converged: 1 % of its last change, at least final

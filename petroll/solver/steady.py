@@ -17,7 +17,12 @@ and integrator: the long transient converges to it. Smaller c refines the time i
 body-frame field (c -> 0: the exact hereditary law for p linear between cell centres).
 
 Simulation.solve_steady finds p by a fixed point over elastic contact problems: compliance Jc (J at the
-time to cross the contact) and the known height Z + A (W(p_old) - Jc p_old), Anderson-mixed.
+time to cross the contact) and the known height Z + A (W(x) - Jc x), x the iterate the memory is lagged
+from. The QP's pressure g(x) is the fixed point's map; its Jacobian on the contact cells I is
+-(Jc A_II)^-1 A_I (W - Jc), so I - g' = (Jc A_II)^-1 (A W)_II ~ W_II / Jc when (A W)_II is approximated by
+A_II W_II (the wake's own push, A from outside I, left out). The residual g(x) - x is therefore mapped by
+Jc W_II^-1 on I (:meth:`SteadyMemory.solve_restricted`, no convolution with A) and kept elsewhere: a
+Newton-like step, Anderson-mixed.
 """
 
 from __future__ import annotations
