@@ -244,9 +244,9 @@ def test_anderson_solves_a_linear_fixed_point_and_survives_repeated_residuals():
 
 @pytest.mark.parametrize("axis, sign", [(0, 1), (0, -1), (1, 1), (1, -1)])
 def test_the_memory_restricted_to_the_contact_is_inverted_exactly(axis, sign):
-    """SteadyMemory.solve_restricted against numpy's dense solve of W's principal submatrix on a scattered
-    set of cells (W's columns from the FFT correlation, __call__: an independent path), the field kept off
-    the set."""
+    """SteadyMemory.solve_restricted against numpy's dense solve of W's principal submatrix on a set of
+    cells, contiguous along the motion on some lines (a patch), scattered on others (W's columns from the
+    FFT correlation, __call__: an independent path), the field kept off the set."""
     import numpy as np
 
     from petroll.solver.steady import SteadyMemory
@@ -257,7 +257,11 @@ def test_the_memory_restricted_to_the_contact_is_inverted_exactly(axis, sign):
     memory = SteadyMemory(material, "relaxation", 0.02, 1.0, 1.0, axis, sign, 40)
     columns = np.stack([memory(e.reshape(shape)).ravel() for e in np.eye(math.prod(shape))], axis=1)
     rng = np.random.default_rng(5)
-    on = rng.random(shape) < 0.6
+    along = rng.random((12, 7)) < 0.6  # (along the motion, across): lines 0-3 a patch, 4-6 scattered
+    along[:, :4] = False
+    along[3:9, :4] = True
+    along[2:11, 2] = True
+    on = along if axis == 0 else along.T
     f = rng.standard_normal(shape)
     cells = np.flatnonzero(on)
     expected = f.ravel().copy()

@@ -98,7 +98,7 @@ class SteadyMemory:
         self.kernel = memory_kernel(pulse_response(material, integrator, dt, steps), c, cells)
         self.axis, self.sign = axis, sign
         self._spectra = {}  # the kernel's spectrum per field length along the motion
-        self._toeplitz = {}  # W as a dense lower-triangular matrix per field length (solve_restricted)
+        self._toeplitz = {}  # W and W^-1 as dense lower-triangular matrices per field length (solve_restricted)
 
     def __call__(self, p: np.ndarray) -> np.ndarray:
         q = np.moveaxis(p, self.axis, 0)
@@ -115,19 +115,35 @@ class SteadyMemory:
 
 
     def solve_restricted(self, f: np.ndarray, on: np.ndarray) -> np.ndarray:
-        """y with W_II y_I = f_I on the cells I where ``on`` (W's principal submatrix on them: along each
-        line of cells along the motion a lower-triangular Toeplitz block, its diagonal H[0] > 0, solved by
-        substitution) and y = f elsewhere; fields of any length along the motion (W on them: I's cells alone
-        matter)."""
+        """y with W_II y_I = f_I on the cells I where ``on`` (W's principal submatrix on them) and y = f
+        elsewhere; fields of any length along the motion (I's cells alone matter). Along each line of cells
+        along the motion W_II is lower-triangular (diagonal H[0] > 0); where a line's cells of I are
+        contiguous it is the leading block of the Toeplitz matrix W, whose inverse is the leading block of
+        W^-1 (one matrix product for all such lines); other lines are solved by substitution."""
         q, mask = (np.moveaxis(a, self.axis, 0) for a in (f, on))
         if self.sign > 0:
             q, mask = q[::-1], mask[::-1]
         n = q.shape[0]
         if n not in self._toeplitz:
             offsets = np.subtract.outer(np.arange(n), np.arange(n))
-            self._toeplitz[n] = np.where(offsets >= 0, self.kernel[np.clip(offsets, 0, n - 1)], 0.0)
-        toeplitz, y = self._toeplitz[n], q.copy()
-        for line in np.flatnonzero(mask.any(axis=0)):
+            toeplitz = np.where(offsets >= 0, self.kernel[np.clip(offsets, 0, n - 1)], 0.0)
+            self._toeplitz[n] = (toeplitz, scipy.linalg.solve_triangular(toeplitz, np.eye(n), lower=True))
+        toeplitz, inverse = self._toeplitz[n]
+        y = q.copy()
+        count = mask.sum(axis=0)
+        first = np.argmax(mask, axis=0)
+        last = n - 1 - np.argmax(mask[::-1], axis=0)
+        contiguous = (count > 0) & (last - first + 1 == count)
+        lines = np.flatnonzero(contiguous)
+        if len(lines):
+            length = int(count[lines].max())
+            rows = np.arange(length)[:, None] + first[lines][None, :]
+            inside = np.arange(length)[:, None] < count[lines][None, :]
+            rows = np.where(inside, rows, 0)
+            packed = np.where(inside, q[rows, lines[None, :]], 0.0)  # each line's cells of I from row 0
+            solved = inverse[:length, :length] @ packed
+            y[rows[inside], np.broadcast_to(lines, rows.shape)[inside]] = solved[inside]
+        for line in np.flatnonzero((count > 0) & ~contiguous):
             cells = np.flatnonzero(mask[:, line])
             y[cells, line] = scipy.linalg.solve_triangular(toeplitz[np.ix_(cells, cells)], q[cells, line],
                                                            lower=True, check_finite=False)
