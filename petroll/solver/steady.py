@@ -98,7 +98,7 @@ class SteadyMemory:
         self.kernel = memory_kernel(pulse_response(material, integrator, dt, steps), c, cells)
         self.axis, self.sign = axis, sign
         self._spectra = {}  # the kernel's spectrum per field length along the motion
-        self._toeplitz = {}  # W and W^-1 as dense lower-triangular matrices per field length (solve_restricted)
+        self._toeplitz = {}  # W and W^-1, dense lower-triangular, per field length (solve_restricted)
 
     def __call__(self, p: np.ndarray) -> np.ndarray:
         q = np.moveaxis(p, self.axis, 0)
