@@ -113,13 +113,12 @@ class SteadyMemory:
             w = w[::-1]
         return np.moveaxis(w, 0, self.axis)
 
-
     def solve_restricted(self, f: np.ndarray, on: np.ndarray) -> np.ndarray:
         """y with W_II y_I = f_I on the cells I where ``on`` (W's principal submatrix on them) and y = f
-        elsewhere; fields of any length along the motion (I's cells alone matter). Along each line of cells
-        along the motion W_II is lower-triangular (diagonal H[0] > 0); where a line's cells of I are
-        contiguous it is the leading block of the Toeplitz matrix W, whose inverse is the leading block of
-        W^-1 (one matrix product for all such lines); other lines are solved by substitution."""
+        elsewhere; fields at most ``cells`` long along the motion (I's cells alone matter). Along each line
+        of cells along the motion W_II is lower-triangular (diagonal H[0] > 0); where a line's cells of I
+        are contiguous it is the leading block of the Toeplitz matrix W, whose inverse is the leading block
+        of W^-1 (one matrix product for all such lines); other lines are solved by substitution."""
         q, mask = (np.moveaxis(a, self.axis, 0) for a in (f, on))
         if self.sign > 0:
             q, mask = q[::-1], mask[::-1]
