@@ -156,8 +156,9 @@ class FarWake:
     the grid's rear row (t in cells along the motion), where p = 0 and W_{-t} = sum_k H[k + t] p_k varies
     only over V tau. They are lumped into blocks growing geometrically (by ``ratio``), each carrying its
     mean W (exact, from the cumulative sums of H) as line sources along the motion, one per column of cells
-    across (blocks are at least ``near`` cells from the grid, where W is smooth). 3-D grids only. ``along``, ``across``: cell sides (m) along and
-    across the motion; ``n_across`` cells across; ``axis``, ``sign`` as :class:`SteadyMemory`."""
+    across (blocks are at least ``near`` cells from the grid, where W is smooth). 3-D grids only.
+    ``along``, ``across``: cell sides (m) along and across the motion; ``n_across`` cells across;
+    ``axis``, ``sign`` as :class:`SteadyMemory`."""
 
     def __init__(self, kernel: np.ndarray, n_along: int, n_across: int, near: int, far: int, along: float,
                  across: float, axis: int, sign: int, ratio: float = 1.05):

@@ -12,7 +12,8 @@ tol). Reported per method:
 operator applications (the direct solve's QPs only: each of its ``direct_qps`` fixed-point iterations
 also convolves A on the grid extended by the wake, and the memory along the motion twice), solver wall
 time (the steps' solve_time; file writes excluded), the errors of the force and of mu_r against the
-reference, and for the transient the steps, the distance rolled and whether its steady criterion was met. Rank 0 prints the table and writes DIR/steady.csv.
+reference, and for the transient the steps, the distance rolled and whether its steady criterion was
+met. Rank 0 prints the table and writes DIR/steady.csv.
 """
 
 from __future__ import annotations
