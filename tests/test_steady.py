@@ -217,3 +217,54 @@ def test_the_far_wake_in_blocks_is_the_wake_on_a_long_grid(v_tau_a, comm):
     assert window.force == pytest.approx(whole.force, rel=1e-5)
     assert window.mu_r == pytest.approx(whole.mu_r, rel=1e-5)
     assert window.mu_r > 5e-3
+
+
+def test_anderson_solves_a_linear_fixed_point_and_survives_repeated_residuals():
+    """Anderson mixing of x = B x + c (B a contraction) reaches the solution of (I - B) x = c (numpy's
+    solve, the oracle) within depth + 2 steps in exact arithmetic; a step whose residual repeats the last
+    one (a singular least-squares problem: the difference is zero) gives a finite iterate, not an error."""
+    import numpy as np
+
+    from petroll.solver.steady import Anderson
+
+    rng = np.random.default_rng(3)
+    B = 0.5 * rng.standard_normal((5, 5)) / math.sqrt(5)
+    c = rng.standard_normal(5)
+    exact = np.linalg.solve(np.eye(5) - B, c)
+    mixer, x = Anderson(depth=6), np.zeros(5)
+    for _ in range(8):
+        x = mixer.next(x, B @ x + c)
+    assert np.abs(x - exact).max() < 1e-10 * np.abs(exact).max()
+    repeated = Anderson(depth=1)  # the last two residuals alone: both zero below
+    y = repeated.next(np.zeros(3), np.ones(3))
+    z = repeated.next(y, y)  # converged: residual 0
+    w = repeated.next(z, z)  # residual 0 again: the difference of residuals is zero
+    assert np.array_equal(w, np.ones(3)) and np.array_equal(z, np.ones(3))
+
+
+@pytest.mark.parametrize("axis, sign", [(0, 1), (0, -1), (1, 1), (1, -1)])
+def test_the_memory_restricted_to_the_contact_is_inverted_exactly(axis, sign):
+    """SteadyMemory.solve_restricted against numpy's dense solve of W's principal submatrix on a set of
+    cells, contiguous along the motion on some lines (a patch), scattered on others (W's columns from the
+    FFT correlation, __call__: an independent path), the field kept off the set."""
+    import numpy as np
+
+    from petroll.solver.steady import SteadyMemory
+    from test_viscoelastic import scene as make_scene
+
+    material = make_scene(half=HALF, n=N, motion={"velocity": [1e-3, 0.0], "penetration": DELTA}).material
+    shape = (12, 7) if axis == 0 else (7, 12)
+    memory = SteadyMemory(material, "relaxation", 0.02, 1.0, 1.0, axis, sign, 40)
+    columns = np.stack([memory(e.reshape(shape)).ravel() for e in np.eye(math.prod(shape))], axis=1)
+    rng = np.random.default_rng(5)
+    along = rng.random((12, 7)) < 0.6  # (along the motion, across): lines 0-3 a patch, 4-6 scattered
+    along[:, :4] = False
+    along[3:9, :4] = True
+    along[2:11, 2] = True
+    on = along if axis == 0 else along.T
+    f = rng.standard_normal(shape)
+    cells = np.flatnonzero(on)
+    expected = f.ravel().copy()
+    expected[cells] = np.linalg.solve(columns[np.ix_(cells, cells)], f.ravel()[cells])
+    got = memory.solve_restricted(f, on).ravel()
+    assert np.abs(got - expected).max() <= 1e-9 * np.abs(expected).max()

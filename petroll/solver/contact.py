@@ -149,7 +149,7 @@ class ContactSolver:
             if not reach > base:
                 raise BeyondReach(f"the load {load:g} N needs a penetration beyond {reach:g} m")
             if warm is None:
-                warm = self._hertz_pressure(height, compliance, load, radius_hint, min(delta_guess, reach))
+                warm = self.hertz_pressure(height, compliance, load, radius_hint, min(delta_guess, reach))
             return self._load_in_pk(height, compliance, load, min(delta_guess, reach), warm, reach)
         power = 1.0 if self.grid.line else 2 / 3
         rtol = 10 * self.tol
@@ -189,7 +189,7 @@ class ContactSolver:
         raise SolverError(f"load control did not reach the load {load:g} N within 60 penetrations "
                           f"(last force {step.force:g} N); check the scene's load and body")
 
-    def _hertz_pressure(self, height: np.ndarray, compliance: float, load: float, radius: float,
+    def hertz_pressure(self, height: np.ndarray, compliance: float, load: float, radius: float,
                         delta: float) -> np.ndarray:
         """Hertz's pressure (Pa) for ``load`` on a sphere (line contact: a cylinder, N/m) of ``radius`` (m)
         centred on the centroid of the interference delta - height > 0 (m): a cold start for load control

@@ -83,6 +83,7 @@ class Simulation:
         self.wake = Wake(self.solver, scene.solver.history_cutoff)
         self.t, self.dt_next = 0.0, None
         self.steady_start = None  # a first guess for solve_steady: (whole-grid pressure in Pa, penetration in m)
+        self.fixed_point_iterations = 0  # the last solve_steady's QPs (each with its extended-grid convolution)
         self._newest = None  # the newest step's (profile, v, J_eff, delta): what surface() needs (a steady
         # solve: (profile, w, None, delta))
 
@@ -196,9 +197,12 @@ class Simulation:
         last change until then (at least [solver] tol), the last ones to max([solver] tol, tol / 100).
         ``steady``: stop also once force and resisting force change by at most ``steady`` x force
         from one fixed-point iteration to the next (the [time] steady test of a transient run, applied to
-        the iterations; petroll bench steady). ``start``: a first guess (the whole
-        grid's pressure, Pa, and its penetration, m), e.g. a neighbouring steady state (continuation; default
-        ``self.steady_start``, else the elastic problem with the QP compliance). The wake behind the grid up
+        the iterations; petroll bench steady), once the QPs are solved to steady / 3 or tighter (looser
+        QPs can agree by chance). ``start``: a first guess (the whole grid's pressure, Pa, and its
+        penetration, m), e.g. a neighbouring steady state (continuation; default ``self.steady_start``;
+        else, under penetration control in 3-D, Hertz's pressure for the QP compliance as the first QP's
+        warm start). The fixed point's step is Newton-like (petroll.solver.steady); its iterations are
+        kept in ``self.fixed_point_iterations``. The wake behind the grid up
         to 30 V tau is included (cell by cell up to 2 grid lengths, in blocks beyond: FarWake; line contact:
         up to 4 grid lengths). Collective: the memory is computed whole on every rank."""
         scene, solver, comm, g = self.scene, self.solver, self.comm, self.scene.grid
@@ -255,7 +259,11 @@ class Simulation:
             u = extended(field)[tuple(inside)]
             return (u if wake is None else u + wake(p))[r0:r1]
 
-        # the fixed point is over the pressure x the memory is lagged from: Anderson-mixed, m = lagged(x)
+        def newton_step(residual, contact):  # Jc W_II^-1 on the contact cells I, the identity elsewhere
+            return np.where(contact, compliance * memory.solve_restricted(residual, contact), residual)
+
+        # the fixed point is over the pressure x the memory is lagged from, m = lagged(x); its residual
+        # g(x) - x (g: the QP's pressure) is mapped by newton_step, then Anderson-mixed
         p = np.zeros((g.nx, g.ny))
         mixer, work = Anderson(), list(solver.work)
         solution, warm, delta = None, None, None
@@ -263,12 +271,17 @@ class Simulation:
         if start is not None:
             p = np.asarray(start[0], dtype=float).reshape(g.nx, g.ny)
             warm, delta = p[r0:r1], start[1]
-        x = np.pad(p, pad)
-        m = lagged(x)
+        elif scene.penetration is not None and not g.line:  # a cold start: Hertz's pressure at the penetration
+            lowest = comm.allreduce(float(np.min(profile, initial=np.inf)), op=MPI.MIN)
+            radius, penetration = scene.body.radius_hint, float(scene.penetration(0.0))
+            load = 4 * math.sqrt(radius) * max(penetration - lowest, 0.0) ** 1.5 / (3 * compliance)
+            warm = solver.hertz_pressure(profile, compliance, load, radius, penetration)
+        x = p
+        m = lagged(np.pad(x, pad))
         scene_tol, change, scale, previous = solver.tol, math.inf, 1.0, None
         final = max(scene_tol, min(0.01 * tol, 1e-3))  # the last QPs' tolerance
-        for _ in range(max_iterations):
-            height = profile + displacement(m, x[tuple(inside)])
+        for self.fixed_point_iterations in range(1, max_iterations + 1):
+            height = profile + displacement(m, x)
             warm = warm if solution is None else solution.pressure
             # inexact QPs while the memory is far from converged: 1 % of its last change, at least final
             solver.tol = max(final, min(1e-3, 0.01 * change / scale))
@@ -287,12 +300,12 @@ class Simulation:
                 m = target
                 break
             forces = self._forces(solution.pressure, sx, sy, velocity / speed)
-            if steady is not None and previous is not None and all(
+            if steady is not None and previous is not None and solver.tol <= steady / 3 and all(
                     abs(now - then) <= steady * forces[0] for now, then in zip(forces, previous)):
                 break
             previous = forces
-            x = mixer.next(x, padded)
-            m = lagged(x)
+            x = mixer.next(x, x + newton_step(p - x, p > 0))
+            m = lagged(np.pad(x, pad))
         else:
             solver.tol = scene_tol
             raise SolverError(f"the steady solve did not converge within {max_iterations} iterations")

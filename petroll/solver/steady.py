@@ -17,7 +17,12 @@ and integrator: the long transient converges to it. Smaller c refines the time i
 body-frame field (c -> 0: the exact hereditary law for p linear between cell centres).
 
 Simulation.solve_steady finds p by a fixed point over elastic contact problems: compliance Jc (J at the
-time to cross the contact) and the known height Z + A (W(p_old) - Jc p_old), Anderson-mixed.
+time to cross the contact) and the known height Z + A (W(x) - Jc x), x the iterate the memory is lagged
+from. The QP's pressure g(x) is the fixed point's map; its Jacobian on the contact cells I is
+-(Jc A_II)^-1 A_I (W - Jc), so I - g' = (Jc A_II)^-1 (A W)_II ~ W_II / Jc when (A W)_II is approximated by
+A_II W_II (the wake's own push, A from outside I, left out). The residual g(x) - x is therefore mapped by
+Jc W_II^-1 on I (:meth:`SteadyMemory.solve_restricted`, no convolution with A) and kept elsewhere: a
+Newton-like step, Anderson-mixed.
 """
 
 from __future__ import annotations
@@ -26,6 +31,7 @@ import math
 
 import numpy as np
 import scipy.fft
+import scipy.linalg
 
 from petroll.solver.history import make_history
 
@@ -92,6 +98,7 @@ class SteadyMemory:
         self.kernel = memory_kernel(pulse_response(material, integrator, dt, steps), c, cells)
         self.axis, self.sign = axis, sign
         self._spectra = {}  # the kernel's spectrum per field length along the motion
+        self._toeplitz = {}  # W and W^-1, dense lower-triangular, per field length (solve_restricted)
 
     def __call__(self, p: np.ndarray) -> np.ndarray:
         q = np.moveaxis(p, self.axis, 0)
@@ -106,14 +113,52 @@ class SteadyMemory:
             w = w[::-1]
         return np.moveaxis(w, 0, self.axis)
 
+    def solve_restricted(self, f: np.ndarray, on: np.ndarray) -> np.ndarray:
+        """y with W_II y_I = f_I on the cells I where ``on`` (W's principal submatrix on them) and y = f
+        elsewhere; fields at most ``cells`` long along the motion (I's cells alone matter). Along each line
+        of cells along the motion W_II is lower-triangular (diagonal H[0] > 0); where a line's cells of I
+        are contiguous it is the leading block of the Toeplitz matrix W, whose inverse is the leading block
+        of W^-1 (one matrix product for all such lines); other lines are solved by substitution."""
+        q, mask = (np.moveaxis(a, self.axis, 0) for a in (f, on))
+        if self.sign > 0:
+            q, mask = q[::-1], mask[::-1]
+        n = q.shape[0]
+        if n not in self._toeplitz:
+            offsets = np.subtract.outer(np.arange(n), np.arange(n))
+            toeplitz = np.where(offsets >= 0, self.kernel[np.clip(offsets, 0, n - 1)], 0.0)
+            self._toeplitz[n] = (toeplitz, scipy.linalg.solve_triangular(toeplitz, np.eye(n), lower=True))
+        toeplitz, inverse = self._toeplitz[n]
+        y = q.copy()
+        count = mask.sum(axis=0)
+        first = np.argmax(mask, axis=0)
+        last = n - 1 - np.argmax(mask[::-1], axis=0)
+        contiguous = (count > 0) & (last - first + 1 == count)
+        lines = np.flatnonzero(contiguous)
+        if len(lines):
+            length = int(count[lines].max())
+            rows = np.arange(length)[:, None] + first[lines][None, :]
+            inside = np.arange(length)[:, None] < count[lines][None, :]
+            rows = np.where(inside, rows, 0)
+            packed = np.where(inside, q[rows, lines[None, :]], 0.0)  # each line's cells of I from row 0
+            solved = inverse[:length, :length] @ packed
+            y[rows[inside], np.broadcast_to(lines, rows.shape)[inside]] = solved[inside]
+        for line in np.flatnonzero((count > 0) & ~contiguous):
+            cells = np.flatnonzero(mask[:, line])
+            y[cells, line] = scipy.linalg.solve_triangular(toeplitz[np.ix_(cells, cells)], q[cells, line],
+                                                           lower=True, check_finite=False)
+        if self.sign > 0:
+            y = y[::-1]
+        return np.moveaxis(y, 0, self.axis)
+
 
 class FarWake:
     """The displacement on the grid of the wake far behind it: cells ``near`` < t <= ``near + far`` behind
     the grid's rear row (t in cells along the motion), where p = 0 and W_{-t} = sum_k H[k + t] p_k varies
     only over V tau. They are lumped into blocks growing geometrically (by ``ratio``), each carrying its
     mean W (exact, from the cumulative sums of H) as line sources along the motion, one per column of cells
-    across (blocks are at least ``near`` cells from the grid, where W is smooth). 3-D grids only. ``along``, ``across``: cell sides (m) along and
-    across the motion; ``n_across`` cells across; ``axis``, ``sign`` as :class:`SteadyMemory`."""
+    across (blocks are at least ``near`` cells from the grid, where W is smooth). 3-D grids only.
+    ``along``, ``across``: cell sides (m) along and across the motion; ``n_across`` cells across;
+    ``axis``, ``sign`` as :class:`SteadyMemory`."""
 
     def __init__(self, kernel: np.ndarray, n_along: int, n_across: int, near: int, far: int, along: float,
                  across: float, axis: int, sign: int, ratio: float = 1.05):
@@ -153,20 +198,20 @@ class Anderson:
     """Anderson mixing of a fixed point x = g(x) keeping ``depth`` differences (type II)."""
 
     def __init__(self, depth: int = 6):
-        self.depth, self.xs, self.fs = depth, [], []
+        self.depth, self.last, self.df, self.dg = depth, None, [], []
 
     def next(self, x: np.ndarray, gx: np.ndarray) -> np.ndarray:
-        f = gx - x
-        self.xs.append(gx)
-        self.fs.append(f)
-        if len(self.fs) > self.depth + 1:
-            self.xs.pop(0)
-            self.fs.pop(0)
-        if len(self.fs) == 1:
+        f = (gx - x).ravel()
+        if self.last is not None:
+            self.df.append(f - self.last[0])
+            self.dg.append(gx.ravel() - self.last[1])
+            if len(self.df) > self.depth:
+                self.df.pop(0)
+                self.dg.pop(0)
+        self.last = (f, gx.ravel())
+        if not self.df:
             return gx
-        df = np.array([a - b for a, b in zip(self.fs[1:], self.fs[:-1])]).reshape(len(self.fs) - 1, -1)
-        dg = np.array([a - b for a, b in zip(self.xs[1:], self.xs[:-1])]).reshape(len(self.xs) - 1, -1)
-        gram = df @ df.T  # the least-squares problem min |f - gamma df| by its normal equations (k <= depth)
-        gram += 1e-14 * np.trace(gram) * np.eye(len(gram))
-        gamma = np.linalg.solve(gram, df @ f.ravel())
-        return gx - (gamma @ dg).reshape(gx.shape)
+        # min |f - df gamma| by least squares: the minimum-norm gamma where differences are degenerate (two
+        # equal residuals: a zero column, gamma 0 for it)
+        gamma = np.linalg.lstsq(np.array(self.df).T, f, rcond=None)[0]
+        return gx - (gamma @ np.array(self.dg)).reshape(gx.shape)

@@ -9,9 +9,11 @@ at tol 1e-10 (the exact steady state of the transient's scheme: docs/rolling.md)
 both: force and resisting force changing by at most tol x force, over a contact length of rolling
 (transient) or from one fixed-point iteration to the next (direct; or its memory's relative change below
 tol). Reported per method:
-operator applications, solver wall time (the steps' solve_time; file writes excluded), the errors of the
-force and of mu_r against the reference, and for the transient the steps, the distance rolled and whether
-its steady criterion was met. Rank 0 prints the table and writes DIR/steady.csv.
+operator applications (the direct solve's QPs only: each of its ``direct_qps`` fixed-point iterations
+also convolves A on the grid extended by the wake, and the memory along the motion twice), solver wall
+time (the steps' solve_time; file writes excluded), the errors of the force and of mu_r against the
+reference, and for the transient the steps, the distance rolled and whether its steady criterion was
+met. Rank 0 prints the table and writes DIR/steady.csv.
 """
 
 from __future__ import annotations
@@ -58,7 +60,8 @@ def steady(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, speeds=SPEEDS, to
         speed = v_tau_a * a / tau
         still = steady_scene(scene, speed)
         reference = Simulation(still, comm).solve_steady(tol=1e-10)
-        direct = Simulation(still, comm).solve_steady(tol=tol, steady=tol)
+        direct_sim = Simulation(still, comm)
+        direct = direct_sim.solve_steady(tol=tol, steady=tol)
         sim = Simulation(transient_scene(scene, speed, track * a, tol), comm)
         records = list(sim.steps())
         last = records[-1]
@@ -69,7 +72,8 @@ def steady(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, speeds=SPEEDS, to
             row.update({f"{name}_applications": apps, f"{name}_s": f"{seconds:.3g}",
                         f"{name}_force_error": f"{abs(r.force / reference.force - 1):.2g}",
                         f"{name}_mu_r_error": f"{abs(r.mu_r / reference.mu_r - 1):.2g}"})
-        row.update({"transient_steps": len(records), "rolled_a": f"{last.distance / a:.3g}",
+        row.update({"direct_qps": direct_sim.fixed_point_iterations, "transient_steps": len(records),
+                    "rolled_a": f"{last.distance / a:.3g}",
                     "transient_steady": int(sim.steady()),
                     "applications_ratio": f"{row['transient_applications'] / row['direct_applications']:.3g}",
                     "time_ratio": f"{float(row['transient_s']) / float(row['direct_s']):.3g}",
