@@ -64,7 +64,8 @@ def test_circulant_pc_on_free_variables_against_dense_matrices(comm, nx, ny):
 @pytest.mark.parametrize("nx,ny,torus", [(7, 5, (11, 8)), (8, 1, (12, 1)), (6, 6, (9, 10))])
 def test_inverse_circulant_on_a_torus_is_the_dense_torus_inverse_cut_to_the_block(comm, nx, ny, torus):
     """Convolution(inverse=True, torus=(lx, ly)): the block's field zero-padded onto the lx x ly torus, the
-    inverse of the kernel's circulant there, cut back to the block: R C^-1 R^T, symmetric positive definite."""
+    inverse of the kernel's circulant there, cut back to the block: R C^-1 R^T, symmetric positive
+    definite."""
     dx, dy = 0.3, 0.2
     lx, ly = torus
     conv = Convolution(love_coefficients(lx, ly, dx, dy), nx, ny, comm, inverse=True, torus=torus)

@@ -150,9 +150,9 @@ class Convolution:
         """The lx x ly DFT of a kernel given at signed cell offsets, for this rank's Y-frequencies.
 
         ``kernel(ox, oy)`` returns the kernel at integer offsets (target minus source cell; broadcast
-        arrays with |ox| < nx, |oy| < ny; an inverse's on a torus: every offset of the torus), or a stack of
-        kernels (m, ...); they are zero beyond those offsets. The spectrum (or the stack of m spectra) is complex in general, real for an even kernel.
-        Collective.
+        arrays with |ox| < nx, |oy| < ny; an inverse's on a torus: every offset of the torus), or a stack
+        of kernels (m, ...); they are zero beyond those offsets. The spectrum (or the stack of m spectra)
+        is complex in general, real for an even kernel. Collective.
         """
         padded_rows = RowPartition(self.lx, self.comm.size)
         k0, k1 = padded_rows.range(self.comm.rank)
@@ -247,9 +247,9 @@ class InfluenceOperator:
     gives the table A(|di|, |dj|) for offsets below (nx, ny); the default is Love's rectangles
     (:func:`love_coefficients`); :func:`influence_operator` picks a grid's. ``torus``: the preconditioner's
     circulant is built on a torus this many times a block along each of its axes longer than 1
-    (:meth:`torus`; 1: the block itself). Love's table is kept for blocks
-    up to ``TABLE_CELLS`` cells; a larger block's kernel is computed from Love's formula for the rows each
-    rank needs, so that no rank holds a table of a whole large grid.
+    (:meth:`pc_torus`; 1: the block itself). Love's table is kept for blocks up to ``TABLE_CELLS`` cells; a
+    larger block's kernel is computed from Love's formula for the rows each rank needs, so that no rank
+    holds a table of a whole large grid.
     """
 
     TABLE_CELLS = 1 << 20
@@ -277,19 +277,19 @@ class InfluenceOperator:
 
     def window(self, nx: int, ny: int, inverse: bool = False) -> Convolution:
         """A on an nx x ny block; ``inverse``: the inverse of its circulant approximation (a preconditioner),
-        on the torus of :meth:`torus`."""
+        on the torus of :meth:`pc_torus`."""
         key = (nx, ny, inverse)
         conv = self._windows.pop(key, None)
         if conv is None:
-            torus = self.torus(nx, ny) if inverse else None
-            conv = Convolution(self.table_rows(*(torus or (nx, ny))), nx, ny, self.comm, inverse, self.workers,
-                               torus)
+            torus = self.pc_torus(nx, ny) if inverse else None
+            table = self.table_rows(*(torus or (nx, ny)))
+            conv = Convolution(table, nx, ny, self.comm, inverse, self.workers, torus)
         self._windows[key] = conv  # the newest last
         while len(self._windows) > self.kept:
             del self._windows[next(iter(self._windows))]
         return conv
 
-    def torus(self, nx: int, ny: int) -> tuple[int, int] | None:
+    def pc_torus(self, nx: int, ny: int) -> tuple[int, int] | None:
         """The torus of the preconditioner's circulant for an nx x ny block: None (the block itself) unless
         the operator's ``torus`` factor exceeds 1; then each axis longer than 1 grown by that factor and
         rounded up to a fast FFT length."""

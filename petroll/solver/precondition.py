@@ -99,5 +99,5 @@ class CirculantInverse:
 
     def view(self, pc, viewer) -> None:
         viewer.printfASCII("  petroll inverse circulant: (scale C)^-1, C the periodic wrap of the window's "
-                           "influence kernel (a layer's: on a torus around the window), restricted to the free "
-                           "variables\n")
+                           "influence kernel (a layer's: on a torus around the window), restricted to the "
+                           "free variables\n")
