@@ -259,6 +259,14 @@ def test_the_ring_gap_summed_directly_or_convolved_is_the_dense_matrix_product(c
         assert np.abs(got[mine] - expected[r0:r1][mine]).max(initial=0.0) <= 1e-12 * np.abs(expected).max()
 
 
+def test_a_layers_preconditioner_wraps_its_kernel_on_a_torus_larger_than_the_window(comm):
+    """petroll.solver.layer.TORUS: a layer's inverse circulant on a 20-cell window lives on 30 cells (the
+    dense check of that operator: tests/test_tao_objects.py); a half-space's on the window itself."""
+    layer = cylinder(comm, {"thickness": 1e-3, "base": "bonded"}, 1000.0, nx=64)[0].solver.influence
+    plain = cylinder(comm, None, 1000.0, nx=64)[0].solver.influence
+    assert (layer.window(20, 1, inverse=True).lx, plain.window(20, 1, inverse=True).lx) == (30, 20)
+
+
 @pytest.mark.parametrize("base", ["bonded", "frictionless"])
 def test_line_contact_on_a_thin_layer_is_the_winkler_foundation(comm, base):
     """A cylinder on h = b/40 (b the Winkler half-width): p = (delta - x^2/2R)/(J W) with the absolute
