@@ -205,6 +205,9 @@ def test_a_sweep_varies_a_key_inside_an_inline_table(comm, shared_dir):
         assert table.columns["mu_r"][k] == pytest.approx(record.mu_r, rel=1e-7)
         assert table.columns["force"][k] == pytest.approx(record.force, rel=1e-8)
     assert table.columns["force"][0] > 1.2 * table.columns["force"][1]  # a thinner layer is stiffer
+    with pytest.raises(SceneError) as info:  # a scene without the table: not made up from the one key
+        scene.replace("material.layer", None).replace("material.layer.thickness", 1e-3)
+    assert "the scene has no material.layer" in str(info.value)
     for key, reason in (("material.layer.depth", "[material] layer"), ("material.E0.x", "E0 is not a table"),
                         ("material..x", "section.key")):
         with pytest.raises(SceneError) as info:

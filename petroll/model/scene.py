@@ -433,7 +433,10 @@ class Scene:
             if not path or not all(path) or not name:
                 raise SceneError(self.source, key, new, "must be written section.key, e.g. motion.load")
             table = raw
-            for part in path:
+            for depth, part in enumerate(path):
+                if depth > 0 and part not in table:  # an inline table the scene does not have
+                    raise SceneError(self.source, key, new, f"the scene has no {'.'.join(path[:depth + 1])}: "
+                                     f"write {'.'.join(path[:depth + 1])} = {{...}} whole")
                 table = table.setdefault(part, {})
                 if not isinstance(table, dict):
                     raise SceneError(self.source, key, new, f"{part} is not a table: write {part} itself")
