@@ -297,7 +297,6 @@ class Simulation:
             scale = compliance * float(p.max(initial=0.0))
             change = float(np.abs(target - m).max(initial=0.0))
             if change <= tol * scale and solver.tol == final:
-                m = target
                 break
             forces = self._forces(solution.pressure, sx, sy, velocity / speed)
             if steady is not None and previous is not None and solver.tol <= steady / 3 and all(
