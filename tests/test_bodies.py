@@ -396,7 +396,7 @@ def test_mesh_sphere_cap_matches_sphere(tmp_path, ext):
 
 @pytest.mark.parametrize("chunk", [2_000_000, 5_000])
 def test_mesh_reference_point_is_lowest_vertex_and_lowest_surface_wins(tmp_path, monkeypatch, chunk):
-    monkeypatch.setattr(bodies, "_RASTER_CHUNK", chunk)  # small chunks: the minimum spans several
+    monkeypatch.setattr(bodies.mesh, "_RASTER_CHUNK", chunk)  # small chunks: the minimum spans several
     xyz, tris, longest = spherical_cap(shift=(0.3, -0.2, 0.7))
     # a second copy of the cap lying above it and sticking out to +x (so that the x-y bounding box is not
     # centred on the lowest vertex) must not matter where it overlaps the lower cap
