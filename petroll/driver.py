@@ -21,6 +21,7 @@ from petroll.errors import PetrollError
 from petroll.io.checkpoint import RunInterrupted, checkpoint_dir, run_directory, write_checkpoint
 from petroll.io.results import OutputError, Results, ResultsFile
 from petroll.model.scene import Scene
+from petroll.solver.rough import BINS
 from petroll.solver.simulation import Simulation, StepRecord
 
 
@@ -49,8 +50,9 @@ def run(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, out: str | pathlib.Path |
     sim.steady_start = steady_start
     g = scene.grid
     steady = scene.time.mode == "steady"
+    rough = None if g.line or not all(g.periodic) else BINS  # the group rough of a periodic grid
     results = ResultsFile(out / "results.h5", scene.text, g.x, g.y, comm, fields=scene.fields, line=g.line,
-                          steady=steady)
+                          steady=steady, rough=rough)
     if restart is not None:
         t, field_steps = restart.restore(sim)
         results.resume(run_directory(restart.path) / "results.h5", len(sim.records), field_steps)
@@ -72,7 +74,8 @@ def run(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, out: str | pathlib.Path |
             _show_progress(scene, record, clock.perf_counter() - wall)
         if save or due or interrupted or stop_now:  # the results first: a checkpoint's fields are in them
             results.append(sim.records, saved_fields(sim) if save else None, complete=stop_now,
-                           describe=bool(due or interrupted or stop_now))
+                           describe=bool(due or interrupted or stop_now),
+                           rough=sim.rough_outputs() if save and rough else None)
         if due or interrupted:
             path = write_checkpoint(checkpoint_dir(out), sim, sim.t, sim.dt_next, results.field_steps,
                                     scene.keep)
@@ -166,6 +169,10 @@ def stress(run_dir: str | pathlib.Path, step: int | None = None, depths=None, nu
         raise PetrollError(f"{path}: no results file (is {run_dir} the output directory of a run?)")
     saved = read_saved_pressure(path, step, comm)
     raw = tomllib.loads(saved["scene"])
+    if raw["grid"].get("periodic", False):
+        raise PetrollError(f"{path}: [grid] periodic = {raw['grid']['periodic']!r}: the stresses below a "
+                           "periodic surface are not computed (petroll stress sums an isolated pressure "
+                           "field)")
     nu = _poisson_ratio(raw, nu)
     x, y, p = saved["x"], saved["y"], saved["pressure"]
     g, line = raw["grid"], saved["line"]

@@ -36,7 +36,7 @@ from petroll.errors import SolverError
 from petroll.model.grid import Grid
 from petroll.model.scene import DEFAULT_TAO_TYPE, TAO_TYPES
 from petroll.solver.partition import RowPartition, move_rows
-from petroll.solver.influence import influence_operator, shell_matrix, spare_cores
+from petroll.solver.influence import InfluenceOperator, influence_operator, shell_matrix, spare_cores
 from petroll.solver.pk import PK_PYTHON_TYPE, PolonskyKeer, tao_reasons
 from petroll.solver.precondition import CirculantInverse
 
@@ -64,22 +64,27 @@ class ContactSolver:
     Command-line options with that prefix (``-petroll_tao_type tron``, ``-petroll_tao_monitor``, ...)
     override the scene's settings; they never reach other solvers. ``-<prefix>fft_workers N``: FFT threads
     per rank (default: the rank's share of its node's cores, :func:`petroll.solver.influence.spare_cores`).
+    ``kernel``: the influence kernel (petroll/solver/kernels) instead of the grid's (a half-space's or
+    ``layer``'s).
     """
 
     def __init__(self, grid: Grid, comm: MPI.Comm, tao_type: str = DEFAULT_TAO_TYPE, tol: float = 1e-8,
                  prefix: str = "petroll_", max_iterations: int = 10000, precondition: bool = True,
-                 layer=None):
+                 layer=None, kernel=None):
         from petsc4py import PETSc
 
         self.grid, self.comm, self.tol, self.prefix = grid, comm, tol, prefix
         options = PETSc.Options(prefix)  # read once here and when a window shape's TAO is built
         self.tao_type, self.max_iterations = self._resolve_type(tao_type, prefix, options), max_iterations
         self.precondition = options.getBool("pc_circulant", precondition)
-        workers = options.getInt("fft_workers", spare_cores(comm))
-        if workers < 1:
-            raise SolverError(f"-{prefix}fft_workers {workers}: the FFT threads per rank must be >= 1")
-        self.influence = influence_operator(grid, comm, layer, workers)
-        self.lift = self.influence.lift_bound(grid.nx, grid.ny)  # upward displacement per unit pressure
+        self.workers = options.getInt("fft_workers", spare_cores(comm))
+        if self.workers < 1:
+            raise SolverError(f"-{prefix}fft_workers {self.workers}: the FFT threads per rank must be >= 1")
+        self.influence = (influence_operator(grid, comm, layer, self.workers) if kernel is None else
+                          InfluenceOperator(kernel, comm, self.workers))
+        self.periodic = self.influence.periodic  # the QP is posed on the whole (periodic) grid
+        # upward displacement per unit pressure (a periodic kernel's QP has no ring to check)
+        self.lift = None if self.periodic else self.influence.lift_bound(grid.nx, grid.ny)
         self.rows = RowPartition(grid.nx, comm.size)
         self.r0, self.r1 = self.rows.range(comm.rank)
         self.work = [0, 0]  # TAO iterations and operator applications of every QP solved so far
@@ -120,8 +125,17 @@ class ContactSolver:
     # -- displacement control ---------------------------------------------------------------------------
     def solve_penetration(self, height: np.ndarray, compliance: float, delta: float,
                           warm: np.ndarray | None = None) -> StepSolution:
-        """Pressure for a given penetration ``delta`` (m); ``height`` is h = Z + u on this rank's rows (m)."""
+        """Pressure for a given penetration ``delta`` (m); ``height`` is h = Z + u on this rank's rows (m).
+        On a periodic half-space (displacements from the deformed surface's mean plane) the mean gap
+        mean(h) - delta must be > 0 (SolverError otherwise: the pressure would grow without bound)."""
+        if self.influence.mean_free:
+            mean = self.comm.allreduce(float(height.sum())) / (self.grid.nx * self.grid.ny)
+            if not delta < mean:
+                raise SolverError(f"[motion] penetration: {delta:g} m leaves no mean gap on the periodic "
+                                  f"grid (the surface's mean height is {mean:g} m above its lowest point): "
+                                  "a penetration must be below it; full contact needs [motion] load")
         pressure, its, apps, residual, window, _ = self._solve_qp(delta - height, compliance, warm)
+        self._check_inside(pressure)
         force = self.comm.allreduce(float(pressure.sum())) * self.grid.cell_area
         return StepSolution(pressure, delta, force, its, apps, residual, window)
 
@@ -143,15 +157,19 @@ class ContactSolver:
                 raise SolverError(f"[motion] load: {load:g} N; must be >= 0 (a pulling load needs adhesion, "
                                   "which petroll does not model)")
             return StepSolution(np.zeros(self.local_shape), base, 0.0, 0, 0, 0.0, (0, 0, 0, 0))
+        ceiling = math.inf  # a periodic half-space's force grows without bound as delta -> mean(h)
+        if self.influence.mean_free:
+            ceiling = self.comm.allreduce(float(height.sum())) / (self.grid.nx * self.grid.ny)
         if delta_guess is None or delta_guess <= base:
             delta_guess = base + hertz_penetration(self.grid, compliance, load, radius_hint)
+        delta_guess = min(delta_guess, 0.5 * (base + ceiling))
         if self.tao_type == "pk":
             if not reach > base:
                 raise BeyondReach(f"the load {load:g} N needs a penetration beyond {reach:g} m")
             if warm is None:
                 warm = self.hertz_pressure(height, compliance, load, radius_hint, min(delta_guess, reach))
             return self._load_in_pk(height, compliance, load, min(delta_guess, reach), warm, reach)
-        power = 1.0 if self.grid.line else 2 / 3
+        power = 1.0 if self.grid.line or self.periodic else 2 / 3
         rtol = 10 * self.tol
         iterations = applications = 0
         lo = hi = None  # bracketing (delta, phi) pairs with phi < 0 and phi > 0
@@ -163,8 +181,7 @@ class ContactSolver:
             applications += step.applications
             step.iterations, step.applications = iterations, applications
             if abs(step.force / load - 1) <= rtol:
-                if self.grid.line:
-                    self._check_inside(step.pressure)
+                self._check_inside(step.pressure)
                 return step
             warm = step.pressure
             phi = (step.force / load) ** power - 1
@@ -180,6 +197,8 @@ class ContactSolver:
                 candidate = delta - phi * (delta - previous[0]) / (phi - previous[1])
             if lo is not None and hi is not None and not (lo[0] < candidate < hi[0]):
                 candidate = 0.5 * (lo[0] + hi[0])
+            if candidate >= ceiling:
+                candidate = 0.5 * (delta + ceiling)
             if candidate > reach:
                 if delta >= reach:
                     raise BeyondReach(f"the load {load:g} N needs a penetration beyond {reach:g} m")
@@ -193,8 +212,10 @@ class ContactSolver:
                         delta: float) -> np.ndarray:
         """Hertz's pressure (Pa) for ``load`` on a sphere (line contact: a cylinder, N/m) of ``radius`` (m)
         centred on the centroid of the interference delta - height > 0 (m): a cold start for load control
-        (this rank's rows; symmetric where the body is)."""
+        (this rank's rows; symmetric where the body is). On a periodic grid, the mean pressure everywhere."""
         g = self.grid
+        if self.periodic:
+            return np.full(self.local_shape, load / (g.cell_area * g.nx * g.ny))
         w = np.maximum(delta - height, 0.0)
         sums = np.array([w.sum(), (w.sum(axis=1) * g.x[self.r0 : self.r1]).sum(), (w.sum(axis=0) * g.y).sum()])
         self.comm.Allreduce(MPI.IN_PLACE, sums, op=MPI.SUM)
@@ -228,8 +249,7 @@ class ContactSolver:
             if needed is None or (window[0] <= needed[0] and needed[1] <= window[1] and window[2] <= needed[2]
                                   and needed[3] <= window[3]):
                 force = self.comm.allreduce(float(pressure.sum())) * self.grid.cell_area
-                if self.grid.line:
-                    self._check_inside(pressure)
+                self._check_inside(pressure)
                 return StepSolution(pressure, found, force, iterations, applications, residual, window)
             # a window too small concentrates the pressure: the penetration found overshoots; halve the
             # step while its interference would reach the grid's edge
@@ -256,6 +276,8 @@ class ContactSolver:
         beyond a clear ring touching would need the bulge to rise faster than the body's profile away from
         the contact; the thin incompressible layer's contact, 41 % wider than the interference region, is
         found this way: tests/test_layer.py.)"""
+        if self.periodic:
+            return self._solve_window(interference, compliance, warm, None, load)
         candidates = interference > 0
         if (not self.influence.positive and warm is not None
                 and self.comm.allreduce(bool(candidates.any()), op=MPI.LOR)):
@@ -330,13 +352,16 @@ class ContactSolver:
                       candidates: np.ndarray, load: float | None):
         grid, comm = self.grid, self.comm
         pressure = np.zeros(self.local_shape)
-        window = self._window(candidates, 0 if self.influence.positive or not grid.line else self.GROW)
+        if self.periodic:
+            window = (0, grid.nx, 0, grid.ny)
+        else:
+            window = self._window(candidates, 0 if self.influence.positive or not grid.line else self.GROW)
         if window is None:
             return pressure, 0, 0, 0.0, (0, 0, 0, 0), 0.0
         i0, i1, j0, j1 = window
         grid_ranges, window_ranges = self._box_ranges(i0, i1)
         target = move_rows(interference[:, j0:j1], grid_ranges, window_ranges, comm)
-        w_ref = comm.allreduce(float(target.max(initial=0.0)), op=MPI.MAX)
+        w_ref = self._scale(target)
         diagonal = self.influence.diagonal
         to_pressure = w_ref / (compliance * diagonal)  # p = to_pressure * p_hat
 
@@ -358,6 +383,17 @@ class ContactSolver:
                               f"-{self.prefix}tao_type or a larger [solver] tol")
         self._put_box(pressure, p_window, window)
         return pressure, its, applications, residual, window, multiplier * w_ref
+
+    def _scale(self, target: np.ndarray) -> float:
+        """w_ref (m), the QP's unit of gap: the largest interference (``target``, this rank's window rows),
+        on a periodic grid (where contact can be made at negative interference) its range (or |its
+        largest value| for a flat one; 1 for none)."""
+        extremes = np.array([target.max(initial=-np.inf), -target.min(initial=np.inf)])
+        self.comm.Allreduce(MPI.IN_PLACE, extremes, op=MPI.MAX)
+        if not self.periodic:
+            return max(float(extremes[0]), 0.0)
+        spread = float(extremes[0] + extremes[1])
+        return spread if spread > 0 else abs(float(extremes[0])) or 1.0
 
     def convolve_box(self, field: np.ndarray, box: tuple[int, int, int, int]) -> np.ndarray:
         """A ``field`` with the Love coefficients (A field, m per unit of field), sources and results both
@@ -392,17 +428,28 @@ class ContactSolver:
         return qp
 
     def _check_inside(self, pressure: np.ndarray) -> None:
-        """Line contact: SolverError if the contact (p > 0) reaches an end strip of the grid.
+        """SolverError if the contact (p > 0) reaches an end row or column of the grid along a
+        non-periodic axis, where the QP is posed on the whole grid's length: line contact, and grids
+        periodic along one axis only (nothing to check where the QP has a window, or every axis repeats).
 
         In plane strain the rigid interference delta - Z - u exceeds J A p > 0 wherever A p is, and A p
         (logarithmic) spreads over the whole grid, so the interference region is wider than the contact
         (by about sqrt(ln(2 L/a) + 1/2) for Hertz, L the datum): the contact itself is what must fit."""
         g = self.grid
+        if g.line and not g.periodic[0]:
+            ends = [i - self.r0 for i in (0, g.nx - 1) if self.r0 <= i < self.r1]
+            touching = self.comm.allreduce(bool(np.any(pressure[ends] > 0)), op=MPI.LOR)
+            if touching:
+                raise SolverError(f"[grid]: the contact reaches an end of the grid (X = {g.x0:g} or "
+                                  f"{g.x1:g}); enlarge [grid] x or reduce the load")
+        if g.line or not self.periodic or all(g.periodic):
+            return
         ends = [i - self.r0 for i in (0, g.nx - 1) if self.r0 <= i < self.r1]
-        touching = self.comm.allreduce(bool(np.any(pressure[ends] > 0)), op=MPI.LOR)
-        if touching:
-            raise SolverError(f"[grid]: the contact reaches an end of the grid (X = {g.x0:g} or {g.x1:g}); "
-                              "enlarge [grid] x or reduce the load")
+        edges = pressure[ends] if g.periodic[1] else pressure[:, [0, g.ny - 1]]
+        if self.comm.allreduce(bool(np.any(edges > 0)), op=MPI.LOR):
+            axis, (a, b) = ("x", (g.x0, g.x1)) if g.periodic[1] else ("y", (g.y0, g.y1))
+            raise SolverError(f"[grid]: the contact reaches the grid's edge along {axis} ({a:g} or {b:g}), "
+                              f"which does not repeat; enlarge [grid] {axis} or reduce the load")
 
     def _box(self, candidates: np.ndarray) -> tuple[int, int, int, int] | None:
         """Bounding box [i0, i1) x [j0, j1) of the candidate cells over all ranks; None when there are none."""

@@ -33,7 +33,7 @@ import numpy as np
 import scipy.fft
 import scipy.linalg
 
-from petroll.solver.history import make_history
+from petroll.solver.history import state_space
 
 
 def pulse_response(material, integrator: str, dt: float, steps: int) -> np.ndarray:
@@ -42,23 +42,16 @@ def pulse_response(material, integrator: str, dt: float, steps: int) -> np.ndarr
     The history is guarded: a step at which the integrator cannot hold a penetration is refused
     (SolverError), as in a transient run.
 
-    The integrator is a linear state machine: after the pulse (state S_1) a step at p = 0 maps the state
-    S to M S and outputs W = c S. M and c are measured by one step of the integrator itself from every
-    basis state at once (a field of d cells); then h[1 + j K + r] = (c M^r) (M^K)^j S_1 for r < K ~
-    sqrt(steps): about 2 sqrt(steps) products of d x d matrices instead of ``steps`` integrator steps."""
-    history = make_history(material, integrator, (1, 1))
+    The integrator is a linear state machine (petroll.solver.history.state_space): after the pulse (state
+    S_1) a step at p = 0 maps the state S to M S and outputs W = c S; h[1 + j K + r] = (c M^r) (M^K)^j S_1
+    for r < K ~ sqrt(steps): about 2 sqrt(steps) products of d x d matrices instead of ``steps`` integrator
+    steps."""
     h = np.zeros(steps)
-    h[0] = history.compliance(dt)
-    history.advance(np.ones((1, 1)), dt)
+    h[0], after, M, c = state_space(material, integrator, dt)
     rest = steps - 1
-    if rest <= 0 or history.preceding(dt) is None:
+    if rest <= 0 or after is None:
         return h
-    after = np.array([f[0, 0] for f in history.state()])  # S_1, just after the pulse
     d = len(after)
-    history.load_state([row.reshape(1, d).copy() for row in np.eye(d)])  # cell j holds the state e_j
-    c = history.preceding(dt)[0].copy()
-    history.advance(np.zeros((1, d)), dt)
-    M = np.array([f[0] for f in history.state()])  # column j = M e_j
     K = math.isqrt(rest - 1) + 1
     outputs, power = np.empty((K, d)), np.eye(d)  # rows c M^r; M^r
     for r in range(K):
