@@ -25,7 +25,7 @@ import scipy.fft
 
 from petroll.errors import MISSING, SceneError
 
-__all__ = ["ROUGH_KEYS", "SelfAffinePSD", "radial_psd", "self_affine_heights"]
+__all__ = ["ROUGH_KEYS", "SelfAffinePSD", "TabulatedPSD", "radial_psd", "self_affine_heights"]
 
 ROUGH_KEYS: dict[str, str] = {
     "hurst": "Hurst exponent H, 0 < H <= 1: C(q) ~ q^(-2 (1 + H)) between rolloff and cutoff (required)",
@@ -74,6 +74,41 @@ class SelfAffinePSD:
         unit = SelfAffinePSD(self.hurst, self.q_rolloff, self.q_cutoff, self.q_long, 1.0)
         return SelfAffinePSD(self.hurst, self.q_rolloff, self.q_cutoff, self.q_long,
                              target**2 / unit.moment(order))
+
+
+@dataclass(frozen=True, eq=False)
+class TabulatedPSD:
+    """C(q) (m^4) given at wavenumbers ``q`` (rad/m, increasing), interpolated linearly in log-log, 0
+    outside [q_long, q_cutoff] = [q[0], q[-1]]: a measured surface's spectrum (:meth:`of`)."""
+
+    q: np.ndarray
+    C: np.ndarray
+
+    @property
+    def q_long(self) -> float:
+        return float(self.q[0])
+
+    @property
+    def q_cutoff(self) -> float:
+        return float(self.q[-1])
+
+    def __call__(self, q) -> np.ndarray:
+        q = np.asarray(q, dtype=float)
+        inside = (q >= self.q[0]) & (q <= self.q[-1])
+        logq = np.log(np.clip(q, self.q[0], self.q[-1]))
+        return np.where(inside, np.exp(np.interp(logq, np.log(self.q), np.log(self.C))), 0.0)
+
+    @classmethod
+    def of(cls, heights: np.ndarray, cell: tuple[float, float], per_decade: int = 10) -> TabulatedPSD:
+        """The radially averaged spectrum of periodic ``heights`` (m) at spacing ``cell`` (m), in bins of
+        1/``per_decade`` decade from the longest wavelength of the shorter side to the Nyquist wavenumber
+        of the coarser spacing (bins without modes, or without power, left out)."""
+        q_low = 2.0 * np.pi / min(heights.shape[0] * cell[0], heights.shape[1] * cell[1])
+        q_high = np.pi / max(cell)
+        bins = max(int(np.ceil(per_decade * np.log10(q_high / q_low))), 1)
+        q, c, count = radial_psd(heights, cell, q_low * (q_high / q_low) ** (np.arange(bins + 1) / bins))
+        keep = (count > 0) & (c > 0)
+        return cls(q[keep], c[keep])
 
 
 def _wavenumbers(shape: tuple[int, int], cell: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
