@@ -7,7 +7,8 @@ import pytest
 
 from petroll.errors import SceneError
 from petroll.model.bodies import Cylinder, Sphere
-from petroll.model.surfaces import PeriodicSurface, RoughBody
+from petroll.model.grid import Grid
+from petroll.model.surfaces import PeriodicSurface, RoughBody, grid_surface
 
 CELL = (1e-6, 2e-6)
 
@@ -73,3 +74,19 @@ def test_roughness_adds_to_a_smooth_body():
 def test_bad_samples_are_refused():
     with pytest.raises(SceneError, match="at least 4 x 4 finite heights"):
         PeriodicSurface(np.full((8, 8), np.nan), CELL)
+
+
+def test_a_periodic_grid_surface_puts_its_samples_on_the_cell_centres():
+    grid = Grid(16, 8, -4e-6, 12e-6, 0.0, 16e-6)  # cells 1 um x 2 um
+    heights = np.random.default_rng(4).normal(size=(16, 8)) * 1e-7
+    surface = grid_surface(heights, (1e-6, 2e-6), grid)
+    np.testing.assert_allclose(surface.height(grid.x[:, None], grid.y[None, :]), heights - heights.min(),
+                               rtol=0, atol=1e-12 * np.ptp(heights))
+    # a body moved by 3 cells along x and wrapped: the samples rolled by 3
+    moved = surface.height(grid.x[:, None] - 3e-6, grid.y[None, :])
+    np.testing.assert_allclose(moved, np.roll(heights, 3, axis=0) - heights.min(), rtol=0,
+                               atol=1e-12 * np.ptp(heights))
+    with pytest.raises(SceneError, match=r"\[body\] file.*16 x 8, not 16 x 9"):
+        grid_surface(np.zeros((16, 9)), (1e-6, 2e-6), grid)
+    with pytest.raises(SceneError, match=r"\[body\] cell.*spacing is the grid's"):
+        grid_surface(heights, (1e-6, 1e-6), grid)

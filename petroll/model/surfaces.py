@@ -22,8 +22,9 @@ from scipy import ndimage
 
 from petroll.errors import SceneError
 from petroll.model.bodies import PYTHON_SOURCE, Body
+from petroll.model.grid import Grid
 
-__all__ = ["PeriodicSurface", "RoughBody"]
+__all__ = ["PeriodicSurface", "RoughBody", "grid_surface"]
 
 
 def _spectral_slopes(heights: np.ndarray, cell: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
@@ -120,3 +121,18 @@ class RoughBody(Body):
     @property
     def radius_hint(self) -> float:
         return self.body.radius_hint
+
+
+def grid_surface(heights: np.ndarray, cell: tuple[float, float], grid: Grid, *, source: str = PYTHON_SOURCE,
+                 label: object = "<heights>") -> PeriodicSurface:
+    """The surface of a periodic ``grid``: its nx x ny samples at the grid's spacing, sample (i, j) on the
+    centre of cell (i, j) while the body's reference point is at the origin (SceneError on ``[body] file``
+    or ``[body] cell``, ``label`` the file, unless the samples are that many at that spacing)."""
+    if heights.shape != (grid.nx, grid.ny):
+        raise SceneError(source, "[body] file", label, f"on a periodic grid the surface has one sample per "
+                         f"cell, {grid.nx} x {grid.ny}, not {heights.shape[0]} x {heights.shape[1]}")
+    if not np.allclose(cell, (grid.dx, grid.dy), rtol=1e-9, atol=0.0):
+        raise SceneError(source, "[body] cell", list(cell), f"on a periodic grid the samples are the cells: "
+                         f"their spacing is the grid's, [{grid.dx!r}, {grid.dy!r}] m")
+    return PeriodicSurface(heights, (grid.dx, grid.dy), (grid.x0 + 0.5 * grid.dx, grid.y0 + 0.5 * grid.dy),
+                           source=source)

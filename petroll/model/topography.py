@@ -15,7 +15,8 @@ The numbers of ``npy``, ``matrix`` and ``xyz`` files are in ``unit`` (``"m"``, `
 ``"nm"``, heights and xyz's coordinates alike); ``cell`` (the spacing of ``npy`` and ``matrix`` files) is
 in m like every scene length. A point that is not measured (NaN, or a grid point missing from an xyz list)
 is refused: petroll needs every height, so fill such points before (e.g. ``scipy.interpolate.griddata``).
-Every failure is a :class:`~petroll.errors.SceneError` naming the key of ``table`` (default ``[body]``).
+Every failure is a :class:`~petroll.errors.SceneError` naming the key after ``prefix`` (default
+``[body] ``; ``[body] roughness.`` for a body's roughness).
 """
 
 from __future__ import annotations
@@ -61,11 +62,11 @@ class Topography:
         return (self.heights.shape[0] * self.cell[0], self.heights.shape[1] * self.cell[1])
 
 
-def _format_of(path: pathlib.Path, fmt: str | None, source: str, table: str) -> str:
-    key = f"{table} file"
+def _format_of(path: pathlib.Path, fmt: str | None, source: str, prefix: str) -> str:
+    key = f"{prefix}file"
     if fmt is not None:
         if fmt not in FORMATS:
-            raise SceneError(source, f"{table} format", fmt,
+            raise SceneError(source, f"{prefix}format", fmt,
                              "must be one of: " + ", ".join(FORMATS))
         return fmt
     suffix = path.suffix.lower()
@@ -172,16 +173,16 @@ def _read_x3p(path: pathlib.Path, source: str, key: str) -> Topography:
 
 def read_topography(path: str | os.PathLike, *, fmt: str | None = None,
                     cell: tuple[float, float] | None = None, unit: str = "m", source: str = "<python>",
-                    table: str = "[body]") -> Topography:
+                    prefix: str = "[body] ") -> Topography:
     """Read a measured topography (see the module's docstring for the formats and units).
 
     ``cell``: the spacing (hx, hy) in m of ``npy`` and ``matrix`` files (required for them; refused for
     ``xyz`` and ``x3p``, whose files carry it). ``unit``: the unit of the file's numbers (not for ``x3p``).
-    ``table``: the scene table whose keys (file, format, cell, unit) the errors name.
+    ``prefix``: what the errors put before the keys' names (file, format, cell, unit).
     """
     path = pathlib.Path(path)
-    key, unit_key, cell_key = f"{table} file", f"{table} unit", f"{table} cell"
-    fmt = _format_of(path, fmt, source, table)
+    key, unit_key, cell_key = f"{prefix}file", f"{prefix}unit", f"{prefix}cell"
+    fmt = _format_of(path, fmt, source, prefix)
     if unit not in UNITS:
         raise SceneError(source, unit_key, unit, "must be one of: " + ", ".join(UNITS))
     if fmt == "x3p" and unit != "m":
