@@ -6,6 +6,7 @@ smooth body plus the periodic surface of those samples."""
 
 import numpy as np
 import pytest
+from test_topography import write_x3p
 
 from petroll.errors import SceneError
 from petroll.model.bodies import Cylinder, Sphere
@@ -13,7 +14,6 @@ from petroll.model.bodies.rough import PeriodicSurface, RoughBody, grid_surface
 from petroll.model.grid import Grid
 from petroll.model.roughness import self_affine_heights
 from petroll.model.scene import parse_scene
-from test_topography import write_x3p
 
 CELL = (1e-6, 2e-6)
 
@@ -137,8 +137,10 @@ def test_a_height_map_is_the_same_body_in_every_format(tmp_path):
 ROUGH = {"hurst": 0.8, "rolloff": 0.4e-3, "cutoff": 0.2e-3, "rms_height": 0.2e-6, "seed": 4}
 
 
-@pytest.mark.parametrize("smooth", [{"shape": "sphere", "radius": 0.01},
-                                    {"shape": "cylinder", "radius": 0.01, "width": 1e-3, "edge_radius": 3e-4}])
+CYLINDER = {"shape": "cylinder", "radius": 0.01, "width": 1e-3, "edge_radius": 3e-4}
+
+
+@pytest.mark.parametrize("smooth", [{"shape": "sphere", "radius": 0.01}, CYLINDER])
 def test_generated_roughness_adds_to_the_smooth_body(tmp_path, smooth):
     rough = scene_body({**smooth, "roughness": ROUGH}, tmp_path)
     plain = scene_body(smooth, tmp_path)
