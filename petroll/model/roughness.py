@@ -25,7 +25,7 @@ import scipy.fft
 
 from petroll.errors import MISSING, SceneError
 
-__all__ = ["ROUGH_KEYS", "SelfAffinePSD", "TabulatedPSD", "radial_psd", "self_affine_heights"]
+__all__ = ["ROUGH_KEYS", "SelfAffinePSD", "TabulatedPSD", "radial_psd", "self_affine_heights", "self_affine_psd"]
 
 ROUGH_KEYS: dict[str, str] = {
     "hurst": "Hurst exponent H, 0 < H <= 1: C(q) ~ q^(-2 (1 + H)) between rolloff and cutoff (required)",
@@ -156,6 +156,17 @@ def _checked_keys(keys: dict, shape, cell, source: str, prefix: str) -> tuple[Se
         raise SceneError(source, f"{prefix}seed", seed, "must be an integer >= 0")
     psd = SelfAffinePSD(hurst, 2.0 * np.pi / rolloff, 2.0 * np.pi / cutoff)
     return psd, given[0], target, int(seed)
+
+
+def self_affine_psd(keys: dict, shape: tuple[int, int], cell: tuple[float, float], *,
+                    source: str = "<python>", prefix: str = "[body] ") -> SelfAffinePSD:
+    """The continuum spectrum of the surfaces :func:`self_affine_heights` draws from the same keys, shape
+    and cell: q_long = 2 pi / (the longer side), c0 such that its rms height or rms slope is the one the
+    keys ask for (Persson's theory takes it: petroll.studies.persson)."""
+    psd, kind, target, _ = _checked_keys(keys, shape, cell, source, prefix)
+    longest = max(shape[0] * cell[0], shape[1] * cell[1])
+    psd = SelfAffinePSD(psd.hurst, psd.q_rolloff, psd.q_cutoff, q_long=2.0 * np.pi / longest)
+    return psd.scaled(**{kind: target})
 
 
 def self_affine_heights(keys: dict, shape: tuple[int, int], cell: tuple[float, float], *,
