@@ -14,7 +14,7 @@ from scipy.special import k0
 from petroll.errors import SceneError, SolverError
 from petroll.model.materials import Layer
 from petroll.model.scene import parse_scene
-from petroll.model.surfaces import PeriodicSurface
+from petroll.model.bodies.rough import PeriodicSurface
 from petroll.solver.influence import Convolution
 from petroll.solver.kernels.periodic import HalfSpace, HalfSpaceAlong, LayerSpectral
 from petroll.solver.partition import RowPartition, roll_field
@@ -275,7 +275,9 @@ def test_a_height_map_is_the_periodic_surface_only_at_the_grids_size_and_spacing
     assert isinstance(scene.body, PeriodicSurface)
     surface = scene.body
     g = scene.grid
-    assert np.abs(surface.height(g.x[:, None], g.y[None, :]) - surface.heights).max() <= 1e-13 * surface.heights.max()
+    heights = surface.height(g.x[:, None], g.y[None, :])  # the samples, from the surface's lowest point
+    samples = np.load(scene.raw["body"]["file"])
+    assert np.abs((heights - heights[0, 0]) - (samples - samples[0, 0])).max() <= 1e-13 * np.ptp(samples)
     assert not isinstance(scene.replace("body.cell", 1 / 31).body, PeriodicSurface)
     assert not isinstance(scene.replace("grid.periodic", False).body, PeriodicSurface)
 

@@ -22,7 +22,7 @@ from petroll.model import motion
 from petroll.model.bodies import BODY_KEYS, Body, HeightMap, HeightProfile, make_body
 from petroll.errors import MISSING, SceneError
 from petroll.model.grid import Grid, line_grid
-from petroll.model.surfaces import PeriodicSurface
+from petroll.model.bodies.rough import PeriodicSurface
 
 TAO_TYPES = ("tron", "pk", "gpcg", "bntr", "bncg", "blmvm", "bqnls", "bnls", "bntl")
 """TAO's bound-constrained solvers that handle this QP (bqpip is left out: it needs finite upper bounds),
@@ -523,7 +523,7 @@ def parse_scene(raw: dict, source: str = "<python>", base_dir: str | pathlib.Pat
         grid = Grid(g["nx"], g["ny"], *g["x"], *g["y"], periodic=g["periodic"])
     material = _material(values["material"], raw.get("material", {}), base_dir, source)
     material, shift_factor = _temperature(values["material"], raw.get("material", {}), material, source)
-    body = periodic_body(make_body(raw.get("body", {}), base_dir, source, line=line), grid)
+    body = periodic_body(make_body(raw.get("body", {}), base_dir, source, line=line, grid=grid), grid)
     m = values["motion"]
     if line:
         _check_line_motion(m, raw.get("motion", {}), source, grid.periodic[0])
@@ -807,7 +807,7 @@ def _check_steady(scene: Scene) -> None:
 
 def periodic_body(body: Body, grid: Grid) -> Body:
     """On a periodic grid, a height map (a line-contact profile) of as many samples as the grid has cells,
-    at the grid's spacing, becomes the periodic surface through its samples (petroll.model.surfaces): with
+    at the grid's spacing, becomes the periodic surface through its samples (petroll.model.bodies.rough): with
     the body at [body] position [0, 0], sample (i, j) on the centre of cell (i, j). Any other body as it is
     (its offsets wrap around the periodic axes: Grid.offsets)."""
     if not any(grid.periodic):
