@@ -286,3 +286,34 @@ def test_a_penetration_that_leaves_no_mean_gap_is_refused(comm, shared_dir):
     scene, _ = wave_scene(shared_dir, comm, n=32, penetration=0.0101)
     with pytest.raises(SolverError, match=r"\[motion\] penetration: .* leaves no mean gap"):
         next(Simulation(scene, comm).steps())
+
+
+@pytest.mark.parametrize("periodic", [(True, True), (True, False), (False, False)])
+def test_contact_islands_are_the_connected_components_around_the_cell(periodic):
+    """petroll.solver.rough.contact_islands against scipy's connected components of the graph of cells
+    sharing a side (across the periodic edges too): the same partition of the contact."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    from petroll.solver.rough import contact_islands
+
+    nx, ny = 23, 17
+    contact = np.random.default_rng(4).random((nx, ny)) < 0.45
+    index = np.arange(nx * ny).reshape(nx, ny)
+    pairs = []
+    for axis, wrap in ((0, periodic[0]), (1, periodic[1])):
+        neighbour = np.roll(index, -1, axis=axis)
+        ok = contact & np.roll(contact, -1, axis=axis)
+        if not wrap:
+            edge = [slice(None), slice(None)]
+            edge[axis] = -1
+            ok[tuple(edge)] = False
+        pairs.append(np.stack([index[ok], neighbour[ok]]))
+    i, j = np.concatenate(pairs, axis=1)
+    graph = coo_matrix((np.ones(len(i)), (i, j)), shape=(nx * ny, nx * ny))
+    _, components = connected_components(graph, directed=False)
+    labels, count = contact_islands(contact, periodic)
+    assert count == len(np.unique(components[contact.ravel()])) and count > 10
+    ours, theirs = labels.ravel()[contact.ravel()], components[contact.ravel()]
+    pairs = set(zip(ours, theirs))
+    assert len(pairs) == count and np.all(labels[~contact] == 0)  # a one-to-one map of the islands

@@ -227,3 +227,8 @@ def test_a_sliding_run_writes_the_contact_fraction_mean_gap_and_pressure_spectru
     assert rough["mean_gap"][-1] == pytest.approx(results.field("gap")[-1].mean(), rel=1e-10)
     series = results.series
     assert series["dissipation"][-1] == pytest.approx(series["force_x"][-1] * 0.5, rel=1e-12)
+    if comm.rank == 0:  # petroll plot draws the contact islands and the spectrum
+        from petroll.plot import plot_results
+
+        islands = [path for path in plot_results(shared_dir / "out") if path.name == "islands.png"]
+        assert islands and islands[0].read_bytes()[:4] == b"\x89PNG"

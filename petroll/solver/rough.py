@@ -67,3 +67,32 @@ def radial_spectrum(conv, local: np.ndarray, grid, edges: np.ndarray):
     count, total_q, total_c = sums[:bins], sums[bins : 2 * bins], sums[2 * bins :]
     with np.errstate(invalid="ignore"):
         return total_q / count, total_c / count, count.astype(np.int64)
+
+
+def contact_islands(contact: np.ndarray, periodic: tuple[bool, bool] = (True, True)) -> tuple[np.ndarray, int]:
+    """The connected islands of a whole grid's contact (booleans, cells sharing a side), joined across
+    the edges of the periodic axes: (label of each cell, 0 outside the contact, 1 ... n; n)."""
+    from scipy import ndimage
+
+    labels, count = ndimage.label(contact)
+    parent = np.arange(count + 1)
+
+    def root(a: int) -> int:
+        while parent[a] != a:
+            parent[a] = parent[parent[a]]
+            a = parent[a]
+        return a
+
+    edges = []
+    if periodic[0]:
+        edges.append((labels[0, :], labels[-1, :]))
+    if periodic[1]:
+        edges.append((labels[:, 0], labels[:, -1]))
+    for first, last in edges:
+        for a, b in zip(first[(first > 0) & (last > 0)], last[(first > 0) & (last > 0)]):
+            ra, rb = root(int(a)), root(int(b))
+            if ra != rb:
+                parent[max(ra, rb)] = min(ra, rb)
+    roots = np.array([root(a) for a in range(count + 1)])
+    _, relabelled = np.unique(roots, return_inverse=True)  # roots in order: 0 stays 0
+    return relabelled[labels], int(relabelled.max())

@@ -249,24 +249,24 @@ def _peer_rows(out: pathlib.Path, cells, repeats: int, target: float, solvers) -
     width, nu, E = 3.2, 0.5, 1e7  # grid side in contact radii; rubber
     python = {name: sys.executable for name in solvers}
     if set(solvers) - {"petroll"}:
-        python.update(dict.fromkeys(set(solvers) - {"petroll"}, _peers_python()))
+        python.update(dict.fromkeys(set(solvers) - {"petroll"}, peers_python()))
     rows = []
     with tempfile.TemporaryDirectory() as scratch:
         field = pathlib.Path(scratch) / "pressure.npy"
         for n in cells:
             args = [str(v) for v in (n, 1e-12, _R, E, nu, _DELTA, width)]
-            _peer(sys.executable, "petroll", args, field)
+            peer_process(sys.executable, "petroll", args, field)
             reference = np.load(field)
             scale = np.linalg.norm(reference)
             done = {}
             for name in solvers:
                 for tol in PEER_TOLERANCES:
                     args[1] = f"{tol:g}"
-                    runs = [_peer(python[name], name, args, field)]
+                    runs = [peer_process(python[name], name, args, field)]
                     difference = float(np.linalg.norm(np.load(field) - reference) / scale)
                     if difference <= target:
                         break
-                runs += [_peer(python[name], name, args, field) for _ in range(repeats - 1)]
+                runs += [peer_process(python[name], name, args, field) for _ in range(repeats - 1)]
                 done[name] = dict(cells=f"{n}x{n}", solver=name, tol=f"{tol:g}", difference=f"{difference:.1e}",
                                   cold_s=statistics.median(r["cold_s"] for r in runs),
                                   warm_s=statistics.median(r["warm_s"] for r in runs),
@@ -283,8 +283,9 @@ def _peer_rows(out: pathlib.Path, cells, repeats: int, target: float, solvers) -
     return rows
 
 
-def _peer(python: str, name: str, args: list[str], field: pathlib.Path) -> dict:
-    """One whole run of ``peers/solve_<name>.py``: its JSON answer, with the process's wall time as cold_s."""
+def peer_process(python: str, name: str, args: list[str], field: pathlib.Path) -> dict:
+    """One whole run of ``peers/solve_<name>.py`` with ``python``, its arguments ``args`` then ``field``
+    (where it saves its pressure): its JSON answer, with the process's wall time as cold_s."""
     import importlib.resources
     import json
     import subprocess
@@ -318,7 +319,7 @@ def _plot_peers(rows: list[dict], path: pathlib.Path) -> None:
     save_figure(figure, path)
 
 
-def _peers_python() -> str:
+def peers_python() -> str:
     """The Python of .venv-peers, created on first use; installs whichever peer it lacks (pip, PyPI).
 
     Tamaas and ContactMechanics share it: both install from wheels against numpy 2 (checked with pip check).
