@@ -209,29 +209,28 @@ def sliding(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD) -> None:
 
 
 def applications(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, sides=(256, 512, 1024, 2048),
-                 repeats: int = 10) -> list[dict]:
+                 repeats: int = 20) -> list[dict]:
     """One application of the periodic operator against the non-periodic one on the same n x n grid (1 mm
-    cells' side), in process after both kernels are built, median of ``repeats`` on this process's ranks
-    (FFT threads: petroll's default). Writes ``out/periodic.csv``."""
+    cells' side), in process after both kernels are built, alternating the two (so that a busy machine
+    slows both alike), median of ``repeats`` each on this process's ranks (FFT threads: petroll's
+    default). Writes ``out/periodic.csv``."""
     from petroll.model.grid import Grid
     from petroll.solver.influence import influence_operator, spare_cores
 
     rows = []
     workers = spare_cores(comm)
     for n in sides:
-        times = {}
-        for periodic in (True, False):
-            grid = Grid(n, n, 0.0, 1e-3, 0.0, 1e-3, periodic=(periodic, periodic))
-            conv = influence_operator(grid, comm, workers=workers).window(n, n)
-            field = np.random.default_rng(n).random((conv.r1 - conv.r0, n))
-            conv(field)
-            runs = []
-            for _ in range(repeats):
+        convs = {periodic: influence_operator(Grid(n, n, 0.0, 1e-3, 0.0, 1e-3, periodic=(periodic, periodic)),
+                                              comm, workers=workers).window(n, n) for periodic in (True, False)}
+        field = np.random.default_rng(n).random((convs[True].r1 - convs[True].r0, n))
+        runs = {True: [], False: []}
+        for _ in range(repeats):
+            for periodic, conv in convs.items():
                 comm.Barrier()
                 start = time.perf_counter()
                 conv(field)
-                runs.append(comm.allreduce(time.perf_counter() - start, op=MPI.MAX))
-            times[periodic] = statistics.median(runs)
+                runs[periodic].append(comm.allreduce(time.perf_counter() - start, op=MPI.MAX))
+        times = {k: statistics.median(v) for k, v in runs.items()}
         rows.append(dict(cells=f"{n}x{n}", ranks=comm.size, periodic_ms=f"{1e3 * times[True]:.4g}",
                          padded_ms=f"{1e3 * times[False]:.4g}", ratio=f"{times[True] / times[False]:.4g}"))
     if comm.rank == 0:
