@@ -10,7 +10,8 @@
                             pressure field: DIR/stress.h5 and DIR/stress.png
     petroll bench tao|warm|skips|peers|precision|growth|mpi|memory|append [--out DIR]   benchmarks
                             (docs/benchmarks.md); bench warm --quick: a seconds-long check that it runs
-    petroll material fit DMA.csv [--terms N | --per-decade K] [--nu NU] [--shift LAW] [--out FILE.toml]
+    petroll material fit DMA.csv [--terms N | --per-decade K] [--nu NU] [--shift LAW] [--tolerance K]
+                            [--out FILE.toml]
                             a Prony series fitted to DMA data: the [material] block (docs/materials.md)
 
 Options that argparse does not know are handed to PETSc's options database. A user mistake (bad scene,
@@ -97,7 +98,8 @@ def _parser() -> argparse.ArgumentParser:
     material_verbs = material.add_subparsers(dest="material_verb", required=True, metavar="fit")
     fit = material_verbs.add_parser("fit", help="fit a Maxwell (relaxation) Prony series with non-negative "
                                     "moduli to DMA data; write the scene's [material] block and fit.png")
-    fit.add_argument("csv", help="DMA table: header frequency,storage,loss[,temperature] (Hz, Pa, Pa, K)")
+    fit.add_argument("csv", help="DMA table: header frequency,storage,loss[,temperature][,set] (Hz, Pa, Pa, "
+                     "K, a label)")
     density = fit.add_mutually_exclusive_group()
     density.add_argument("--terms", type=_positive(int), help="candidate relaxation times in all")
     density.add_argument("--per-decade", type=_positive(float), help="candidate relaxation times per decade "
@@ -107,6 +109,8 @@ def _parser() -> argparse.ArgumentParser:
     fit.add_argument("--shift", help="shift law for a temperature column, written into the block: "
                      "wlf:C1,C2,T_ref or arrhenius:Ea,T_ref (C2, T_ref in K; Ea in J/mol) or a TOML file "
                      "whose [material] shift gives it")
+    fit.add_argument("--tolerance", type=float, default=0.5, help="temperatures (K) within which rows belong "
+                     "to one measurement set, without a set column (default 0.5)")
     fit.add_argument("--out", help="write the [material] block here (atomically; default: print it)")
     fit.add_argument("--plot", help="the figure of data and fit (default: fit.png beside --out, or in the "
                      "current directory)")
@@ -206,10 +210,10 @@ def _material_fit(args: argparse.Namespace) -> None:
 
     from petroll.io.results import atomic_write
     from petroll.model import dma
-    from petroll.plot import plot_fit  # imports matplotlib only when drawing
+    from petroll.plot_dma import plot_fit  # imports matplotlib only when drawing
 
     shift = dma.parse_shift(args.shift) if args.shift else None
-    data = dma.read_dma(args.csv, shift)
+    data = dma.read_dma(args.csv, shift, args.tolerance)
     fit = dma.fit_prony(data.reduced, data.storage, data.loss, args.terms, args.per_decade, args.nu)
     text = dma.material_toml(fit, shift, args.csv)
     report = sys.stdout
@@ -233,7 +237,9 @@ def _material_fit(args: argparse.Namespace) -> None:
         raise dma.DMAError(f"--plot {png}: cannot write it ({exc.strerror})") from None
     lo, hi = fit.frequency_range
     temperatures = "" if data.temperature is None else (
-        f", {len(set(data.temperature.tolist()))} temperatures shifted to T_ref = {shift.T_ref:g} K")
+        f", {len(data.sets)} sets shifted to T_ref = {data.T_ref:g} K")
+    if data.temperature is not None:
+        print("petroll: " + dma.describe_sets(data), file=report)
     print(f"petroll: {args.csv}: {len(data.frequency)} points{temperatures} over {lo:.4g} ... {hi:.4g} Hz: "
           f"{len(fit.moduli)} Maxwell terms (of {fit.candidates} candidate times), Einf = {fit.Einf:.6g} Pa; "
           f"relative error rms {100 * fit.rms_error:.3g} %, max {100 * fit.max_error:.3g} % (E' "
