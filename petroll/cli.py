@@ -107,8 +107,9 @@ def _parser() -> argparse.ArgumentParser:
     fit.add_argument("--nu", type=float, default=0.5, help="Poisson's ratio written into the block (default "
                      "0.5)")
     fit.add_argument("--shift", help="shift law for a temperature column, written into the block: "
-                     "wlf:C1,C2,T_ref or arrhenius:Ea,T_ref (C2, T_ref in K; Ea in J/mol) or a TOML file "
-                     "whose [material] shift gives it")
+                     "auto:T_ref (the factors found from the data, kept as a table law; WLF and Arrhenius "
+                     "fitted to them are reported), wlf:C1,C2,T_ref or arrhenius:Ea,T_ref (C2, T_ref in K; Ea "
+                     "in J/mol) or a TOML file whose [material] shift gives it")
     fit.add_argument("--tolerance", type=float, default=0.5, help="temperatures (K) within which rows belong "
                      "to one measurement set, without a set column (default 0.5)")
     fit.add_argument("--out", help="write the [material] block here (atomically; default: print it)")
@@ -210,12 +211,12 @@ def _material_fit(args: argparse.Namespace) -> None:
 
     from petroll.io.results import atomic_write
     from petroll.model import dma
-    from petroll.plot_dma import plot_fit  # imports matplotlib only when drawing
+    from petroll.plot_dma import plot_fit, plot_shifts  # import matplotlib only when drawing
 
     shift = dma.parse_shift(args.shift) if args.shift else None
     data = dma.read_dma(args.csv, shift, args.tolerance)
     fit = dma.fit_prony(data.reduced, data.storage, data.loss, args.terms, args.per_decade, args.nu)
-    text = dma.material_toml(fit, shift, args.csv)
+    text = dma.material_toml(fit, data.shift, args.csv, data.T_ref)
     report = sys.stdout
     if args.out:
         out = pathlib.Path(args.out)
@@ -228,23 +229,18 @@ def _material_fit(args: argparse.Namespace) -> None:
         report = sys.stderr  # the block alone on stdout, ready to redirect
     png = pathlib.Path(args.plot) if args.plot else (pathlib.Path(args.out).with_name("fit.png") if args.out
                                                       else pathlib.Path("fit.png"))
+    drawn = [png] + ([png.with_name(png.stem + "-shift.png")] if data.found is not None else [])
     try:
-        plot_fit(data, fit, png)
+        plot_fit(data, fit, drawn[0])
+        if data.found is not None:
+            plot_shifts(data, drawn[1])
     except ImportError:
         print("petroll: warning: matplotlib is not installed: no plot", file=sys.stderr)
-        png = "none"
+        drawn = ["none"]
     except OSError as exc:
         raise dma.DMAError(f"--plot {png}: cannot write it ({exc.strerror})") from None
-    lo, hi = fit.frequency_range
-    temperatures = "" if data.temperature is None else (
-        f", {len(data.sets)} sets shifted to T_ref = {data.T_ref:g} K")
-    if data.temperature is not None:
-        print("petroll: " + dma.describe_sets(data), file=report)
-    print(f"petroll: {args.csv}: {len(data.frequency)} points{temperatures} over {lo:.4g} ... {hi:.4g} Hz: "
-          f"{len(fit.moduli)} Maxwell terms (of {fit.candidates} candidate times), Einf = {fit.Einf:.6g} Pa; "
-          f"relative error rms {100 * fit.rms_error:.3g} %, max {100 * fit.max_error:.3g} % (E' "
-          f"{100 * fit.max_storage_error:.3g} %, E'' {100 * fit.max_loss_error:.3g} %). "
-          f"Block: {args.out or 'printed above'}; plot: {png}", file=report)
+    print(dma.report(data, fit) + f" Block: {args.out or 'printed above'}; plot: "
+          f"{', '.join(str(p) for p in drawn)}", file=report)
 
 
 def main(argv: list[str] | None = None) -> int:

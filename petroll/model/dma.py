@@ -31,7 +31,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from petroll.model import materials
-from petroll.model.prony_fit import DMAError, PronyFit, candidate_times, fit_prony, storage_loss  # noqa: F401
+from petroll.errors import DMAError
+from petroll.model import tts
+from petroll.model.prony_fit import PronyFit, candidate_times, fit_prony, storage_loss  # noqa: F401
 from petroll.model.scene import dumps
 
 COLUMNS = {"frequency": "Hz", "storage": "Pa", "loss": "Pa", "temperature": "K", "set": "a label"}
@@ -48,8 +50,16 @@ SPREAD_FACTOR = 2.0
 """A set found by temperature whose rows spread over more than SPREAD_FACTOR x tolerance is refused: its
 temperatures chain (a ramp, not an isotherm)."""
 
-SHIFT_TEXT = ("wlf:C1,C2,T_ref or arrhenius:Ea,T_ref (C2, T_ref in K; Ea in J/mol), or a TOML file whose "
-              "[material] shift gives the law")
+SHIFT_TEXT = ("auto:T_ref (the factors found from the data), wlf:C1,C2,T_ref or arrhenius:Ea,T_ref (C2, "
+              "T_ref in K; Ea in J/mol), or a TOML file whose [material] shift gives the law")
+
+
+@dataclass(frozen=True)
+class AutoShift:
+    """``--shift auto:T_ref``: the shift factors are found from the data (:mod:`petroll.model.tts`) and
+    chained to T_ref (K)."""
+
+    T_ref: float
 
 
 @dataclass(frozen=True)
@@ -75,21 +85,24 @@ class DMAData:
     loss: np.ndarray  # E'', Pa
     temperature: np.ndarray | None  # K, or None without that column
     sets: tuple[DMASet, ...]
-    shift: materials.WLF | materials.Arrhenius | None
+    shift: materials.WLF | materials.Arrhenius | materials.TableShift | None
     reduced: np.ndarray  # Hz at T_ref
     tolerance: float | None = None  # K, when the sets were found by temperature
+    found: tts.ShiftFit | None = None  # the factors found from the data (--shift auto)
 
     @property
     def T_ref(self) -> float | None:
         """The reference temperature of the reduced frequencies (K), None without a shift law."""
+        if self.found is not None:
+            return self.found.T_ref
         return None if self.shift is None else self.shift.T_ref
 
 
-def read_dma(path: str | pathlib.Path, shift: materials.WLF | materials.Arrhenius | None = None,
-             tolerance: float = DEFAULT_TOLERANCE) -> DMAData:
+def read_dma(path: str | pathlib.Path, shift=None, tolerance: float = DEFAULT_TOLERANCE) -> DMAData:
     """Read a DMA table (module docstring) and group its rows into sets (:func:`group_sets`); with a
-    temperature column, ``shift`` (required) gives each row's reduced frequency. DMAError naming the
-    file, the line and what is allowed for anything else."""
+    temperature column, ``shift`` (required: a law of materials.make_shift, or :class:`AutoShift` to find
+    the factors from the data) gives each row's reduced frequency. DMAError naming the file, the line and
+    what is allowed for anything else."""
     path = pathlib.Path(path)
     if not 0 < tolerance < math.inf:
         raise DMAError(f"--tolerance {tolerance!r}: must be a finite number > 0 (K)")
@@ -104,10 +117,33 @@ def read_dma(path: str | pathlib.Path, shift: materials.WLF | materials.Arrheniu
         if shift is None:
             raise DMAError(f"{path}: a temperature column needs a shift law (petroll material fit "
                            f"--shift) to bring the data to one reference temperature: {SHIFT_TEXT}")
+    found = None
+    if isinstance(shift, AutoShift):
+        found, reduced = _found(path, column, sets, shift.T_ref)
+        shift = found.law
+    elif temperature is not None:
         reduced = reduced * _factors(path, lines, shift, temperature)
     by_temperature = temperature is not None and labels is None
     return DMAData(str(path), column["frequency"], column["storage"], column["loss"], temperature, sets,
-                   shift, reduced, tolerance if by_temperature else None)
+                   shift, reduced, tolerance if by_temperature else None, found)
+
+
+def _found(path, column: dict, sets: tuple[DMASet, ...], T_ref: float) -> tuple[tts.ShiftFit, np.ndarray]:
+    """The shift factors found from the sets (tts.find_shifts) and every row's reduced frequency (Hz)."""
+    if column.get("temperature") is None:
+        raise DMAError(f"{path}: --shift auto needs a temperature column (the factors are found between "
+                       "measurement sets at different temperatures)")
+    isotherms = [tts.Isotherm(s.label, s.temperature, *(column[name][s.rows] for name in
+                                                         ("frequency", "storage", "loss", "temperature")))
+                 for s in sets]
+    try:
+        found = tts.find_shifts(isotherms, T_ref)
+    except DMAError as exc:
+        raise DMAError(f"{path}: {exc}") from None
+    reduced = np.empty(len(column["frequency"]))
+    for s, log10_aT in zip(sets, found.row_log10_aT):
+        reduced[s.rows] = column["frequency"][s.rows] * 10**log10_aT
+    return found, reduced
 
 
 def _factors(path, lines: list[int], shift, temperature: np.ndarray) -> np.ndarray:
@@ -202,8 +238,18 @@ def group_sets(path, lines: list[int], frequency: np.ndarray, temperature: np.nd
     return tuple(sets)
 
 
-def parse_shift(text: str) -> materials.WLF | materials.Arrhenius:
-    """A shift law from ``wlf:C1,C2,T_ref``, ``arrhenius:Ea,T_ref`` or a TOML file's [material] shift."""
+def parse_shift(text: str):
+    """A shift law from ``wlf:C1,C2,T_ref``, ``arrhenius:Ea,T_ref`` or a TOML file's [material] shift, or
+    :class:`AutoShift` from ``auto:T_ref``."""
+    if text.strip().lower().startswith("auto:"):
+        try:
+            T_ref = float(text.partition(":")[2])
+        except ValueError:
+            T_ref = math.nan
+        if not 0 < T_ref < math.inf:
+            raise DMAError(f"--shift {text!r}: auto:T_ref needs T_ref a finite number > 0 (K); must be "
+                           f"{SHIFT_TEXT}")
+        return AutoShift(T_ref)
     if text.endswith(".toml"):
         try:
             table = tomllib.loads(pathlib.Path(text).read_text(encoding="utf-8"))["material"]["shift"]
@@ -226,28 +272,64 @@ def parse_shift(text: str) -> materials.WLF | materials.Arrhenius:
         raise DMAError(f"--shift {text}: {exc}") from None
 
 
-def material_toml(fit: PronyFit, shift: materials.WLF | materials.Arrhenius | None = None,
-                  source: str | None = None) -> str:
-    """The [material] block of ``fit`` as TOML, with comment lines saying where it comes from."""
+def material_toml(fit: PronyFit, shift=None, source: str | None = None, T_ref: float | None = None) -> str:
+    """The [material] block of ``fit`` as TOML, with comment lines saying where it comes from; with a
+    shift law, at ``T_ref`` (K, default the law's)."""
     lo, hi = fit.frequency_range
     where = f" from {source}" if source else ""
-    at = f" at T_ref = {shift.T_ref:g} K" if shift is not None else ""
+    if shift is not None and T_ref is None:
+        T_ref = shift.T_ref
+    at = f" at T_ref = {T_ref:g} K" if shift is not None else ""
     head = (f"# Generalized Maxwell series fitted by petroll material fit{where}: {len(fit.moduli)} terms\n"
             f"# (of {fit.candidates} candidate times), to E', E'' over {lo:.4g} ... {hi:.4g} Hz{at}; "
             f"relative error rms {100 * fit.rms_error:.3g} %, max {100 * fit.max_error:.3g} %.\n")
-    return head + dumps({"material": fit.table(shift)})
+    return head + dumps({"material": fit.table(shift, T_ref)})
 
 
 def describe_sets(data: DMAData) -> str:
-    """The sets of ``data`` as a table of text lines: label, rows, mean temperature, spread, frequencies."""
-    if data.temperature is None:
-        return ""
+    """The sets of ``data`` as a table of text lines: label, rows, mean temperature, spread, frequencies;
+    with factors found from the data, each set's log10 a_T, and the shift to the next set, the overlap it
+    leaves and the misfit there (tts.pair_shift)."""
     how = ("the set column" if data.tolerance is None else
            f"temperatures within {data.tolerance:g} K of their neighbours")
-    lines = [f"{len(data.sets)} sets ({how}):",
-             f"  {'set':>8} {'rows':>5} {'T (K)':>9} {'spread (K)':>10}   frequency (Hz)"]
-    for s in data.sets:
+    found = data.found
+    head = f"  {'set':>8} {'rows':>5} {'T (K)':>9} {'spread (K)':>10}   {'frequency (Hz)':<17}"
+    if found is not None:
+        head += f" {'log10 a_T':>10} {'to next':>8} {'overlap':>8} {'misfit':>7}"
+    lines = [f"{len(data.sets)} sets ({how}):", head]
+    for k, s in enumerate(data.sets):
         f = data.frequency[s.rows]
-        lines.append(f"  {s.label:>8} {len(s.rows):5d} {s.temperature:9.2f} {s.spread:10.3f}   "
-                     f"{f.min():.4g} ... {f.max():.4g}")
+        line = (f"  {s.label:>8} {len(s.rows):5d} {s.temperature:9.2f} {s.spread:10.3f}   "
+                f"{f'{f.min():.4g} ... {f.max():.4g}':<17}")
+        if found is not None:
+            line += f" {found.log10_aT[k]:10.3f}"
+            if k < len(found.shifts):
+                line += f" {found.shifts[k]:8.3f} {found.overlaps[k]:8.2f} {found.misfits[k]:7.2f}"
+        lines.append(line)
+    return "\n".join(lines)
+
+
+def report(data: DMAData, fit: PronyFit) -> str:
+    """What ``petroll material fit`` says (lines starting ``petroll:``): the sets, the shift factors found
+    and the laws fitted to them, and the fit's size and error."""
+    lines = []
+    if data.temperature is not None:
+        lines.append("petroll: " + describe_sets(data))
+    if data.found is not None:
+        found = data.found
+        laws = "; ".join(
+            f"{name}: {law.note}" if law.law is None else
+            f"{name}: --shift {law.text()} (residual rms {law.rms:.3g}, max {law.max:.3g} decade)"
+            for name, law in (("WLF", found.wlf), ("Arrhenius", found.arrhenius)))
+        lines.append(f"petroll: shift factors found from the data (each set overlapped with the next), "
+                     f"log10 a_T = 0 at T_ref = {found.T_ref:g} K, written as a table law (interpolated "
+                     f"between the sets' temperatures). Fitted to them: {laws}.")
+    lo, hi = fit.frequency_range
+    shifted = ("" if data.temperature is None else
+               f", {len(data.sets)} sets shifted to T_ref = {data.T_ref:g} K")
+    lines.append(f"petroll: {data.source}: {len(data.frequency)} points{shifted} over {lo:.4g} ... {hi:.4g} "
+                 f"Hz: {len(fit.moduli)} Maxwell terms (of {fit.candidates} candidate times), Einf = "
+                 f"{fit.Einf:.6g} Pa; relative error rms {100 * fit.rms_error:.3g} %, max "
+                 f"{100 * fit.max_error:.3g} % (E' {100 * fit.max_storage_error:.3g} %, E'' "
+                 f"{100 * fit.max_loss_error:.3g} %).")
     return "\n".join(lines)

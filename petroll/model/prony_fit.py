@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import nnls
 
-from petroll.errors import PetrollError
+from petroll.errors import DMAError
 from petroll.model import materials
 
 DEFAULT_PER_DECADE = 20.0
@@ -33,10 +33,6 @@ EXTEND_DECADES = 1.0
 SIGNIFICANT = 7
 """Significant digits kept of each fitted number (the TOML block is written from them; the reported
 errors are those of the rounded series)."""
-
-
-class DMAError(PetrollError):
-    """A DMA file or fit request that cannot be used (one line: file, line, what is allowed)."""
 
 
 @dataclass(frozen=True)

@@ -296,7 +296,10 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "shift": Key("inline table", 'time-temperature shift law a_T (with temperature): {law = "wlf", C1, '
                      'C2 (K), T_ref (K)}: log10 a_T = -C1 (T - T_ref)/(C2 + T - T_ref), or {law = '
                      '"arrhenius", Ea (J/mol), T_ref (K)}: ln a_T = (Ea/R)(1/T - 1/T_ref), R = 8.314462618 '
-                     'J/(mol K)', _shift, default=None, fields=(("C2", "K"), ("T_ref", "K"), ("Ea", "J/mol"))),
+                     'J/(mol K), or {law = "table", T = [...] (K, increasing), log10_aT = [...]}: log10 a_T '
+                     "interpolated between the listed temperatures (PCHIP: monotone piecewise cubic), "
+                     "refused outside them (what petroll material fit --shift auto writes)", _shift,
+                     default=None, fields=(("C2", "K"), ("T_ref", "K"), ("Ea", "J/mol"), ("T", "K"))),
         "layer": Key("inline table", "the material is a layer of this thickness on a rigid base, its bottom "
                      'bonded to it or sliding freely on it: {thickness = h (m), base = "bonded" or '
                      '"frictionless"} (all models; needs nu; absent: a half-space; docs/layer.md)', _layer,
