@@ -10,8 +10,8 @@
                             pressure field: DIR/stress.h5 and DIR/stress.png
     petroll bench tao|warm|skips|peers|precision|growth|mpi|memory|append [--out DIR]   benchmarks
                             (docs/benchmarks.md); bench warm --quick: a seconds-long check that it runs
-    petroll material fit DMA.csv [--terms N | --per-decade K] [--nu NU] [--shift LAW] [--tolerance K]
-                            [--out FILE.toml]
+    petroll material fit DMA.csv [--terms N | --per-decade K] [--nu NU] [--shift LAW|auto:T_REF]
+                            [--tolerance K] [--einf E | --einf-from-data] [--out FILE.toml]
                             a Prony series fitted to DMA data: the [material] block (docs/materials.md)
 
 Options that argparse does not know are handed to PETSc's options database. A user mistake (bad scene,
@@ -101,9 +101,16 @@ def _parser() -> argparse.ArgumentParser:
     fit.add_argument("csv", help="DMA table: header frequency,storage,loss[,temperature][,set] (Hz, Pa, Pa, "
                      "K, a label)")
     density = fit.add_mutually_exclusive_group()
-    density.add_argument("--terms", type=_positive(int), help="candidate relaxation times in all")
+    density.add_argument("--terms", type=_positive(int), help="candidate relaxation times in all, evenly in "
+                         "log (the fit keeps at most N terms)")
     density.add_argument("--per-decade", type=_positive(float), help="candidate relaxation times per decade "
-                         "(default 20; NNLS keeps few of them)")
+                         "(default: chosen for the data, the coarsest whose error is within 5 %% of the best; "
+                         "about 2 for measured data)")
+    relaxed = fit.add_mutually_exclusive_group()
+    relaxed.add_argument("--einf", type=_positive(float), help="the relaxed modulus Einf (Pa), instead of "
+                         "fitting it")
+    relaxed.add_argument("--einf-from-data", action="store_true", help="Einf = the mean E' within a quarter "
+                         "decade of the lowest frequency")
     fit.add_argument("--nu", type=float, default=0.5, help="Poisson's ratio written into the block (default "
                      "0.5)")
     fit.add_argument("--shift", help="shift law for a temperature column, written into the block: "
@@ -215,7 +222,8 @@ def _material_fit(args: argparse.Namespace) -> None:
 
     shift = dma.parse_shift(args.shift) if args.shift else None
     data = dma.read_dma(args.csv, shift, args.tolerance)
-    fit = dma.fit_prony(data.reduced, data.storage, data.loss, args.terms, args.per_decade, args.nu)
+    einf = "data" if args.einf_from_data else args.einf
+    fit = dma.fit_prony(data.reduced, data.storage, data.loss, args.terms, args.per_decade, args.nu, einf)
     text = dma.material_toml(fit, data.shift, args.csv, data.T_ref)
     report = sys.stdout
     if args.out:

@@ -80,8 +80,10 @@ def test_the_table_law_interpolates_monotonically_and_refuses_to_extrapolate():
 
 @pytest.mark.parametrize("shift, key, allowed", [
     ({"law": "table", "T": [300.0], "log10_aT": [0.0]}, "[material] shift", "at least 2 increasing"),
-    ({"law": "table", "T": [300.0, 290.0], "log10_aT": [0.0, 1.0]}, "[material] shift", "at least 2 increasing"),
-    ({"law": "table", "T": [290.0, 300.0], "log10_aT": [1.0]}, "[material] shift", "log10_aT must be a list of 2"),
+    ({"law": "table", "T": [300.0, 290.0], "log10_aT": [0.0, 1.0]}, "[material] shift",
+     "at least 2 increasing"),
+    ({"law": "table", "T": [290.0, 300.0], "log10_aT": [1.0]}, "[material] shift",
+     "log10_aT must be a list of 2"),
     ({"law": "table", "T": [290.0, 300.0], "log10_aT": [1.0, "x"]}, "[material] shift", "log10_aT must be"),
     ({"law": "table", "T": [290.0, 300.0]}, "[material] shift", "takes exactly the keys law, T, log10_aT"),
     ({"law": "table", "T": [290.0, 300.0], "log10_aT": [1.0, 0.0]}, "[material] temperature",

@@ -33,7 +33,7 @@ import numpy as np
 from petroll.model import materials
 from petroll.errors import DMAError
 from petroll.model import tts
-from petroll.model.prony_fit import PronyFit, candidate_times, fit_prony, storage_loss  # noqa: F401
+from petroll.model.prony_fit import TOLERANCE, PronyFit, candidate_times, fit_prony, storage_loss  # noqa: F401
 from petroll.model.scene import dumps
 
 COLUMNS = {"frequency": "Hz", "storage": "Pa", "loss": "Pa", "temperature": "K", "set": "a label"}
@@ -296,7 +296,7 @@ def describe_sets(data: DMAData) -> str:
     head = f"  {'set':>8} {'rows':>5} {'T (K)':>9} {'spread (K)':>10}   {'frequency (Hz)':<17}"
     if found is not None:
         head += f" {'log10 a_T':>10} {'to next':>8} {'overlap':>8} {'misfit':>7}"
-    lines = [f"{len(data.sets)} sets ({how}):", head]
+    lines = [f"{len(data.sets)} sets ({how}):", head.rstrip()]
     for k, s in enumerate(data.sets):
         f = data.frequency[s.rows]
         line = (f"  {s.label:>8} {len(s.rows):5d} {s.temperature:9.2f} {s.spread:10.3f}   "
@@ -305,7 +305,7 @@ def describe_sets(data: DMAData) -> str:
             line += f" {found.log10_aT[k]:10.3f}"
             if k < len(found.shifts):
                 line += f" {found.shifts[k]:8.3f} {found.overlaps[k]:8.2f} {found.misfits[k]:7.2f}"
-        lines.append(line)
+        lines.append(line.rstrip())
     return "\n".join(lines)
 
 
@@ -327,9 +327,11 @@ def report(data: DMAData, fit: PronyFit) -> str:
     lo, hi = fit.frequency_range
     shifted = ("" if data.temperature is None else
                f", {len(data.sets)} sets shifted to T_ref = {data.T_ref:g} K")
+    how = (f"{fit.per_decade:g} per decade, the coarsest within {100 * (TOLERANCE - 1):g} % of the densest's "
+           f"error {100 * fit.best_rms:.3g} %" if math.isfinite(fit.best_rms) else "as asked")
     lines.append(f"petroll: {data.source}: {len(data.frequency)} points{shifted} over {lo:.4g} ... {hi:.4g} "
-                 f"Hz: {len(fit.moduli)} Maxwell terms (of {fit.candidates} candidate times), Einf = "
-                 f"{fit.Einf:.6g} Pa; relative error rms {100 * fit.rms_error:.3g} %, max "
+                 f"Hz: {len(fit.moduli)} Maxwell terms (of {fit.candidates} candidate times: {how}), Einf = "
+                 f"{fit.Einf:.6g} Pa ({fit.einf_how}); relative error rms {100 * fit.rms_error:.3g} %, max "
                  f"{100 * fit.max_error:.3g} % (E' {100 * fit.max_storage_error:.3g} %, E'' "
                  f"{100 * fit.max_loss_error:.3g} %).")
     return "\n".join(lines)

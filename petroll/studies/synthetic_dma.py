@@ -133,6 +133,26 @@ def write_table(material: Synthetic, path: str | pathlib.Path, seed: int = 2026,
     return rows
 
 
+def master_curve(material: Synthetic, seed: int = 2026, phase: float = 0.0) -> dict[str, np.ndarray]:
+    """A master curve as users have one, merged from :func:`sweeps`: every row at its reduced frequency
+    f a_T(T) by the true law (Hz at T_ref), in measuring order (unsorted), E' and E'' with an instrument's
+    phase offset ``phase`` (rad: the loss angle read that much too high, a loss floor on a plateau); the
+    repeated sweeps hold their first sweep's temperatures, their reduced frequencies computed another
+    way (10^(log10 f + log10 a_T)): near-duplicates of the first's in the last digits."""
+    rows = sweeps(material, seed)
+    count = len(material.temperatures)
+    first = {T0: k for k, T0 in enumerate(material.temperatures)}
+    T = rows["temperature"].copy()
+    for j, T0 in enumerate(material.repeat):
+        T[rows["sweep"] == count + j] = T[rows["sweep"] == first[T0]]
+    shift = material.log10_aT(T)
+    repeated = rows["sweep"] >= count
+    reduced = np.where(repeated, 10 ** (np.log10(rows["frequency"]) + shift), rows["frequency"] * 10**shift)
+    E = np.hypot(rows["storage"], rows["loss"])
+    angle = np.arctan2(rows["loss"], rows["storage"]) + phase
+    return {"frequency": reduced, "storage": E * np.cos(angle), "loss": E * np.sin(angle)}
+
+
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(prog="python -m petroll.studies.synthetic_dma", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
