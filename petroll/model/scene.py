@@ -303,7 +303,9 @@ SCHEMA: dict[str, dict[str, Key]] = {
                      default=None, fields=(("thickness", "m"),)),
     },
     "body": {
-        "shape": Key("string", "body shape: " + ", ".join(BODY_KEYS) + " (its own keys: see below)",
+        "shape": Key("string", "body shape: " + ", ".join(BODY_KEYS) + " (its own keys: see below; rough: "
+                     "a generated self-affine surface, one sample per cell, sample (i, j) on cell (i, j) at "
+                     "position [0, 0]: the surface of a periodic grid; docs/rough.md)",
                      _choice(*BODY_KEYS)),
         "position": Key("[x, y]", "position of the body's reference point at t = 0", _point,
                         default=[0.0, 0.0], unit="m"),
