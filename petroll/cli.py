@@ -119,7 +119,8 @@ def _parser() -> argparse.ArgumentParser:
                      "in J/mol) or a TOML file whose [material] shift gives it")
     fit.add_argument("--tolerance", type=float, default=0.5, help="temperatures (K) within which rows belong "
                      "to one measurement set, without a set column (default 0.5)")
-    fit.add_argument("--out", help="write the [material] block here (atomically; default: print it)")
+    fit.add_argument("--out", help="write the [material] block here (atomically, its folder made if need "
+                     "be; default: print it)")
     fit.add_argument("--plot", help="the figure of data and fit (default: fit.png beside --out, or in the "
                      "current directory)")
     plot = verbs.add_parser("plot", help="write PNG figures of a run (pressure maps, patch outlines, series)")
@@ -229,6 +230,7 @@ def _material_fit(args: argparse.Namespace) -> None:
     if args.out:
         out = pathlib.Path(args.out)
         try:
+            out.parent.mkdir(parents=True, exist_ok=True)
             atomic_write(out, lambda tmp: tmp.write_text(text, encoding="utf-8"))
         except OSError as exc:
             raise dma.DMAError(f"--out {out}: cannot write it ({exc.strerror})") from None

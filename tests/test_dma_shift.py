@@ -98,16 +98,17 @@ def test_a_scene_with_a_table_law_refuses_what_it_cannot_use(shift, key, allowed
 def test_auto_shift_writes_a_table_law_a_scene_takes_and_both_figures(tmp_path, capsys):
     write_table(RUBBER, tmp_path / "rubber.csv")
     argv = ["material", "fit", str(tmp_path / "rubber.csv"), "--shift", "auto:293.15", "--out",
-            str(tmp_path / "block.toml")]
+            str(tmp_path / "new" / "block.toml")]  # a folder made for it
     assert main(argv) == 0
     out = capsys.readouterr().out
-    block = tomllib.loads((tmp_path / "block.toml").read_text())["material"]
+    block = tomllib.loads((tmp_path / "new" / "block.toml").read_text())["material"]
     assert block["temperature"] == 293.15 and block["shift"]["law"] == "table"
     data = dma.read_dma(tmp_path / "rubber.csv", dma.parse_shift("auto:293.15"))
     assert block["shift"] == data.found.law.table() and len(block["shift"]["T"]) == 20
     assert "log10 a_T" in out and "--shift wlf:8.85" in out and "--shift arrhenius:" in out
     assert "written as a table law" in out and "20 sets shifted to T_ref = 293.15 K" in out
-    assert (tmp_path / "fit.png").stat().st_size > 0 and (tmp_path / "fit-shift.png").stat().st_size > 0
+    assert (tmp_path / "new" / "fit.png").stat().st_size > 0
+    assert (tmp_path / "new" / "fit-shift.png").stat().st_size > 0
     scene = parse_scene({**SCENE, "material": {**block, "temperature": 273.15}})  # pasted into a scene
     assert scene.shift_factor == pytest.approx(10 ** data.found.law.log10(273.15), rel=1e-12)
     assert math.log10(scene.shift_factor) == pytest.approx(RUBBER.law.log10(273.15), abs=0.05)
