@@ -16,14 +16,7 @@ from petroll.errors import SceneError
 from petroll.model import dma, materials
 from petroll.model.scene import parse_scene
 from petroll.studies.synthetic_dma import POLYMER, RUBBER, write_table
-
-SCENE = {
-    "grid": {"nx": 40, "ny": 20, "x": [-0.8e-3, 2.4e-3], "y": [-0.8e-3, 0.8e-3]},
-    "material": {"model": "sls", "E0": 10e6, "Einf": 2e6, "nu": 0.5, "tau_relax": 0.01},
-    "body": {"shape": "sphere", "radius": 0.01},
-    "motion": {"velocity": [0.05, 0.0], "penetration": 2e-5},
-    "time": {"steps_per_cell": 1, "distance": 1.2e-3},
-}
+from test_dma import SCENE
 
 
 @pytest.mark.parametrize("material, T_ref, measured", [(RUBBER, 293.15, 0.024), (POLYMER, 268.15, 0.040)],
@@ -95,12 +88,18 @@ def test_a_scene_with_a_table_law_refuses_what_it_cannot_use(shift, key, allowed
     assert info.value.key == key and allowed in str(info.value) and "\n" not in str(info.value)
 
 
-def test_auto_shift_writes_a_table_law_a_scene_takes_and_both_figures(tmp_path, capsys):
-    write_table(RUBBER, tmp_path / "rubber.csv")
+def test_auto_shift_writes_a_table_law_a_scene_takes_and_both_figures(comm, shared_dir, capsys):
+    tmp_path = shared_dir
+    if comm.rank == 0:
+        write_table(RUBBER, tmp_path / "rubber.csv")
+    comm.barrier()
     argv = ["material", "fit", str(tmp_path / "rubber.csv"), "--shift", "auto:293.15", "--out",
             str(tmp_path / "new" / "block.toml")]  # a folder made for it
     assert main(argv) == 0
     out = capsys.readouterr().out
+    if comm.rank != 0:  # only rank 0 works and speaks
+        assert out == ""
+        return
     block = tomllib.loads((tmp_path / "new" / "block.toml").read_text())["material"]
     assert block["temperature"] == 293.15 and block["shift"]["law"] == "table"
     data = dma.read_dma(tmp_path / "rubber.csv", dma.parse_shift("auto:293.15"))
@@ -123,13 +122,18 @@ def test_auto_shift_writes_a_table_law_a_scene_takes_and_both_figures(tmp_path, 
      "auto:300", "do not overlap on the master curve"),  # glassy and rubbery: no modulus in common
     (None, "auto:hot", "auto:T_ref needs T_ref a finite number > 0"),
 ], ids=["outside", "no-temperature", "no-overlap", "not-a-number"])
-def test_auto_shift_refuses_what_it_cannot_do_with_one_line(tmp_path, capsys, content, shift, allowed):
-    if content is None:
-        write_table(RUBBER, tmp_path / "t.csv")
-    else:
-        (tmp_path / "t.csv").write_text(content)
+def test_auto_shift_refuses_with_one_line_what_it_cannot(comm, shared_dir, capsys, content, shift, allowed):
+    tmp_path = shared_dir
+    if comm.rank == 0:
+        if content is None:
+            write_table(RUBBER, tmp_path / "t.csv")
+        else:
+            (tmp_path / "t.csv").write_text(content)
+    comm.barrier()
     assert main(["material", "fit", str(tmp_path / "t.csv"), "--shift", shift, "--out",
                  str(tmp_path / "m.toml")]) == 2
+    if comm.rank != 0:
+        return
     err = capsys.readouterr().err
     assert len(err.strip().splitlines()) == 1 and allowed in err and "Traceback" not in err
     assert not (tmp_path / "m.toml").exists()
