@@ -30,9 +30,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from petroll.model import materials
 from petroll.errors import DMAError
-from petroll.model import tts
+from petroll.model import materials, tts
 from petroll.model.prony_fit import TOLERANCE, PronyFit, candidate_times, fit_prony, storage_loss  # noqa: F401
 from petroll.model.scene import dumps
 
@@ -106,17 +105,16 @@ def read_dma(path: str | pathlib.Path, shift=None, tolerance: float = DEFAULT_TO
     path = pathlib.Path(path)
     if not 0 < tolerance < math.inf:
         raise DMAError(f"--tolerance {tolerance!r}: must be a finite number > 0 (K)")
-    names, lines, column = _read_columns(path)
+    lines, column = _read_columns(path)
     temperature, labels = column.get("temperature"), column.get("set")
     if labels is not None and temperature is None:
         raise DMAError(f"{path}: a set column needs a temperature column (the sets are isotherms); must be "
                        f"{ALLOWED}")
     sets = group_sets(path, lines, column["frequency"], temperature, labels, tolerance)
     reduced = column["frequency"]
-    if temperature is not None:
-        if shift is None:
-            raise DMAError(f"{path}: a temperature column needs a shift law (petroll material fit "
-                           f"--shift) to bring the data to one reference temperature: {SHIFT_TEXT}")
+    if temperature is not None and shift is None:
+        raise DMAError(f"{path}: a temperature column needs a shift law (petroll material fit --shift) to "
+                       f"bring the data to one reference temperature: {SHIFT_TEXT}")
     found = None
     if isinstance(shift, AutoShift):
         found, reduced = _found(path, column, sets, shift.T_ref)
@@ -156,8 +154,8 @@ def _factors(path, lines: list[int], shift, temperature: np.ndarray) -> np.ndarr
     return factors
 
 
-def _read_columns(path: pathlib.Path) -> tuple[list[str], list[int], dict]:
-    """(column names, the data rows' line numbers, {name: values}): numbers, and the set labels as text."""
+def _read_columns(path: pathlib.Path) -> tuple[list[int], dict]:
+    """(the data rows' line numbers, {name: values}): numbers, and the set labels as text."""
     try:
         text = path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
@@ -186,7 +184,7 @@ def _read_columns(path: pathlib.Path) -> tuple[list[str], list[int], dict]:
         for name, field in zip(names, fields):
             values[name].append(_value(path, number, name, field))
     column = {name: (v if name == "set" else np.array(v)) for name, v in values.items()}
-    return names, [number for number, _ in rows[1:]], column
+    return [number for number, _ in rows[1:]], column
 
 
 def _value(path, line: int, name: str, field: str):
