@@ -153,7 +153,8 @@ def test_load_control_bench_finds_the_same_penetration(tmp_path):
 
 def test_steady_compares_the_direct_solve_with_the_transient_run(tmp_path):
     """bench steady on a 32 x 32 window (a/dx = 9): both methods against the exact steady state (the direct
-    solve at 1e-10), the direct one far cheaper in operator applications at the same tolerance."""
+    solve at 1e-10), the direct one far cheaper in operator applications at the same tolerance, every
+    convolution counted beside them."""
     from petroll.model.scene import parse_scene
     from petroll.studies.bench_steady import steady
 
@@ -172,5 +173,10 @@ def test_steady_compares_the_direct_solve_with_the_transient_run(tmp_path):
         assert float(row["direct_mu_r_error"]) * float(row["mu_r"]) < 1e-4, row
         assert row["transient_steady"] == 1 and float(row["transient_force_error"]) < 1e-3, row
         assert row["direct_applications"] < row["transient_applications"], row
+        # every convolution counted: the direct solve's wake-extended convolutions and memory correlations
+        # add to its QPs' applications, the transient's history convolutions and preconditioner to its own
+        assert int(row["direct_equivalents"]) > row["direct_applications"] + row["direct_iterations"], row
+        assert int(row["transient_equivalents"]) > row["transient_applications"], row
+        assert float(row["time_ratio"]) > 0 and float(row["equivalents_ratio"]) > 0
     with open(tmp_path / "steady.csv") as fh:
         assert [float(r["v_tau_a"]) for r in csv.DictReader(fh)] == [0.01, 1.0]
