@@ -103,18 +103,34 @@ def test_tao_types_on_the_rolling_scene_agree(tmp_path):
     assert (tmp_path / "tao_rolling.csv").exists()
 
 
-def test_memory_bench_reports_every_ranks_peak_and_the_same_force_on_1_and_2_ranks(tmp_path):
-    """petroll bench memory on a 256^2 grid: a peak above the fixed cost on every rank, rank 0 / mean near 1,
-    and one answer whatever the rank count (the children run the same scene)."""
+@pytest.mark.parametrize("steady", [False, True])
+def test_memory_bench_reports_every_ranks_peak_and_the_same_force_on_1_and_2_ranks(tmp_path, steady):
+    """petroll bench memory on a 256^2 grid, rolled or its steady state solved directly: a peak above the
+    fixed cost on every rank, rank 0 / mean near 1, and one answer whatever the rank count (the children
+    run the same scene)."""
     from petroll.studies.bench_memory import memory
 
-    rows = memory(tmp_path, sides=(256,), ranks=(1, 2), steps=2)
+    rows = memory(tmp_path, sides=(256,), ranks=(1, 2), steps=2, steady=steady)
     assert [r["ranks"] for r in rows] == [1, 2] and all(r["cells"] == 256 * 256 for r in rows)
     assert all(r["mean_mib"] > r["fixed_mib"] > 20 and r["run_mib"] > 0 for r in rows)
-    assert rows[1]["rank0_over_mean"] < 1.15 and rows[0]["steps"] == rows[1]["steps"] == 3
-    assert rows[1]["force"] == pytest.approx(rows[0]["force"], rel=1e-12)
-    with open(tmp_path / "memory.csv") as fh:
+    assert rows[1]["rank0_over_mean"] < 1.15 and rows[0]["steps"] == rows[1]["steps"] == (1 if steady else 3)
+    assert rows[1]["force"] == pytest.approx(rows[0]["force"], rel=1e-10 if steady else 1e-12)
+    with open(tmp_path / f"memory{'_steady' if steady else ''}.csv") as fh:
         assert len(list(csv.DictReader(fh))) == 2
+
+
+def test_steady_growth_times_the_direct_solve_on_each_grid(tmp_path):
+    """bench steady-growth on two small grids of runs/sphere.toml (one round): a row per grid, the first
+    grid's ratio 1, iterations and applications counted, and the refined grid's force within the first's
+    discretisation error (1 %)."""
+    from petroll.studies.bench_steady import growth
+
+    rows = growth(tmp_path, grids=((80, 27), (160, 54)), repeats=1)
+    assert [r["grid"] for r in rows] == ["80x27", "160x54"] and rows[0]["ratio"] == "1.00"
+    assert all(r["iterations"] > 1 and r["applications"] > r["iterations"] for r in rows)
+    assert all(int(r["equivalents"]) > r["applications"] for r in rows)
+    assert float(rows[1]["force"]) == pytest.approx(float(rows[0]["force"]), rel=0.01)
+    assert (tmp_path / "steady_growth.csv").exists()
 
 
 def test_append_bench_times_every_append(tmp_path):

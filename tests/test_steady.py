@@ -271,13 +271,13 @@ def test_anderson_solves_a_linear_fixed_point_and_survives_repeated_residuals():
     assert np.array_equal(w, np.ones(3)) and np.array_equal(z, np.ones(3))
 
 
-def memory_of_the_default_material(n: int, behind: int = 0):
-    """The memory (petroll.solver.memory.Memory) of the tests' SLS at V tau/a = 1, one step per cell."""
+def memory_of_the_default_material(n: int, behind: int = 0, v_tau_a: float = 1.0):
+    """The memory (petroll.solver.memory.Memory) of the tests' SLS at V tau/a, one step per cell."""
     from petroll.solver.memory import Memory, memory_kernel, pulse_response
     from test_viscoelastic import scene as make_scene
 
     material = make_scene(half=HALF, n=N, motion={"velocity": [1e-3, 0.0], "penetration": DELTA}).material
-    h = pulse_response(material, "relaxation", TAU * DX / A, n + behind + 1)
+    h = pulse_response(material, "relaxation", TAU * DX / (v_tau_a * A), n + behind + 1)
     kernel = memory_kernel(h, 1.0, n + behind)
     return Memory(kernel, n, behind), kernel
 
@@ -378,14 +378,15 @@ def test_lines_hold_whole_lines_along_the_motion_and_give_the_rows_back(axis, si
 def test_the_far_wake_interpolated_along_the_motion_is_its_direct_sum(axis, sign, comm):
     """FarWake (block means, Chebyshev interpolation along the motion, FFT across, frequencies split over
     the ranks) against the direct double sum over blocks and source lines of the line sources' formula at
-    every target cell (no interpolation, no FFT)."""
+    every target cell (no interpolation, no FFT). Measured: 4e-13 with 12 points over 120 rows."""
     import numpy as np
 
     from petroll.solver.memory import FarWake, Lines
     from petroll.solver.partition import RowPartition
 
-    nx, ny, near, far, along, across = (14, 9, 40, 900, 2.0, 1.5) if axis == 0 else (9, 14, 40, 900, 1.5, 2.0)
-    memory, kernel = memory_of_the_default_material(45 + near + far)
+    nx, ny, along, across = (120, 9, 2.0, 1.5) if axis == 0 else (9, 120, 1.5, 2.0)
+    near, far = 240, 2400
+    memory, kernel = memory_of_the_default_material(120 + near + far, v_tau_a=30.0)  # a wake of 270 a
     rows = RowPartition(nx, comm.size)
     r0, r1 = rows.range(comm.rank)
     lines = Lines(rows, ny, axis, sign, near, comm)
@@ -511,8 +512,8 @@ def test_the_fft_tally_counts_every_application_and_correlation_once(comm):
     before = FFTWork.total
     step = solver.solve_penetration(height, JINF, DELTA)
     i0, i1, j0, j1 = step.window
-    assert FFTWork.total - before == pytest.approx(step.applications * Convolution(None, i1 - i0, j1 - j0).cost,
-                                                   rel=1e-6)
+    applied = step.applications * Convolution(None, i1 - i0, j1 - j0).cost
+    assert FFTWork.total - before == pytest.approx(applied, rel=1e-6)
     memory, _ = memory_of_the_default_material(40, 9)
     lines = Lines(RowPartition(40, comm.size), 40, 0, 1, 9, comm)
     memory.n_across = 40

@@ -254,9 +254,7 @@ class FarWake:
         k = np.arange(n)[None, :]
         width = np.diff(e)[:, None]
         self.mean = (cumulative[k + e[1:, None]] - cumulative[k + e[:-1, None]]) / width  # (blocks, n)
-        m = min(nodes, n)
-        points = (n - 1) / 2 * (1 - np.cos(np.pi * (np.arange(m) + 0.5) / m))  # Chebyshev points in [0, n-1]
-        self.basis = _lagrange(points, np.arange(n))  # (n, m): row k interpolates at k
+        points, self.basis = _chebyshev(min(nodes, n), n)  # basis (n, nodes): row k interpolates at k
         # a block's strip of cells across as a line source along the motion (exact along it; across, its
         # width is lumped at its centre line): per unit compliance (across / pi) ln((x2 + r2) / (x1 + r1)),
         # x1, x2 the block's ends behind the target row, r = sqrt(x^2 + y^2)
@@ -292,14 +290,17 @@ class FarWake:
         return (self.basis[g.along(np.arange(g.n_along))] @ u[:, r0:r1]).T
 
 
-def _lagrange(points: np.ndarray, at: np.ndarray) -> np.ndarray:
-    """The Lagrange basis of ``points`` evaluated at ``at`` (len(at), len(points)), barycentric form."""
-    weights = 1.0 / np.prod(points[:, None] - points[None, :] + np.eye(len(points)), axis=1)
-    difference = at[:, None] - points[None, :]
+def _chebyshev(m: int, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """m Chebyshev points (first kind) spanning [0, n - 1], and the Lagrange basis through them at 0 ... n-1
+    (n, m): the barycentric formula with the points' closed-form weights (-1)^j sin((2j + 1) pi / 2m)."""
+    angles = np.pi * (np.arange(m) + 0.5) / m
+    points = (n - 1) / 2 * (1 - np.cos(angles))
+    weights = (-1.0) ** np.arange(m) * np.sin(angles)
+    difference = np.arange(n)[:, None] - points[None, :]
     exact = difference == 0
     difference[exact] = 1.0
     terms = weights / difference
     basis = terms / terms.sum(axis=1, keepdims=True)
     hit = exact.any(axis=1)
     basis[hit] = exact[hit]
-    return basis
+    return points, basis

@@ -17,12 +17,22 @@ direct solve's wake-extended convolutions, memory correlations and far wake); th
 of mu_r against the reference; the direct solve's fixed-point iterations, and for the transient the
 steps, the distance rolled and whether its steady criterion was met. Rank 0 prints the table and writes
 DIR/steady.csv.
+
+``petroll bench steady-growth [--out DIR]``: how the direct solve's time grows with the grid: runs/sphere.toml
+solved directly ([time] mode = "steady", the scene's tol) on its extent with 512 x 256, 1024 x 512 and
+2048 x 1024 cells, the grids alternated over ``repeats`` rounds in this process (each a new Simulation:
+kernels, TAO objects and memory built again). Per grid: the fastest and the median wall time of the solve
+(set-up included), the ratio of the fastest to the first grid's, the fixed-point iterations, the QPs'
+applications and the FFT work in equivalents of one application on the first grid's window, force and
+mu_r. Writes DIR/steady_growth.csv.
 """
 
 from __future__ import annotations
 
 import math
 import pathlib
+import statistics
+import time
 
 from mpi4py import MPI
 
@@ -93,4 +103,40 @@ def steady(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, speeds=SPEEDS, to
         rows.append(row)
     if comm.rank == 0:
         write_table(rows, pathlib.Path(out) / "steady.csv")
+    return rows
+
+
+GROWTH_GRIDS = ((512, 256), (1024, 512), (2048, 1024))
+"""The grids of ``petroll bench steady-growth`` (runs/sphere.toml's extent)."""
+
+
+def growth(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, grids=GROWTH_GRIDS, repeats: int = 3,
+           scene: Scene | None = None) -> list[dict]:
+    """The direct solve's time against the grid (module docstring); returns the rows (every rank)."""
+    scene = scene or load_scene(shipped_scene("sphere.toml"))
+    runs: dict[tuple[int, int], list] = {grid: [] for grid in grids}
+    for _ in range(repeats):
+        for nx, ny in grids:
+            still = steady_scene(scene.replace({"grid.nx": nx, "grid.ny": ny}), float(scene.velocity(0.0)[0]))
+            sim = Simulation(still, comm)
+            work = FFTWork.total
+            comm.Barrier()
+            start = time.perf_counter()
+            record = sim.solve_steady(tol=still.solver.tol)
+            seconds = comm.allreduce(time.perf_counter() - start, op=MPI.MAX)
+            runs[(nx, ny)].append((seconds, record, sim.fixed_point_iterations, FFTWork.total - work, sim.window))
+    first = min(r[0] for r in runs[grids[0]])
+    i0, i1, j0, j1 = runs[grids[0]][0][4]
+    unit = Convolution(None, i1 - i0, j1 - j0).cost
+    rows = []
+    for (nx, ny), done in runs.items():
+        seconds = sorted(r[0] for r in done)
+        _, record, iterations, work, _ = done[0]
+        rows.append({"grid": f"{nx}x{ny}", "cells": nx * ny, "ranks": comm.size, "fastest_s": f"{seconds[0]:.3g}",
+                     "median_s": f"{statistics.median(seconds):.3g}", "ratio": f"{seconds[0] / first:.2f}",
+                     "iterations": iterations, "applications": record.applications,
+                     "equivalents": f"{work / unit:.0f}", "force": f"{record.force:.8g}",
+                     "mu_r": f"{record.mu_r:.6g}"})
+    if comm.rank == 0:
+        write_table(rows, pathlib.Path(out) / "steady_growth.csv")
     return rows
