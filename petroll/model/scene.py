@@ -497,7 +497,7 @@ def parse_scene(raw: dict, source: str = "<python>", base_dir: str | pathlib.Pat
         grid = Grid(g["nx"], g["ny"], *g["x"], *g["y"])
     material = _material(values["material"], raw.get("material", {}), base_dir, source)
     material, shift_factor = _temperature(values["material"], raw.get("material", {}), material, source)
-    body = make_body(raw.get("body", {}), base_dir, source, line=line)
+    body = make_body(raw.get("body", {}), base_dir, source, line=line, grid=grid)
     m = values["motion"]
     if line:
         _check_line_motion(m, raw.get("motion", {}), source)

@@ -211,7 +211,7 @@ class Simulation:
         """The newest solved step's surface displacement w (m, positive into the half-space) and gap
         g = Z + w - delta (m) on this rank's rows. w = J_eff A p + A v is the whole displacement at that
         step: the step's own pressure plus the preceding displacement of the whole history (no cut-off);
-        for line contact it is relative to the datum (petroll.solver.influence.strip_coefficients).
+        for line contact it is relative to the datum (petroll.solver.kernels.love.strip_coefficients).
         One convolution on the whole grid; collective. A step restored from a checkpoint, not solved since,
         has none (RuntimeError)."""
         if self._newest is None:

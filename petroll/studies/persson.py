@@ -39,7 +39,7 @@ import numpy as np
 from scipy.special import erf
 
 from petroll.model.materials import Prony
-from petroll.model.roughness import SelfAffinePSD
+from petroll.model.roughness import SelfAffinePSD, TabulatedPSD
 
 __all__ = ["PerssonResult", "persson", "angular_rule"]
 
@@ -76,11 +76,12 @@ class PerssonResult:
         return float(self.P[-1])
 
 
-def persson(psd: SelfAffinePSD, material: Prony, pressure: float, velocity: float, *,
+def persson(psd: SelfAffinePSD | TabulatedPSD, material: Prony, pressure: float, velocity: float, *,
             gamma: float | None = None, per_efold: int = 256, nodes: int = 8) -> PerssonResult:
     """Persson's friction coefficient and contact area (module docstring) of the roughness ``psd`` (its
-    q_long the smallest wavenumber q0 > 0, q_cutoff q1) sliding at ``velocity`` (m/s) on ``material`` (a
-    Prony series; J includes 1 - nu^2) under the nominal ``pressure`` sigma0 (Pa)."""
+    q_long the smallest wavenumber q0 > 0, q_cutoff q1; a measured surface's: ``TabulatedPSD.of``)
+    sliding at ``velocity`` (m/s) on ``material`` (a Prony series; J includes 1 - nu^2) under the nominal
+    ``pressure`` sigma0 (Pa)."""
     q0, q1 = psd.q_long, psd.q_cutoff
     if not 0.0 < q0 < q1:
         raise ValueError(f"the roughness needs 0 < q_long < q_cutoff, got {q0!r}, {q1!r}")
