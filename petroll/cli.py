@@ -68,7 +68,7 @@ def _parser() -> argparse.ArgumentParser:
                                          "append", "layer", "steady", "steady-growth"],
                        help="tao: every TAO type on the Hertz step; warm: operator applications per rolling "
                        "step for each first guess; skips: each saving on and off; peers: petroll against Tamaas and "
-                       "ContactMechanics on the Hertz step; precision: error against run time of the "
+                       "ContactMechanics on the Hertz step and a wavy sphere, from the same start; precision: error against run time of the "
                        "integrators and of grid refinement on the rolling sphere; growth: time per rolling "
                        "step against the contact window's cells, and along a long track; mpi: time per "
                        "rolling step against the rank count; memory: peak memory of every rank against the "
@@ -386,7 +386,9 @@ def _main(args: argparse.Namespace, comm) -> int:
         elif args.quick:
             bench.warm_starts(out, comm, cells_per_radius=6, repeats=1)
         else:
-            {"tao": bench.tao_types, "warm": bench.warm_starts, "peers": bench.peers,
+            from petroll.studies.peers.bench import peers
+
+            {"tao": bench.tao_types, "warm": bench.warm_starts, "peers": peers,
              "precision": bench_rolling.precision, "growth": bench_rolling.growth,
              "skips": bench_rolling.skips, "layer": layer_bench}[args.which](out, comm)
         return 0

@@ -142,17 +142,47 @@ def test_append_bench_times_every_append(tmp_path):
 
 
 def test_peers_bench_converges_each_solver_to_the_reference(tmp_path):
-    """petroll alone (the peers need their own environment): the tolerance chosen is one whose pressure
-    is within the target of the 1e-12 reference, tighter than the loosest tried."""
-    from petroll.studies.bench import PEER_TOLERANCES, peers
+    """petroll alone (the peers need their own environment), from zero and from Hertz's pressure: the
+    tolerance chosen is one whose pressure is within the target of the 1e-12 reference, tighter than the
+    loosest tried, with a residual to match; times and ratios filled."""
+    from petroll.studies.peers.bench import TOLERANCES, peers
 
-    rows = peers(tmp_path, cells=(24,), repeats=1, target=1e-8, solvers=("petroll",))
-    assert len(rows) == 1
-    row = rows[0]
-    assert row["solver"] == "petroll" and float(row["difference"]) <= 1e-8
-    assert float(row["tol"]) in PEER_TOLERANCES and float(row["tol"]) < PEER_TOLERANCES[0]  # 1e-6 is too loose
-    assert float(row["cold_s"]) > float(row["warm_s"]) > 0 and row["cold_ratio"] == "1.000"
+    rows = peers(tmp_path, problems=("hertz",), cells=(24,), repeats=1, target=1e-8, solvers=("petroll",))
+    assert [(r["solver"], r["start"]) for r in rows] == [("petroll", "zero"), ("petroll", "hertz")]
+    for row in rows:
+        assert float(row["difference"]) <= 1e-8 and row["within"] == 1, row
+        assert float(row["tol"]) in TOLERANCES and float(row["tol"]) < TOLERANCES[0]
+        assert 0 < float(row["residual"]) <= 10 * float(row["tol"])
+        assert float(row["cold_s"]) > float(row["warm_s"]) > 0 and row["count"] > 0
+    assert rows[0]["cold_ratio"] == "1.000"
     assert (tmp_path / "peers.csv").exists() and (tmp_path / "peers.png").stat().st_size > 0
+
+
+def test_the_peers_residual_is_the_dense_gap_of_the_pressure(tmp_path):
+    """residual() (the FFT operator) against the gap computed with the assembled influence matrix of the
+    problem's grid, for a pressure near the solution and a perturbed one."""
+    import numpy as np
+
+    from petroll.model.grid import Grid
+    from petroll.solver.contact import ContactSolver
+    from petroll.solver.influence import dense_influence
+    from petroll.solver.kernels.love import love_coefficients
+    from petroll.studies.peers.bench import residual, write_problem
+    from mpi4py import MPI
+
+    n = 20
+    write_problem("wavy", n, tmp_path / "p.npz")
+    data = np.load(tmp_path / "p.npz")
+    heights, cell, compliance = data["heights"], float(data["cell"]), float(data["compliance"])
+    solver = ContactSolver(Grid(n, n, 0, n * cell, 0, n * cell), MPI.COMM_SELF, tol=1e-6)
+    pressure = solver.solve_penetration(heights, compliance, 0.01).pressure
+    A = dense_influence(love_coefficients(n, n, cell, cell))
+    for p in (pressure, pressure * (1 + 0.1 * np.random.default_rng(0).random((n, n)))):
+        w = compliance * (A @ p.ravel()).reshape(n, n)
+        delta = (heights + w)[p > 0].mean()
+        expected = np.abs(np.minimum(p / p.max(), (heights + w - delta) / delta)).max()
+        assert residual(tmp_path / "p.npz", p) == pytest.approx(expected, rel=1e-9)
+    assert residual(tmp_path / "p.npz", pressure) < 1e-5 < expected
 
 
 def test_load_control_bench_finds_the_same_penetration(tmp_path):
