@@ -67,8 +67,9 @@ def _parser() -> argparse.ArgumentParser:
     bench.add_argument("which", choices=["tao", "warm", "skips", "peers", "precision", "growth", "mpi", "memory",
                                          "append", "layer", "steady", "steady-growth"],
                        help="tao: every TAO type on the Hertz step; warm: operator applications per rolling "
-                       "step for each first guess; skips: each saving on and off; peers: petroll against Tamaas and "
-                       "ContactMechanics on the Hertz step and a wavy sphere, from the same start; precision: error against run time of the "
+                       "step for each first guess; skips: each saving on and off; peers: petroll against Tamaas "
+                       "and ContactMechanics on the Hertz step and a wavy sphere, from the same start; "
+                       "precision: error against run time of the "
                        "integrators and of grid refinement on the rolling sphere; growth: time per rolling "
                        "step against the contact window's cells, and along a long track; mpi: time per "
                        "rolling step against the rank count; memory: peak memory of every rank against the "

@@ -2,12 +2,13 @@
 grows, and what writing results.h5 costs per saved step as the run grows.
 
 memory: the rolling sphere of runs/sphere.toml on square grids of ``side`` x ``side`` cells (32 cells per
-contact radius, the grid extent growing with the side), rolled ``steps`` cells with every field saved and
-a checkpoint at the end (``--steady``: its steady state solved directly, [time] mode = "steady"), run as ``mpirun -n K`` children (more ranks than cores is fine: memory is what is
-measured). Each rank reports its peak resident memory (``ru_maxrss``) and its resident memory before the
-scene is built (the interpreter, numpy, PETSc and MPI: the fixed cost of a rank); the table gives rank 0's
-peak, the mean and the largest over ranks, rank 0 / mean, the peak above that fixed cost summed over ranks
-(the run's own memory) and the wall time per step. Writes memory.csv and memory.png.
+contact radius, the grid extent growing with the side), rolled ``steps`` cells with every field saved and a
+checkpoint at the end (``--steady``: its steady state solved directly, [time] mode = "steady"), run as
+``mpirun -n K`` children (more ranks than cores is fine: memory is what is measured). Each rank reports its
+peak resident memory (``ru_maxrss``) and its resident memory before the scene is built (the interpreter,
+numpy, PETSc and MPI: the fixed cost of a rank); the table gives rank 0's peak, the mean and the largest over
+ranks, rank 0 / mean, the peak above that fixed cost summed over ranks (the run's own memory) and the wall
+time per step. Writes memory.csv and memory.png (``--steady``: memory_steady.csv and .png).
 
 append: a :class:`petroll.io.results.ResultsFile` grown by ``steps`` appends of one field each (a
 ``side`` x ``side`` field, its rows on each rank); the time of every append (collective, max over ranks)

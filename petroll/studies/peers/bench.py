@@ -153,7 +153,8 @@ def _run(python: str, name: str, args: list) -> dict:
         done = subprocess.run([python, str(path), *map(str, args)], capture_output=True, text=True)
         seconds = time.perf_counter() - start
     if done.returncode:
-        raise PetrollError(f"bench peers: {name} failed: {(done.stderr or done.stdout).strip().splitlines()[-1:]}")
+        last = (done.stderr or done.stdout).strip().splitlines()[-1:]
+        raise PetrollError(f"bench peers: {name} failed: {last}")
     return dict(json.loads(done.stdout.strip().splitlines()[-1]), cold_s=seconds)
 
 
@@ -170,7 +171,8 @@ def _plot(rows: list[dict], path: pathlib.Path) -> None:
             line = [r for r in mine if (r["solver"], r["start"]) == (solver, start)]
             cells = [int(r["cells"].split("x")[0]) ** 2 for r in line]
             for key, style in (("cold_s", "o-"), ("warm_s", "x:")):
-                ax.loglog(cells, [float(r[key]) for r in line], style, label=f"{solver} ({start}), {key[:-2]}")
+                ax.loglog(cells, [float(r[key]) for r in line], style,
+                          label=f"{solver} ({start}), {key[:-2]}")
         ax.set(xlabel="cells", ylabel="time (s)", title=f"{problem}: cold = whole process, warm = 2nd solve")
         ax.legend(fontsize=7)
     save_figure(figure, path)

@@ -1,9 +1,9 @@
-"""Peer script for ``petroll bench peers``: petroll itself (``pk``, one rank, its FFTs on the machine's cores),
-load control (``ContactSolver.solve_load``: the force held inside the QP). Command line and problem file:
-common.py. START ``zero``: the QP from p = 0 (pk then spreads the load uniformly over its QP window, the
-interference's box at a penetration guessed from the radius); ``hertz``: from Hertz's pressure for the
-radius, centred on the interference's centroid (petroll's cold start for smooth bodies). The count is
-the operator applications."""
+"""Peer script for ``petroll bench peers``: petroll itself (``pk``, one rank, its FFTs on the machine's
+cores), load control (``ContactSolver.solve_load``: the force held inside the QP). Command line and problem
+file: common.py. START ``zero``: the QP from p = 0 (pk then spreads the load uniformly over its QP window, the
+interference's box at a penetration guessed from the radius); ``hertz``: from Hertz's pressure for the radius,
+centred on the interference's centroid (petroll's cold start for smooth bodies). The count is the operator
+applications."""
 
 import numpy as np
 
