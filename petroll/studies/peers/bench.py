@@ -17,9 +17,9 @@ Hertz's pressure for the radius (``hertz``), is a row of its own. Convergence: a
 petroll to tol 1e-12 on each grid; each solver and start at the loosest of :data:`TOLERANCES` whose
 pressure lies within ``target`` (relative L2) of it, searched in one process; petroll from zero is held
 to the smallest error any peer reached as well (so its answer is never the less accurate one). Every
-answer's ``residual`` is computed here alike (:func:`residual`). Times: ``cold_s`` the whole process
-(interpreter, imports, set-up, first solve) timed here, ``warm_s`` the second solve in that process timed
-by the script; medians of ``repeats`` runs; ratios petroll (zero) / solver (< 1: petroll faster).
+answer's ``residual`` is computed here alike (:func:`residual`). Times: ``cold_s`` the whole process up to
+its first answer (interpreter, imports, set-up, first solve: the process's wall time, timed here, less
+the second solve), ``warm_s`` the second solve in that process (from the same start), timed by the script; medians of ``repeats`` runs; ratios petroll (zero) / solver (< 1: petroll faster).
 Writes peers.csv and peers.png. The peers live in .venv-peers (created or completed on first use with
 pip: they need numpy 2, which must not enter petroll's environment).
 """
@@ -124,6 +124,8 @@ def _rows(out: pathlib.Path, problems, cells, repeats: int, target: float, solve
                                                           "--reference", reference, "--target", bound])
                     timed = [_run(python[solver], solver, [problem, start, field, found["tol"]])
                              for _ in range(repeats)]
+                    for r in timed:  # the process up to its first answer: less the second solve it then timed
+                        r["cold_s"] -= r["warm_s"]
                     done[(solver, start)] = {
                         "problem": name, "cells": f"{n}x{n}", "solver": solver, "start": start,
                         "tol": f"{found['tol']:g}", "difference": f"{found['difference']:.2g}",

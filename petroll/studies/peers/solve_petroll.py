@@ -11,10 +11,10 @@ from common import main
 
 
 def prepare(problem, start):
-    from mpi4py import MPI
-
     from petroll.model.grid import Grid
-    from petroll.solver.contact import ContactSolver
+    from petroll.solver.contact import ContactSolver  # petroll.solver first: it sets how MPI starts
+
+    from mpi4py import MPI
 
     heights = problem["heights"]
     n, cell = heights.shape[0], float(problem["cell"])
