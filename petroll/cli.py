@@ -8,8 +8,9 @@
     petroll sweep SCENE.toml --vary KEY=SPEC [--out DIR]   one scene over values of a key (docs/sweep.md)
     petroll stress DIR [--step N] [--depth z1,z2,... | --depths auto] [--nu NU]   stresses below a saved
                             pressure field: DIR/stress.h5 and DIR/stress.png
-    petroll bench tao|warm|skips|peers|precision|growth|mpi|memory|append [--out DIR]   benchmarks
-                            (docs/benchmarks.md); bench warm --quick: a seconds-long check that it runs
+    petroll bench tao|warm|skips|peers|precision|growth|mpi|memory|append|layer|steady|steady-growth
+                            [--out DIR]   benchmarks (docs/benchmarks.md); bench warm --quick: a
+                            seconds-long check that it runs; bench memory --steady: steady solves
     petroll material fit DMA.csv [--terms N | --per-decade K] [--nu NU] [--shift LAW|auto:T_REF]
                             [--tolerance K] [--einf E | --einf-from-data] [--out FILE.toml]
                             a Prony series fitted to DMA data: the [material] block (docs/materials.md)
@@ -65,22 +66,26 @@ def _parser() -> argparse.ArgumentParser:
     stability.add_argument("--out", default="results/stability", help="directory for stability.csv and .md")
     bench = verbs.add_parser("bench", help="run a benchmark, print its table and write CSV (docs/benchmarks.md)")
     bench.add_argument("which", choices=["tao", "warm", "skips", "peers", "precision", "growth", "mpi", "memory",
-                                         "append", "layer", "steady"],
+                                         "append", "layer", "steady", "steady-growth"],
                        help="tao: every TAO type on the Hertz step; warm: operator applications per rolling "
-                       "step for each first guess; skips: each saving on and off; peers: petroll against Tamaas and "
-                       "ContactMechanics on the Hertz step; precision: error against run time of the "
+                       "step for each first guess; skips: each saving on and off; peers: petroll against Tamaas "
+                       "and ContactMechanics on the Hertz step and a wavy sphere, from the same start; "
+                       "precision: error against run time of the "
                        "integrators and of grid refinement on the rolling sphere; growth: time per rolling "
                        "step against the contact window's cells, and along a long track; mpi: time per "
                        "rolling step against the rank count; memory: peak memory of every rank against the "
                        "grid's cells at 1, 2 and 4 ranks (--ranks); append: results.h5 writing time per "
                        "saved step over 1000 steps; layer: cost per step of layer scenes against the "
                        "half-space (docs/layer.md); steady: the direct steady solve against the transient "
-                       "run to the same steady tolerance, V tau/a 1e-3 to 1e3")
+                       "run to the same steady tolerance, V tau/a 1e-3 to 1e3; steady-growth: the direct "
+                       "steady solve's time against the grid (512 x 256 to 2048 x 1024)")
     bench.add_argument("--out", default="results/bench", help="directory for the CSV (and PNG) files")
     bench.add_argument("--ranks", type=_ranks, help="mpi and memory only: rank counts to run side by side as "
                        "mpirun children, e.g. 1,2 (default: mpi: the current communicator only; memory: 1,2,4)")
     bench.add_argument("--sides", type=_ranks, help="memory only: grid sides (cells) to measure, e.g. "
                        "1024,2048,4096 (the default)")
+    bench.add_argument("--steady", action="store_true", help="memory only: the steady state solved directly "
+                       "([time] mode = \"steady\") instead of rolled steps")
     bench.add_argument("--quick", action="store_true", help="warm only: a coarse grid (a/dx = 6) and one "
                        "repeat, in seconds: shows that the benchmark runs (e.g. from an install); measures "
                        "nothing")
@@ -374,11 +379,13 @@ def _main(args: argparse.Namespace, comm) -> int:
             raise PetrollError(f"petroll bench {args.which}: --sides applies to petroll bench memory only")
         if args.quick and args.which != "warm":
             raise PetrollError(f"petroll bench {args.which}: --quick applies to petroll bench warm only")
+        if args.steady and args.which != "memory":
+            raise PetrollError(f"petroll bench {args.which}: --steady applies to petroll bench memory only")
         out = pathlib.Path(args.out)
-        if args.which == "steady":
-            from petroll.studies.bench_steady import steady
+        if args.which in ("steady", "steady-growth"):
+            from petroll.studies import bench_steady
 
-            steady(out, comm)
+            (bench_steady.steady if args.which == "steady" else bench_steady.growth)(out, comm)
         elif args.which == "mpi":
             bench_rolling.mpi_scaling(out, comm, ranks=args.ranks)
         elif args.which in ("memory", "append"):
@@ -388,11 +395,13 @@ def _main(args: argparse.Namespace, comm) -> int:
                 bench_memory.append(out, comm)
             else:
                 bench_memory.memory(out, comm, sides=args.sides or bench_memory.SIDES,
-                                    ranks=args.ranks or bench_memory.RANKS)
+                                    ranks=args.ranks or bench_memory.RANKS, steady=args.steady)
         elif args.quick:
             bench.warm_starts(out, comm, cells_per_radius=6, repeats=1)
         else:
-            {"tao": bench.tao_types, "warm": bench.warm_starts, "peers": bench.peers,
+            from petroll.studies.peers.bench import peers
+
+            {"tao": bench.tao_types, "warm": bench.warm_starts, "peers": peers,
              "precision": bench_rolling.precision, "growth": bench_rolling.growth,
              "skips": bench_rolling.skips, "layer": layer_bench}[args.which](out, comm)
         return 0
