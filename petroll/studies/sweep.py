@@ -400,10 +400,11 @@ def _run_point(scene: Scene, directory: pathlib.Path, comm: MPI.Comm, progress: 
         try:
             check = read_checkpoint(found[-1], comm)
             if check.scene_text == scene.text:
-                return run(restart_scene(check), comm, directory, progress=progress, restart=check, stop=stop)
+                return run(restart_scene(check), comm, directory, progress=progress, restart=check, stop=stop,
+                           overwrite=True)
         except CheckpointError:
             pass  # a damaged checkpoint (raised on every rank): run the point from its start
-    return run(scene, comm, directory, progress=progress, stop=stop, steady_start=start)
+    return run(scene, comm, directory, progress=progress, stop=stop, steady_start=start, overwrite=True)
 
 
 def table_row(scene: Scene, results: Results, value: float) -> dict[str, float]:
