@@ -271,3 +271,251 @@ def test_a_really_full_file_system_serially_and_under_mpirun(tmp_path, cli):
             shutil.rmtree(tmp_path / out)
     finally:
         subprocess.run(["umount", "-l", str(disk)], capture_output=True)
+
+
+# -- one run per output directory -------------------------------------------------------------------------
+def test_a_directory_in_use_is_refused_naming_its_holder_and_a_stale_lock_is_taken_over(comm, shared_dir,
+                                                                                       capsys):
+    raw = raw_scene()
+    out = shared_dir / "run"
+    lock = None
+    if comm.rank == 0:
+        out.mkdir()
+        lock = RunLock(out, "petroll run other.toml")
+        lock.acquire()
+        write_toml(shared_dir / "s.toml", raw)
+    comm.Barrier()
+    before = snapshot(shared_dir)
+    with pytest.raises(OutputError) as info:
+        run(make_scene(raw), comm, out)
+    pid, host = on_rank0(comm, (os.getpid(), os.uname().nodename))
+    assert str(info.value).startswith(f"{out}: in use by PID {pid} on host {host}, since ")
+    assert str(info.value).endswith("(petroll run other.toml); wait for it to finish, or choose another output "
+                                    "directory")
+    capsys.readouterr()
+    assert main(["run", str(shared_dir / "s.toml"), "--out", str(out), "--quiet"]) == 2
+    if comm.rank == 0:
+        assert capsys.readouterr().err.splitlines() == [f"petroll: error: {info.value}"]
+    assert snapshot(shared_dir) == before
+    if comm.rank == 0:  # the holder dies without removing its lock file: the next run takes it over
+        os.close(lock.fd)
+    comm.Barrier()
+    assert (out / LOCK_NAME).exists()
+    results = run(make_scene(raw), comm, out)
+    assert results.complete and not (out / LOCK_NAME).exists()
+
+
+@pytest.mark.serial
+def test_a_second_run_or_restart_on_a_directory_in_use_is_refused_and_the_first_is_untouched(tmp_path, cli):
+    from test_checkpoint import long_raw, wait_for
+
+    write_toml(tmp_path / "long.toml", long_raw())
+    reference = run(make_scene(long_raw()), MPI.COMM_SELF, tmp_path / "reference")
+    first = cli.start("run", "long.toml", "--out", "shared", "--quiet", cwd=tmp_path, stdout=subprocess.PIPE,
+                      stderr=subprocess.PIPE, text=True)
+    wait_for(tmp_path / "shared" / "checkpoints" / "step-00000005.h5", first, limit=600)
+    first.send_signal(signal.SIGSTOP)  # held while the others try (a stopped process keeps its lock)
+    try:
+        second = cli("run", "long.toml", "--out", "shared", "--quiet", cwd=tmp_path)
+        again = cli("restart", "shared", "--quiet", cwd=tmp_path)
+    finally:
+        first.send_signal(signal.SIGCONT)
+    assert first.wait(timeout=120) == 0, first.communicate()
+    for refused in (second, again):
+        assert refused.returncode == 2 and refused.stderr.count("\n") == 1, refused.stderr
+        assert refused.stderr.startswith("petroll: error: ")  # the restart names the directory in full
+        assert f"shared: in use by PID {first.pid} on host " in refused.stderr
+    assert "(petroll run long.toml)" in second.stderr
+    assert_identical(Results.open(tmp_path / "shared" / "results.h5"), reference)
+
+
+def test_the_results_of_another_scene_are_replaced_only_when_told(comm, shared_dir, capsys):
+    """A second scene into a directory holding another scene's results: refused in one line, nothing
+    changed; with --overwrite it runs and the earlier run's checkpoints go. The same scene again runs."""
+    first, other = raw_scene(SLS), raw_scene(PRONY)
+    if comm.rank == 0:
+        write_toml(shared_dir / "first.toml", first)
+        write_toml(shared_dir / "other.toml", other)
+    comm.Barrier()
+    out = shared_dir / "run"
+    capsys.readouterr()
+    assert main(["run", str(shared_dir / "first.toml"), "--out", str(out), "--quiet"]) == 0
+    before = snapshot(out)
+    assert main(["run", str(shared_dir / "other.toml"), "--out", str(out), "--quiet"]) == 2
+    if comm.rank == 0:
+        assert capsys.readouterr().err.splitlines() == [
+            f"petroll: error: {out}: holds the complete results of another scene ({out}/results.h5); give "
+            "--overwrite (Python: overwrite=True) to replace them, or another output directory"]
+    assert snapshot(out) == before
+    assert main(["run", str(shared_dir / "first.toml"), "--out", str(out), "--quiet"]) == 0  # the same: runs
+    assert main(["run", str(shared_dir / "other.toml"), "--out", str(out), "--quiet", "--overwrite"]) == 0
+    reference = run(make_scene(other), comm, shared_dir / "reference")
+    assert_identical(Results.open(out / "results.h5"), reference)
+    mine = [p.name for p in list_checkpoints(shared_dir / "reference" / "checkpoints")]
+    assert [p.name for p in list_checkpoints(out / "checkpoints")] == mine
+    for path in list_checkpoints(out / "checkpoints"):
+        assert read_checkpoint(path, comm).run_id == Results.open(out / "results.h5").run_id
+
+
+# -- restart identity -------------------------------------------------------------------------------------
+def forget_run_ids(path: pathlib.Path) -> None:
+    """As written before run ids (the other checks must hold by themselves)."""
+    with h5py.File(path, "r+") as f:
+        del f.attrs["run_id"]
+
+
+@pytest.mark.parametrize("change, expected", [
+    ({"grid": {"nx": 28}}, "[grid] nx = 25, the file's 28"),
+    ({"material": {"E0": 12e6}}, "[material] E0 = 10000000.0, the file's 12000000.0"),
+])
+@pytest.mark.parametrize("run_ids", [True, False])
+def test_a_restart_refuses_the_results_of_another_run_and_touches_nothing(change, expected, run_ids, comm,
+                                                                         shared_dir, capsys):
+    """results.h5 of a run on another grid (or of another material) in place of the checkpoint's run's:
+    refused in one line naming both, nothing written; by run id, or, for files without run ids, by the
+    scene and the steps."""
+    raw = raw_scene(SLS)
+    other = raw_scene(SLS)
+    for section, values in change.items():
+        other[section] = {**other[section], **values}
+    run(make_scene(raw), comm, shared_dir / "mine")
+    run(make_scene(other), comm, shared_dir / "theirs")
+    if comm.rank == 0:
+        shutil.copy(shared_dir / "theirs" / "results.h5", shared_dir / "mine" / "results.h5")
+        if not run_ids:
+            forget_run_ids(shared_dir / "mine" / "results.h5")
+            for path in list_checkpoints(shared_dir / "mine" / "checkpoints"):
+                strip_run_id(path)
+    comm.Barrier()
+    before = snapshot(shared_dir)
+    capsys.readouterr()
+    path = shared_dir / "mine" / "checkpoints" / "step-00000008.h5"
+    assert main(["restart", str(path), "--quiet"]) == 2
+    if comm.rank == 0:
+        lines = capsys.readouterr().err.splitlines()
+        assert len(lines) == 1 and lines[0].startswith(f"petroll: error: {path}: belongs to another "), lines
+        assert ("run than" if run_ids else expected) in lines[0], lines
+    assert snapshot(shared_dir) == before
+
+
+def strip_run_id(path: pathlib.Path) -> None:
+    """A checkpoint as written before run ids: the attribute removed, the file's digest made again."""
+    from petroll.io.checkpoint import _plain, _root_digest
+
+    with h5py.File(path, "r+") as f:
+        del f.attrs["run_id"]
+        attrs = {k: _plain(v) for k, v in f.attrs.items()}
+        digests = {}
+        f.visititems(lambda name, item: digests.__setitem__(name, _plain(item.attrs["sha256"]))
+                     if isinstance(item, h5py.Dataset) else None)
+        f.attrs["sha256"] = _root_digest(attrs, digests)
+
+
+def test_a_foreign_checkpoint_among_a_runs_checkpoints_is_refused_and_the_run_restarts_from_its_own(
+        comm, shared_dir, capsys):
+    run(make_scene(raw_scene(SLS)), comm, shared_dir / "reference")
+    stop_at = 8
+    from test_checkpoint import interrupter
+    from petroll.io.checkpoint import RunInterrupted
+
+    stop, on_step = interrupter(stop_at, comm)
+    with pytest.raises(RunInterrupted):
+        run(make_scene(raw_scene(SLS)), comm, shared_dir / "mine", stop=stop, on_step=on_step)
+    run(make_scene(raw_scene(SLS, distance=2 * LENGTH)), comm, shared_dir / "theirs")
+    if comm.rank == 0:
+        shutil.copy(shared_dir / "theirs" / "checkpoints" / "step-00000012.h5", shared_dir / "mine" / "checkpoints")
+    comm.Barrier()
+    before = snapshot(shared_dir / "mine")
+    capsys.readouterr()
+    assert main(["restart", str(shared_dir / "mine"), "--quiet"]) == 2
+    foreign = shared_dir / "mine" / "checkpoints" / "step-00000012.h5"
+    if comm.rank == 0:
+        lines = capsys.readouterr().err.splitlines()
+        assert len(lines) == 1 and lines[0].startswith(f"petroll: error: {foreign}: belongs to another run "), lines
+    assert snapshot(shared_dir / "mine") == before
+    assert main(["restart", str(shared_dir / "mine" / "checkpoints" / "step-00000008.h5"), "--quiet"]) == 0
+    assert_identical(Results.open(shared_dir / "mine" / "results.h5"),
+                     Results.open(shared_dir / "reference" / "results.h5"))
+    assert not foreign.exists()  # no longer of any use: its results.h5 is not here
+
+
+def test_a_restart_into_another_runs_directory_is_refused_unless_told(comm, shared_dir, capsys):
+    """`petroll restart B/checkpoints/step-N.h5 --out A` with A holding another run's complete results:
+    refused, A untouched; with --overwrite A holds B's run, continued to its end, and A's old checkpoints
+    are gone."""
+    run(make_scene(raw_scene(SLS)), comm, shared_dir / "A")
+    b = run(make_scene(raw_scene(PRONY)), comm, shared_dir / "B")
+    before = snapshot(shared_dir / "A")
+    source = shared_dir / "B" / "checkpoints" / "step-00000004.h5"
+    capsys.readouterr()
+    assert main(["restart", str(source), "--out", str(shared_dir / "A"), "--quiet"]) == 2
+    if comm.rank == 0:
+        assert capsys.readouterr().err.splitlines() == [
+            f"petroll: error: {shared_dir / 'A'}: holds the complete results of another run ({shared_dir / 'A'}"
+            f"/results.h5), not of checkpoint {source}'s; give --overwrite (Python: overwrite=True) to replace "
+            "them, or another --out"]
+    assert snapshot(shared_dir / "A") == before
+    assert main(["restart", str(source), "--out", str(shared_dir / "A"), "--quiet", "--overwrite"]) == 0
+    assert_identical(Results.open(shared_dir / "A" / "results.h5"), b)
+    run_id = read_checkpoint(source, comm).run_id
+    assert all(read_checkpoint(p, comm).run_id == run_id for p in list_checkpoints(shared_dir / "A" / "checkpoints"))
+
+
+def test_stale_temporary_files_are_removed_at_start_and_restart(comm, shared_dir):
+    from test_checkpoint import interrupter
+    from petroll.io.checkpoint import RunInterrupted
+
+    dead = on_rank0(comm, _dead_pid() if comm.rank == 0 else None)
+    live = on_rank0(comm, os.getppid())  # alive, and not this process (whose own temporary names these are)
+    stop, on_step = interrupter(5, comm)
+    out = shared_dir / "run"
+    if comm.rank == 0:
+        (out / "checkpoints").mkdir(parents=True)
+        for name in (f".results.h5.tmp{dead}", f"checkpoints/.step-00000004.h5.tmp{dead}",
+                     f".results.h5.tmp{live}", "notes.txt"):
+            (out / name).write_bytes(b"left")
+    comm.Barrier()
+    with pytest.raises(RunInterrupted):
+        run(make_scene(raw_scene()), comm, out, stop=stop, on_step=on_step)
+    left = sorted(str(p.relative_to(out)) for p in out.rglob("*") if p.name.startswith((".", "notes")))
+    assert left == sorted([".results.h5.journal", f".results.h5.tmp{live}", "notes.txt"])
+    if comm.rank == 0:
+        (out / "checkpoints" / f".step-00000009.h5.tmp{dead}").write_bytes(b"left")
+    comm.Barrier()
+    run(make_scene(raw_scene()), comm, out, restart=read_checkpoint(out / "checkpoints" / "step-00000005.h5", comm))
+    assert not (out / "checkpoints" / f".step-00000009.h5.tmp{dead}").exists()
+
+
+def _dead_pid() -> int:
+    """The PID of a process that has ended (and been reaped)."""
+    child = subprocess.Popen(["true"])
+    child.wait()
+    return child.pid
+
+
+# -- exit codes under mpirun ------------------------------------------------------------------------------
+@pytest.mark.serial
+def test_sigterm_and_sigint_to_petroll_launch_mpirun_end_the_run_with_a_checkpoint_and_143_or_130(tmp_path,
+                                                                                                  cli):
+    """``petroll launch mpirun -n 2 petroll run ...`` signalled as a batch system or Ctrl-C would: the ranks
+    get the signal itself, write a checkpoint, name the signal, and the exit status is 128 + its number;
+    the restart (on 2 ranks) finishes the run as the uninterrupted one (to round-off across rank counts)."""
+    from test_checkpoint import assert_close, long_raw, wait_for
+
+    write_toml(tmp_path / "long.toml", long_raw())
+    reference = run(make_scene(long_raw()), MPI.COMM_SELF, tmp_path / "reference")
+    mpirun = ["mpirun", "-n", "2", *cli.argv]
+    for signum, code in ((signal.SIGTERM, 143), (signal.SIGINT, 130)):
+        out = f"out-{signum.name}"
+        proc = subprocess.Popen([*cli.argv, "launch", *mpirun, "run", "long.toml", "--out", out, "--quiet"],
+                                cwd=tmp_path, env=cli.env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        wait_for(tmp_path / out / "checkpoints" / "step-00000005.h5", proc, limit=600)
+        proc.send_signal(signum)
+        _, err = proc.communicate(timeout=300)
+        assert proc.returncode == code, err
+        lines = [line for line in err.splitlines() if line.startswith("petroll")]
+        assert len(lines) == 1 and f": interrupted by {signum.name} after step " in lines[0], err
+        assert not Results.open(tmp_path / out / "results.h5").complete
+    done = cli("restart", out, "--quiet", cwd=tmp_path, ranks=2, timeout=600)
+    assert done.returncode == 0, done.stderr
+    assert_close(Results.open(tmp_path / out / "results.h5"), reference, rtol=1e-8)

@@ -150,6 +150,7 @@ class Results:
     line: bool = False  # a line-contact (plane-strain) run: series per unit length, pressure (n, nx, 1)
     fields: tuple[str, ...] = ("pressure",)  # the saved fields in the file (keys of FIELD_UNITS)
     solved_steady: bool = False  # the steady state solved directly ([time] mode = "steady"; attribute steady)
+    run_id: str = ""  # the run's identifier, shared with its checkpoints ("" in files written before them)
 
     @classmethod
     def open(cls, path: str | pathlib.Path) -> "Results":
@@ -162,7 +163,8 @@ class Results:
             fields = f["fields"]
             return cls(path, series, fields["step"][:k], fields["x"][()], fields["y"][()], str(f.attrs["scene"]),
                        bool(f.attrs.get("complete", True)), bool(f.attrs.get("line_contact", False)),
-                       tuple(name for name in FIELD_UNITS if name in fields), bool(f.attrs.get("steady", False)))
+                       tuple(name for name in FIELD_UNITS if name in fields), bool(f.attrs.get("steady", False)),
+                       str(f.attrs.get("run_id", "")))
 
     def field(self, name: str) -> np.ndarray:
         """The saved fields ``name`` (a key of FIELD_UNITS), (n_saved, nx, ny), read from the file."""
