@@ -58,7 +58,8 @@ def _parser() -> argparse.ArgumentParser:
     restart.add_argument("checkpoint", help="a checkpoint file, or a run directory (its newest checkpoint)")
     restart.add_argument("--out", help="output directory (default: the run directory of the checkpoint)")
     restart.add_argument("--scene", help="scene file replacing the checkpoint's own; it may change only "
-                         "[time] end, distance, steady, max_steps and [output] keys")
+                         "[time] end, distance, steady, max_steps and [output] dir, every, checkpoint_every, "
+                         "keep")
     restart.add_argument("--quiet", action="store_true", help="no progress line (also off when not a "
                          "terminal)")
     restart.add_argument("--overwrite", action="store_true", help="with --out: replace the results of another "

@@ -120,7 +120,7 @@ def _append(results: ResultsFile, sim: Simulation, save: bool, complete: bool, d
         results.append(sim.records, saved_fields(sim) if save else None, complete=complete, describe=describe)
     except OutputError as exc:
         n = results.steps
-        kept = f"it holds steps 0 to {n - 1} as before" if n else "no results file was written"
+        kept = f"results.h5 holds steps 0 to {n - 1}" if n else "no results file was written"
         then = (f"free space (or fix the cause) and continue with: petroll restart {newest}" if newest else
                 "free space (or fix the cause) and run the scene again")
         raise OutputError(f"{exc}; {kept}; {then}") from None

@@ -204,8 +204,8 @@ def test_a_full_disk_stops_the_run_in_one_line_and_the_restart_continues_it_bitw
     monkeypatch.undo()
     if comm.rank == 0:
         assert capsys.readouterr().err.splitlines() == [
-            f"petroll: error: {out}/results.h5: cannot write the results (No space left on device); it holds "
-            f"steps 0 to 5 as before; free space (or fix the cause) and continue with: petroll restart "
+            f"petroll: error: {out}/results.h5: cannot write the results (No space left on device); results.h5 "
+            f"holds steps 0 to 5; free space (or fix the cause) and continue with: petroll restart "
             f"{out}/checkpoints/step-00000004.h5"]
     partial = Results.open(out / "results.h5")
     assert len(partial.series["t"]) == 6 and list(partial.field_steps) == list(range(6)) and not partial.complete
@@ -519,3 +519,146 @@ def test_sigterm_and_sigint_to_petroll_launch_mpirun_end_the_run_with_a_checkpoi
     done = cli("restart", out, "--quiet", cwd=tmp_path, ranks=2, timeout=600)
     assert done.returncode == 0, done.stderr
     assert_close(Results.open(tmp_path / out / "results.h5"), reference, rtol=1e-8)
+
+
+# -- kills at random instants -----------------------------------------------------------------------------
+@pytest.mark.serial
+def test_runs_killed_at_random_instants_leave_results_and_checkpoints_whole(tmp_path):
+    """200 runs (every step saving three fields and writing a checkpoint) SIGKILLed at instants drawn
+    uniformly over a run, their disk writes of results.h5 slowed (0.5 ms each) so that many kills land
+    inside appends and their commits: every results.h5 opens and holds, value for value, the
+    uninterrupted run's steps up to its last complete append (after a commit cut short, plain h5py too once
+    recovered), every checkpoint is whole, and restarts from the newest ones end as the uninterrupted run
+    (petroll/studies/kills.py; scripts/kill-storm.py runs longer storms)."""
+    import tempfile
+
+    from petroll.studies.kills import storm, summary
+
+    fast = pathlib.Path("/dev/shm")  # memory: no fsync cost; a SIGKILL sees the same files as on a disk
+    where = pathlib.Path(tempfile.mkdtemp(dir=fast if os.access(fast, os.W_OK) else tmp_path))
+    try:
+        trials = storm(where, 200, seed=28, slow=0.0005, restarts=4)
+    finally:
+        shutil.rmtree(where, ignore_errors=True)
+    counts = summary(trials)
+    print(counts)
+    assert counts["trials with a loss"] == 0, [(t.index, t.phase, t.lost) for t in trials if t.lost]
+    assert counts["results.h5 left"] >= 100 and counts["restarted"] == 4
+    assert counts["killed append"] + counts["killed commit"] >= 40 and counts["torn commits"] >= 5, counts
+
+
+# -- bad numbers ------------------------------------------------------------------------------------------
+def bad_scene(tmp: pathlib.Path, name: str) -> dict:
+    """The scenes of issue 28 item 7 (and their kin) on the small scene of tests/test_bad_input.py."""
+    import copy
+
+    from test_bad_input import BASE
+
+    raw = copy.deepcopy(BASE)
+    moving = {"velocity": [0.01, 0.0], "penetration": 2e-5}
+    x = np.linspace(-1e-3, 1e-3, 41)[:, None]
+    sphere = (x**2 + x.T**2) / 0.02
+    changes = {
+        "tau tiny": lambda: raw["material"].update(tau_relax=1e-300),
+        "tau huge": lambda: raw["material"].update(tau_relax=1e300),
+        "dt tiny, distance": lambda: (raw["motion"].update(moving), raw.update(time={"dt": 1e-300, "distance": 1e-3})),
+        "dt small, distance": lambda: (raw["motion"].update(moving), raw.update(time={"dt": 1e-10, "distance": 1e-3})),
+        "steps_per_cell huge": lambda: (raw["motion"].update(moving),
+                                        raw.update(time={"steps_per_cell": 1e300, "distance": 1e-3})),
+        "at rest, distance": lambda: raw.update(time={"dt": 0.01, "distance": 1e-3}),
+        "x huge": lambda: raw["grid"].update(x=[-1e300, 1e300]),
+        "x far out": lambda: raw["grid"].update(x=[1e6, 1e6 + 2e-3]),
+        "complex heightmap": lambda: (np.save(tmp / "c.npy", sphere + 1j * sphere),
+                                      raw.update(body={"shape": "heightmap", "file": "c.npy", "cell": 5e-5})),
+        "text as npy": lambda: ((tmp / "t.npy").write_text("0 1\n1 2\n"),
+                                raw.update(body={"shape": "heightmap", "file": "t.npy", "cell": 5e-5})),
+    }
+    changes[name]()
+    return raw
+
+
+BAD_NUMBERS = {
+    "tau tiny": ("[material] tau_relax", "1e-300 s is outside what petroll computes with: non-zero magnitudes "
+                                         "from 1e-30 to 1e+30; rescale the units"),
+    "tau huge": ("[material] tau_relax", "1e+300 s is outside what petroll computes with"),
+    "dt tiny, distance": ("[time] dt", "1e-300 s is outside what petroll computes with"),
+    "dt small, distance": ("[time] dt", "too many steps: distance / (peak speed x dt) = 1e+09 steps at least, "
+                                        "more than [time] max_steps = 100000"),
+    "steps_per_cell huge": ("[time] steps_per_cell", "too many steps: distance / cell x steps_per_cell = "
+                                                     "4e+300 steps at least"),
+    "at rest, distance": ("[time] distance", "a body at rest never rolls it"),
+    "x huge": ("[grid] x", "-1e+300 m is outside what petroll computes with"),
+    "x far out": ("[grid] x", "a cell must be at least 1e-09 of the largest coordinate"),
+    "complex heightmap": ("[body] file", "holds complex numbers (complex128)"),
+    "text as npy": ("[body] file", "is not a .npy file (those begin with the bytes \\x93NUMPY"),
+}
+
+
+@pytest.mark.parametrize("name", BAD_NUMBERS)
+def test_numbers_beyond_double_precision_or_the_step_limit_are_refused_up_front(name, tmp_path, cli_main):
+    from petroll.errors import SceneError
+    from petroll.model.scene import dumps
+
+    key, expected = BAD_NUMBERS[name]
+    raw = bad_scene(tmp_path, name)
+    with pytest.raises(SceneError) as info:
+        parse_scene_here(raw, tmp_path)
+    assert info.value.key == key and expected in str(info.value), str(info.value)
+    (tmp_path / "bad.toml").write_text(dumps(raw))
+    code, out, err = cli_main(["run", str(tmp_path / "bad.toml"), "--out", str(tmp_path / "out"), "--quiet"])
+    assert code == 2 and err.splitlines() == [f"petroll: error: {info.value}".replace(
+        "test", str(tmp_path / "bad.toml"), 1)] and not (tmp_path / "out").exists(), err
+
+
+def parse_scene_here(raw: dict, base: pathlib.Path):
+    from petroll.model.scene import parse_scene
+
+    return parse_scene(raw, source="test", base_dir=base)
+
+
+@pytest.mark.parametrize("tau", [1e-30, 1e30])
+def test_time_constants_at_the_ends_of_the_range_run_without_a_warning_to_their_limits(tau, comm, shared_dir):
+    """tau_relax at 1e-30 and 1e30 s against steps of 0.01 s: no warning of any kind (numpy's included),
+    and the force at the held penetration is the limit's: relaxed at once (Einf: step 0's instantaneous
+    E0 force / 5, E0/Einf = 5, the force scaling with the modulus) or never (E0: step 0's), to 1e-6."""
+    import copy
+    import warnings
+
+    from petroll.model.scene import parse_scene
+    from test_bad_input import BASE
+
+    raw = copy.deepcopy(BASE)
+    raw["material"]["tau_relax"] = tau
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        force = run(parse_scene(raw), comm, shared_dir / "run").series["force"]
+    limit = force[0] / 5 if tau < 1 else force[0]
+    assert len(force) == 4 and np.all(np.abs(force[1:] - limit) <= 1e-6 * limit), (force, limit)
+
+
+# -- messages ---------------------------------------------------------------------------------------------
+def test_a_restart_that_would_change_the_saved_fields_is_refused_saying_which_output_keys_may(comm, shared_dir):
+    from petroll.errors import SceneError
+
+    raw = raw_scene()
+    run(make_scene(raw), comm, shared_dir / "run")
+    new = {**raw, "output": {**raw["output"], "fields": THREE}}
+    if comm.rank == 0:
+        write_toml(shared_dir / "new.toml", new)
+    comm.Barrier()
+    check = read_checkpoint(shared_dir / "run" / "checkpoints" / "step-00000004.h5", comm)
+    with pytest.raises(SceneError) as info:
+        restart_scene(check, shared_dir / "new.toml")
+    assert info.value.key == "[output] fields"
+    assert str(info.value).endswith("a restart may change only [time] end, distance, steady, max_steps and "
+                                    "[output] dir, every, checkpoint_every, keep")
+
+
+def test_a_results_xdmf_that_cannot_be_written_is_named(comm, shared_dir):
+    out = shared_dir / "run"
+    if comm.rank == 0:
+        (out / "results.xdmf").mkdir(parents=True)
+    comm.Barrier()
+    with pytest.raises(OutputError) as info:
+        run(make_scene(raw_scene()), comm, out)
+    assert str(info.value).startswith(f"{out}/results.xdmf: cannot write the results (Is a directory)")

@@ -68,7 +68,12 @@ saved fields (/fields/pressure), which now live in results.h5 only; it is still 
 
 SAFE_KEYS = {"time": {"end", "distance", "steady", "max_steps"},
              "output": {"dir", "every", "checkpoint_every", "keep"}}
-"""Scene keys that a restart may change (everything else must equal the checkpoint's scene)."""
+"""Scene keys that a restart may change (everything else must equal the checkpoint's scene; [output]
+fields may not: results.h5 holds the saved fields it was made for)."""
+
+SAFE_TEXT = ("a restart may change only [time] end, distance, steady, max_steps and [output] dir, every, "
+             "checkpoint_every, keep")
+"""SAFE_KEYS, as the refusals say it."""
 
 _NAME = re.compile(r"^step-(\d+)\.h5$")
 _ATTRS = ("format", "format_version", "petroll_version", "ranks", "step", "t", "next_dt", "nx", "ny",
@@ -725,12 +730,10 @@ def restart_scene(checkpoint: Checkpoint, new_scene: str | pathlib.Path | None =
         if scene.solver.integrator != checkpoint.attrs["integrator"]:
             raise SceneError(scene.source, "[solver] integrator", scene.solver.integrator,
                              f"differs from the integrator of checkpoint {checkpoint.path} "
-                             f"({checkpoint.attrs['integrator']!r}); a restart may change only [time] end, "
-                             f"distance, steady, max_steps and [output] keys")
+                             f"({checkpoint.attrs['integrator']!r}); {SAFE_TEXT}")
         for key, old, new in _changes(raw, scene.raw):
             raise SceneError(scene.source, key, new, f"differs from the scene of checkpoint "
-                             f"{checkpoint.path} ({old!r}); a restart may change only [time] end, distance, "
-                             f"steady, max_steps and [output] keys")
+                             f"{checkpoint.path} ({old!r}); {SAFE_TEXT}")
     if fingerprint(scene) != checkpoint.attrs["fingerprint"]:
         raise CheckpointError(f"{checkpoint.path}: the material or body of the scene ({scene.source}) "
                               f"differs from the one the checkpoint was computed with: a file named by "

@@ -337,8 +337,9 @@ class ResultsFile:
             times = {int(r.step): float(r.t) for r in records}
             text = xdmf_text(self.path.name, len(self.x), len(self.y), self.field_steps,
                              [times[s] for s in self.field_steps], self.fields)
-            self._guarded(lambda: atomic_write(self.path.with_suffix(".xdmf"),
-                                               lambda tmp: tmp.write_text(text, encoding="utf-8")), local=True)
+            xdmf = self.path.with_suffix(".xdmf")
+            self._guarded(lambda: atomic_write(xdmf, lambda tmp: tmp.write_text(text, encoding="utf-8")),
+                          local=True, what=xdmf)
         if describe:
             self._agree()
 
@@ -371,14 +372,16 @@ class ResultsFile:
 
     _error = None
 
-    def _guarded(self, action, tmp: pathlib.Path | None = None, local: bool = False) -> None:
+    def _guarded(self, action, tmp: pathlib.Path | None = None, local: bool = False,
+                 what: pathlib.Path | None = None) -> None:
         """Run ``action`` (collective unless ``local``: rank 0 only); an error on any rank becomes an
-        OutputError on every rank (a temporary file is removed)."""
+        OutputError on every rank naming ``what`` (default results.h5; a temporary file is removed)."""
         try:
             if not local or self.comm.rank == 0:
                 action()
         except (OSError, RuntimeError, KeyError, ValueError) as exc:
-            self._error = f"{self.path}: cannot write the results ({reason(exc)})"
+            why = exc.strerror if isinstance(exc, OSError) and exc.strerror else reason(exc)  # the file: named
+            self._error = f"{what or self.path}: cannot write the results ({why})"
         if not local:
             self._agree(tmp)
 
