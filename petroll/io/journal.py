@@ -65,7 +65,23 @@ def write_all(fd: int, data, at: int) -> None:
         data, at = data[n:], at + n
 
 
-class Session:
+class _Seekable:
+    """The position and size part of a file-like object for h5py's ``fileobj`` driver."""
+
+    pos = size = 0
+
+    def seek(self, offset: int, whence: int = 0) -> int:
+        self.pos = offset if whence == 0 else self.pos + offset if whence == 1 else self.size + offset
+        return self.pos
+
+    def tell(self) -> int:
+        return self.pos
+
+    def flush(self) -> None:
+        pass
+
+
+class Session(_Seekable):
     """One writing session of an HDF5 file, as the file-like object of h5py's ``fileobj`` driver.
 
     ``fresh``: a new (empty) file at ``path``; else the existing file, continued. Use :meth:`h5` to open it
@@ -90,14 +106,7 @@ class Session:
         """The file opened by h5py through this session (``mode`` "w" for a fresh one, else "r+")."""
         return h5py.File(self, mode, **kwargs)
 
-    # -- the file-like interface h5py's driver uses ---------------------------------------------------
-    def seek(self, offset: int, whence: int = 0) -> int:
-        self.pos = offset if whence == 0 else self.pos + offset if whence == 1 else self.size + offset
-        return self.pos
-
-    def tell(self) -> int:
-        return self.pos
-
+    # -- the file-like interface h5py's driver uses (and seek, tell, flush) ----------------------------
     def read(self, size: int = -1) -> bytes:
         start = self.pos
         end = self.size if size < 0 else start + size
@@ -172,9 +181,6 @@ class Session:
                 self.memory_only = True
         self.size = size
         return size
-
-    def flush(self) -> None:
-        pass
 
     # -- ending the session ---------------------------------------------------------------------------
     def commit(self) -> None:
@@ -395,19 +401,12 @@ def copy_committed(source: str | pathlib.Path, target: str | pathlib.Path) -> No
         os.close(fd)
 
 
-class _Recovered:
+class _Recovered(_Seekable):
     """A committed file seen through its journal (read-only file-like object for h5py)."""
 
     def __init__(self, path: pathlib.Path, base: int, chunks: list[tuple[int, bytes]]):
         self.fd = os.open(path, os.O_RDONLY)
         self.size, self.chunks, self.pos = base, chunks, 0
-
-    def seek(self, offset: int, whence: int = 0) -> int:
-        self.pos = offset if whence == 0 else self.pos + offset if whence == 1 else self.size + offset
-        return self.pos
-
-    def tell(self) -> int:
-        return self.pos
 
     def read(self, size: int = -1) -> bytes:
         start = self.pos
@@ -420,9 +419,6 @@ class _Recovered:
                 out[lo - start : hi - start] = old[lo - a : hi - a]
         self.pos = start + (size if size >= 0 else len(out))
         return bytes(out) + bytes(max(0, size - len(out)) if size >= 0 else 0)
-
-    def flush(self) -> None:
-        pass
 
     def close(self) -> None:
         if self.fd >= 0:
