@@ -1,7 +1,9 @@
 """The ``petroll`` command: a thin layer over the Python API.
 
-    petroll run SCENE.toml [--out DIR] [PETSc options, e.g. -petroll_tao_type gpcg -petroll_tao_monitor]
-    petroll restart CHECKPOINT.h5|DIR [--out DIR] [--scene NEW.toml] [PETSc options]   continue a run
+    petroll run SCENE.toml [--out DIR] [--overwrite] [PETSc options, e.g. -petroll_tao_type gpcg]
+    petroll restart CHECKPOINT.h5|DIR [--out DIR [--overwrite]] [--scene NEW.toml] [PETSc options]
+    petroll launch mpirun -n N petroll run ...   the launch line run so that SIGTERM/SIGINT reach the ranks
+                            and its exit status is theirs (143, 130; docs/cluster.md)
     petroll keys            print the scene reference (docs/scene.md) generated from the schema
     petroll stability [--fast] [--out DIR]   the stability map (docs/stability.md): CSV and Markdown in DIR
     petroll plot DIR [--out PLOTS] [--times T1,T2,...]   PNG figures of DIR/results.h5 (needs matplotlib)
@@ -51,14 +53,23 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("scene", help="scene file (TOML)")
     run.add_argument("--out", help="output directory (default: the scene's [output] dir)")
     run.add_argument("--quiet", action="store_true", help="no progress line (also off when not a terminal)")
+    run.add_argument("--overwrite", action="store_true", help="replace the results of another scene in the "
+                     "output directory (refused without it)")
     restart = verbs.add_parser("restart", help="continue a run from a checkpoint to its end "
                                "(docs/checkpoints.md)")
     restart.add_argument("checkpoint", help="a checkpoint file, or a run directory (its newest checkpoint)")
     restart.add_argument("--out", help="output directory (default: the run directory of the checkpoint)")
     restart.add_argument("--scene", help="scene file replacing the checkpoint's own; it may change only "
-                         "[time] end, distance, steady, max_steps and [output] keys")
+                         "[time] end, distance, steady, max_steps and [output] dir, every, checkpoint_every, "
+                         "keep")
     restart.add_argument("--quiet", action="store_true", help="no progress line (also off when not a "
                          "terminal)")
+    restart.add_argument("--overwrite", action="store_true", help="with --out: replace the results of another "
+                         "run there (refused without it)")
+    launch = verbs.add_parser("launch", help="run an MPI launch line (e.g. mpirun -n 4 petroll run ...) so "
+                              "that SIGTERM/SIGINT reach the ranks and its exit status is theirs (143/130; "
+                              "docs/cluster.md)")
+    launch.add_argument("command", nargs=argparse.REMAINDER, help="the launch line")
     verbs.add_parser("keys", help="print the scene reference generated from the schema (Markdown)")
     stability = verbs.add_parser("stability", help="sweep the stability map, write CSV and Markdown "
                                  "(docs/stability.md); exit status 1 if a run fails its checks")
@@ -261,6 +272,10 @@ def _material_fit(args: argparse.Namespace) -> None:
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     args, petsc_args = _parser().parse_known_args(argv)
+    if args.verb == "launch":  # no MPI here: the launched command has it
+        from petroll.launch import launch
+
+        return launch(args.command + petsc_args)
     stray = [a for a in petsc_args if a.startswith("--")]
     if stray:
         _parser().error(f"unknown option {stray[0]} (PETSc options start with a single dash)")
@@ -429,7 +444,7 @@ def _main(args: argparse.Namespace, comm) -> int:
     try:
         with stop.handling():
             results = run(scene, comm, out, progress=not args.quiet and sys.stderr.isatty(),
-                          restart=checkpoint, stop=stop)
+                          restart=checkpoint, stop=stop, overwrite=args.overwrite)
     except RunInterrupted as exc:
         if comm.rank == 0:
             print(f"petroll: {scene.source}: {exc}; continue with: petroll restart {exc.checkpoint}",

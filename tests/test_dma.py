@@ -113,7 +113,10 @@ def test_a_tabulated_material_has_its_time_axis_scaled(tmp_path):
     ({"temperature": -1.0, "shift": WLF}, "[material] temperature", "must be a finite number > 0 (K)"),
     ({"temperature": 1.0, "shift": {"law": "arrhenius", "Ea": 1e6, "T_ref": 300.0}}, "[material] temperature",
      "beyond what a float holds"),
-], ids=["no-shift", "no-temperature", "wlf-pole", "wlf-keys", "arrhenius-T_ref", "negative", "overflow"])
+    ({"temperature": 99.0, "shift": {"law": "arrhenius", "Ea": 1e5, "T_ref": 300.0}}, "[material] temperature",
+     "which takes the material's times outside 1e-30 ... 1e+30 s"),
+], ids=["no-shift", "no-temperature", "wlf-pole", "wlf-keys", "arrhenius-T_ref", "negative", "overflow",
+        "times-out-of-scale"])
 def test_bad_temperature_keys_are_refused_with_one_line(changes, key, allowed):
     with pytest.raises(SceneError) as info:
         parse_scene(with_material({**SCENE["material"], **changes}), source="t.toml")

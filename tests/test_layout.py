@@ -9,7 +9,7 @@ import sys
 import pytest
 
 PACKAGE = pathlib.Path(__file__).resolve().parents[1] / "petroll"
-FACES = ("petroll.driver", "petroll.cli", "petroll.plot")
+FACES = ("petroll.driver", "petroll.cli", "petroll.plot", "petroll.launch")
 
 FORBIDDEN = {
     "petroll.model": ("petroll.solver", "petroll.io", "petroll.studies", *FACES, "petsc4py", "mpi4py"),

@@ -58,7 +58,7 @@ from petroll import __version__
 from petroll.model import motion as motions
 from petroll.errors import PetrollError, SceneError, reason
 from petroll.model.materials import Prony
-from petroll.io.results import Results, atomic_write
+from petroll.io.results import Results, atomic_write, results_identity
 from petroll.model.scene import DEFAULT_STEADY, SCHEMA, Scene
 
 """[time] steady given to every point of a sweep whose scene has a [time] table without one."""
@@ -377,11 +377,8 @@ def _finished(directory: pathlib.Path, scene: Scene, comm: MPI.Comm) -> Results 
     path = directory / "results.h5"
     done = False
     if comm.rank == 0 and path.is_file():
-        try:
-            with h5py.File(path, "r") as f:
-                done = bool(f.attrs.get("complete", False)) and str(f.attrs["scene"]) == scene.text
-        except (OSError, KeyError):
-            done = False  # unreadable: run it again
+        held = results_identity(path)  # None: unreadable, run it again
+        done = held is not None and held["complete"] and held["scene"] == scene.text
     if not comm.bcast(done, root=0):
         return None
     return Results.open(path)
@@ -400,10 +397,11 @@ def _run_point(scene: Scene, directory: pathlib.Path, comm: MPI.Comm, progress: 
         try:
             check = read_checkpoint(found[-1], comm)
             if check.scene_text == scene.text:
-                return run(restart_scene(check), comm, directory, progress=progress, restart=check, stop=stop)
+                return run(restart_scene(check), comm, directory, progress=progress, restart=check, stop=stop,
+                           overwrite=True)
         except CheckpointError:
             pass  # a damaged checkpoint (raised on every rank): run the point from its start
-    return run(scene, comm, directory, progress=progress, stop=stop, steady_start=start)
+    return run(scene, comm, directory, progress=progress, stop=stop, steady_start=start, overwrite=True)
 
 
 def table_row(scene: Scene, results: Results, value: float) -> dict[str, float]:
