@@ -2,6 +2,8 @@
 
     petroll run SCENE.toml [--out DIR] [PETSc options, e.g. -petroll_tao_type gpcg -petroll_tao_monitor]
     petroll restart CHECKPOINT.h5|DIR [--out DIR] [--scene NEW.toml] [PETSc options]   continue a run
+    petroll check SCENE.toml [--ranks N]   estimate the contact, its resolution, the steps and the memory
+                            per rank without running (docs/accuracy.md)
     petroll keys            print the scene reference (docs/scene.md) generated from the schema
     petroll stability [--fast] [--out DIR]   the stability map (docs/stability.md): CSV and Markdown in DIR
     petroll plot DIR [--out PLOTS] [--times T1,T2,...]   PNG figures of DIR/results.h5 (needs matplotlib)
@@ -57,6 +59,11 @@ def _parser() -> argparse.ArgumentParser:
                          "[time] end, distance, steady, max_steps and [output] keys")
     restart.add_argument("--quiet", action="store_true", help="no progress line (also off when not a "
                          "terminal)")
+    check = verbs.add_parser("check", help="estimate the contact, cells per contact half-width, steps and "
+                             "memory per rank without running (docs/accuracy.md)")
+    check.add_argument("scene", help="scene file (TOML)")
+    check.add_argument("--ranks", type=_positive(int), help="ranks the memory is predicted for (default: "
+                       "those of this command)")
     verbs.add_parser("keys", help="print the scene reference generated from the schema (Markdown)")
     stability = verbs.add_parser("stability", help="sweep the stability map, write CSV and Markdown "
                                  "(docs/stability.md); exit status 1 if a run fails its checks")
@@ -348,6 +355,14 @@ def _main(args: argparse.Namespace, comm) -> int:
 
         if comm.rank == 0:
             print(scene_reference(), end="")
+        return 0
+    if args.verb == "check":
+        from petroll.model.preflight import check
+        from petroll.model.scene import load_scene
+
+        found = check(load_scene(args.scene), ranks=args.ranks or comm.size)
+        if comm.rank == 0:
+            print("\n".join(f"petroll: {line}" if k == 0 else f"  {line}" for k, line in enumerate(found.lines())))
         return 0
     if args.verb == "bench":
         import pathlib

@@ -20,6 +20,7 @@ from mpi4py import MPI
 from petroll.errors import PetrollError
 from petroll.io.checkpoint import RunInterrupted, checkpoint_dir, run_directory, write_checkpoint
 from petroll.io.results import OutputError, Results, ResultsFile
+from petroll.model.preflight import check_run
 from petroll.model.scene import Scene
 from petroll.solver.simulation import Simulation, StepRecord
 
@@ -28,7 +29,9 @@ def run(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, out: str | pathlib.Path |
         progress: bool = False, restart=None, stop=None, on_step=None, steady_start=None) -> Results:
     """Run a scene to its end and write ``<out>/results.h5`` (default out: the scene's [output] dir).
 
-    Returns the results read back from the file, on every rank. ``progress`` prints a status line on
+    Before step 1 the scene's contact is estimated and the grid's resolution of it checked
+    (petroll.model.preflight.check_run: a PetrollWarning below 8 cells per contact half-width, SceneError
+    below 2 unless [grid] allow_coarse = true). Returns the results read back from the file, on every rank. ``progress`` prints a status line on
     rank 0's stderr after every step.
 
     results.h5 grows as the run goes (docs/results.md): the series and each saved field are appended when
@@ -44,6 +47,8 @@ def run(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, out: str | pathlib.Path |
     (whole-grid pressure in Pa, penetration in m), e.g. a neighbouring steady state (continuation).
     """
     out = pathlib.Path(out) if out is not None else scene.output_dir
+    if restart is None:
+        check_run(scene)  # before anything is written: resolution (petroll.model.preflight)
     prepare_output(out, comm)
     sim = Simulation(scene, comm)
     sim.steady_start = steady_start

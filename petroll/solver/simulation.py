@@ -23,6 +23,7 @@ from petroll.errors import SceneError, SolverError
 from petroll.solver.history import make_history
 from petroll.solver.layer import material_operator
 from petroll.solver.steady import Anderson, FarWake, SteadyMemory
+from petroll.model.clock import step_length
 from petroll.model.materials import Prony
 from petroll.model.scene import Scene
 from petroll.solver.wake import Wake
@@ -127,29 +128,8 @@ class Simulation:
 
     # -- the clock --------------------------------------------------------------------------------------
     def next_dt(self, t: float, distance: float) -> float | None:
-        """Length of the step after time t (None: the run is over)."""
-        tm = self.scene.time
-        if tm.dt is None and tm.steps_per_cell is None:
-            return None
-        if tm.end is not None and t >= tm.end * (1 - 1e-12):
-            return None
-        if tm.distance is not None and distance >= tm.distance * (1 - 1e-12):
-            return None
-        speed = float(np.hypot(*self.scene.velocity(t)))
-        if tm.dt is not None:
-            dt = tm.dt
-        else:
-            scale = self.scene.velocity.peak()
-            if scale == 0:
-                raise SceneError(self.scene.source, "[time] steps_per_cell", tm.steps_per_cell,
-                                 "needs a moving body: give [time] dt for a body at rest")
-            cell = self.scene.grid.cell
-            dt = cell / (tm.steps_per_cell * max(speed, 0.1 * scale))
-        if tm.end is not None:
-            dt = min(dt, tm.end - t)
-        elif speed > 0:
-            dt = min(dt, (tm.distance - distance) / speed * (1 + 1e-9))
-        return dt
+        """Length of the step after time t (None: the run is over): petroll.model.clock.step_length."""
+        return step_length(self.scene, t, distance)
 
     # -- one step ---------------------------------------------------------------------------------------
     def step(self, t: float, dt: float) -> StepRecord:
