@@ -409,9 +409,10 @@ def _main(args: argparse.Namespace, comm) -> int:
         from petroll.studies.stability import command
 
         return command(args.out, args.fast, comm)
+    from petroll.driver import RunFailed, run
     from petroll.io.checkpoint import RunInterrupted, StopRequest
+    from petroll.io.results import Results
     from petroll.model.scene import load_scene
-    from petroll.driver import run
 
     start = time.perf_counter()
     if args.verb == "restart":
@@ -429,6 +430,10 @@ def _main(args: argparse.Namespace, comm) -> int:
             print(f"petroll: {scene.source}: {exc}; continue with: petroll restart {exc.checkpoint}",
                   file=sys.stderr)
         return exc.exit_code
+    except RunFailed as exc:  # the summary of the steps kept, then the one-line error
+        if comm.rank == 0:
+            print(summary(scene, Results.open(exc.results), wall=time.perf_counter() - start))
+        raise
     if comm.rank == 0:
         print(summary(scene, results, wall=time.perf_counter() - start))
     return 0
@@ -480,13 +485,16 @@ def summary(scene, results, wall: float) -> str:
     steady = scene.time.steady is not None and (
         (scene.time.end is not None and s["t"][-1] < scene.time.end * (1 - 1e-9))
         or (scene.time.distance is not None and s["distance"][-1] < scene.time.distance * (1 - 1e-9)))
-    state = "steady state reached, " if steady else ""
+    state = "steady state reached, " if steady and results.complete else ""
+    if not results.complete:
+        state = "partial: the run stopped before its end, results.h5 has complete = false; "
     line = scene.grid.line  # plane strain: per unit length, the penetration relative to the datum
     force, area = ("N/m", "contact width {:.4g} m") if line else ("N", "contact area {:.4g} m^2")
+    patch = (f"patch from {s['trail'][-1]:.4g} to {s['lead'][-1]:.4g} m along the motion"
+             if s["area"][-1] > 0 else "no contact")
     return (f"petroll: {scene.source}: {how} ({state}wall time {wall:.1f} s). Last step: force {s['force'][-1]:.6g} {force} at "
             f"penetration {s['delta'][-1]:.6g} m{' (to the datum)' if line else ''}, mu_r {s['mu_r'][-1]:.4e}, "
-            f"{area.format(s['area'][-1])}, "
-            f"patch from {s['trail'][-1]:.4g} to {s['lead'][-1]:.4g} m along the motion, max pressure "
+            f"{area.format(s['area'][-1])}, {patch}, max pressure "
             f"{s['p_max'][-1]:.6g} Pa; {int(s['applications'].sum())} operator applications in all. "
             f"Results: {results.path}")
 

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 from mpi4py import MPI
 
-from petroll.errors import PetrollError
+from petroll.errors import PetrollError, SceneError, SolverError
 from petroll.io.checkpoint import RunInterrupted, checkpoint_dir, run_directory, write_checkpoint
 from petroll.io.results import OutputError, Results, ResultsFile
 from petroll.model.preflight import check_run
@@ -31,7 +31,8 @@ def run(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, out: str | pathlib.Path |
 
     Before step 1 the scene's contact is estimated and the grid's resolution of it checked
     (petroll.model.preflight.check_run: a PetrollWarning below 8 cells per contact half-width, SceneError
-    below 2 unless [grid] allow_coarse = true). Returns the results read back from the file, on every rank. ``progress`` prints a status line on
+    below 2 unless [grid] allow_coarse = true), and its path: SceneError for a body that never presses or
+    whose contact region would reach the grid's edge. Returns the results read back from the file, on every rank. ``progress`` prints a status line on
     rank 0's stderr after every step.
 
     results.h5 grows as the run goes (docs/results.md): the series and each saved field are appended when
@@ -45,10 +46,13 @@ def run(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, out: str | pathlib.Path |
     far and raises :class:`petroll.io.checkpoint.RunInterrupted`. ``on_step(record)`` is called on every rank
     after every step. ``steady_start`` ([time] mode = "steady" only): the first guess of the steady solve,
     (whole-grid pressure in Pa, penetration in m), e.g. a neighbouring steady state (continuation).
+    A step that fails (SolverError, e.g. a contact reaching the grid's edge; SceneError, [time] max_steps)
+    raises :class:`RunFailed` naming the scene file, the step, its time and the distance rolled, after
+    every step solved before it is written to results.h5 (complete = false).
     """
     out = pathlib.Path(out) if out is not None else scene.output_dir
     if restart is None:
-        check_run(scene)  # before anything is written: resolution (petroll.model.preflight)
+        check_run(scene)  # before anything is written: touching, path, resolution (petroll.model.preflight)
     prepare_output(out, comm)
     sim = Simulation(scene, comm)
     sim.steady_start = steady_start
@@ -63,7 +67,15 @@ def run(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, out: str | pathlib.Path |
         t = 0.0
     resumed = restart is not None  # the first record is the restored step's, not solved again
     wall = clock.perf_counter()
-    for record in sim.steps(t):
+    kept = restart.path if restart is not None else None  # the newest checkpoint
+    steps = sim.steps(t)
+    while True:
+        try:
+            record = next(steps, None)
+        except (SolverError, SceneError) as exc:  # a step failed (on every rank alike): keep what was solved
+            raise _failure(scene, sim, results, kept, exc, progress) from None
+        if record is None:
+            break
         stop_now = sim.dt_next is None
         save = not resumed and (stop_now or record.step == 0
                                 or bool(scene.every and record.step % scene.every == 0))
@@ -79,16 +91,45 @@ def run(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, out: str | pathlib.Path |
             results.append(sim.records, saved_fields(sim) if save else None, complete=stop_now,
                            describe=bool(due or interrupted or stop_now))
         if due or interrupted:
-            path = write_checkpoint(checkpoint_dir(out), sim, sim.t, sim.dt_next, results.field_steps,
+            kept = write_checkpoint(checkpoint_dir(out), sim, sim.t, sim.dt_next, results.field_steps,
                                     scene.keep)
             if interrupted:
                 if progress and comm.rank == 0:
                     print(file=sys.stderr)
-                raise RunInterrupted(signum, record.step, record.t, path)
+                raise RunInterrupted(signum, record.step, record.t, kept)
         resumed = False
     if progress and comm.rank == 0:
         print(file=sys.stderr)
     return Results.open(results.path)
+
+
+class RunFailed(PetrollError):
+    """A step failed after ``steps`` >= 1 steps were solved: results.h5 (``results``) holds them, marked
+    complete = false; ``checkpoint``: the newest checkpoint (or None)."""
+
+    def __init__(self, message: str, results: pathlib.Path, steps: int, checkpoint: pathlib.Path | None):
+        super().__init__(message)
+        self.results, self.steps, self.checkpoint = results, steps, checkpoint
+
+
+def _failure(scene: Scene, sim: Simulation, results: ResultsFile, checkpoint, exc: Exception,
+             progress: bool) -> Exception:
+    """Write every step solved before ``exc`` to results.h5 (complete = false) and say where the run
+    stopped (scene file, step, time, distance) and what it kept (collective): the RunFailed to raise
+    (``exc`` itself where no step was solved)."""
+    if progress and sim.comm.rank == 0:
+        print(file=sys.stderr)
+    done = len(sim.records)
+    if not done:  # nothing solved, nothing kept: the error as it is
+        return exc
+    results.append(sim.records, None, complete=False, describe=True)
+    t, rolled = sim.t + (sim.dt_next or 0.0), sim.records[-1].distance
+    kept = f"{results.path} holds the {done} step{'s' * (done != 1)} solved before it (complete = false)"
+    kept += f"; last checkpoint: {checkpoint}" if checkpoint is not None else "; no checkpoint"
+    cause = f"{exc.key} = {exc.value!r}: {exc.allowed}" if isinstance(exc, SceneError) else str(exc)
+    message = (f"{scene.source}: step {done} (t = {t:.6g} s, {rolled:.6g} m rolled) failed: "
+               f"{' '.join(cause.split())}. {kept}")
+    return RunFailed(message, results.path, done, checkpoint)
 
 
 def saved_fields(sim: Simulation) -> dict[str, np.ndarray]:

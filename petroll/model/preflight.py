@@ -14,6 +14,12 @@ Resolution. Cells per contact half-width along X and Y, the smaller over the com
 ``GOOD_CELLS`` the run warns (one line naming the key and the value that gives ``GOOD_CELLS``), below
 ``LEAST_CELLS`` it is refused unless ``[grid] allow_coarse = true`` (docs/accuracy.md: errors against
 cells per half-width).
+
+Path. The body's reference point over the whole run (petroll.model.clock.path) carries the box of the
+cells it can interfere with: where it lies within delta_e of its lowest point (rubbery delta_e under load
+control; line contact: the contact, within delta_e / 2). A run whose box would reach the grid's edge cells
+at some step is refused, saying where it leaves the grid and the extent it needs. A body that never
+presses (its largest penetration or load <= 0) or has no surface over the grid is refused.
 """
 
 from __future__ import annotations
@@ -143,7 +149,7 @@ def _penetration(scene, radii, lowest, compliance: float, widths) -> float:
     delta, exact = largest_penetration(scene)
     if exact:
         return delta
-    load = float(scene.load.peak())
+    load = float(scene.load.largest())
     rx, ry = radii
     if scene.grid.line or not math.isfinite(ry) or not math.isfinite(rx):  # the line-contact form
         radius = rx if math.isfinite(rx) else ry
@@ -185,6 +191,110 @@ def contact_size(scene) -> ContactSize:
     return ContactSize(radii, lowest, answers["glassy"], answers["rubbery"])
 
 
+def interference_depth(scene, size: ContactSize, glassy: bool = True) -> tuple[float, bool]:
+    """(depth, exact): the body interferes with the surface where it lies less than ``depth`` (m) above its
+    lowest point: the largest penetration (``exact``), or under load control the equivalent penetration
+    with the glassy (``glassy``: the least the run will have at its largest load) or the rubbery
+    compliance; line contact: half of it, the contact (the solver checks the contact there)."""
+    delta, exact = largest_penetration(scene)
+    if not exact:
+        compliance, widths = (scene.material.J0, size.glassy) if glassy else (scene.material.Jinf, size.rubbery)
+        delta = _penetration(scene, size.radii, size.lowest, compliance, widths)
+    return (delta / 2 if scene.grid.line else delta), exact
+
+
+def interference_box(scene, size: ContactSize, walked: Path, glassy: bool = True) -> tuple[float, float, float,
+                                                                                           float]:
+    """(x0, x1, y0, y1): the box (m, relative to the body's reference point) of the region where the body
+    lies within delta_e of its lowest point (line contact: delta_e / 2, the contact), delta_e the largest
+    penetration or, under load control, the glassy or rubbery one (:func:`interference_depth`): the cells a
+    run's QPs can be posed on. Sampled
+    on a 201-point lattice per axis over 3 largest half-widths around the lowest point (the box widened by
+    a lattice step) and on a 401-point lattice over all of the body that comes over the grid along
+    ``walked`` (a second contact far from the first). A layer's surface bulges up around the load, so its
+    contact reaches beyond the interference (up to sqrt(2) times for a thin incompressible bonded layer,
+    docs/layer.md): under penetration control in 3-D its box is widened by sqrt(2) about the lowest point
+    (under load control the half-space's penetration overestimates a layer's, and line contact's box is
+    the contact)."""
+    g, (lx, ly) = scene.grid, size.lowest
+    depth, exact = interference_depth(scene, size, glassy)
+    sx = 3 * max(size.largest[0], g.dx)
+    sy = 0.0 if g.line else 3 * max(size.largest[1], g.dy)
+    near = (lx + np.linspace(-sx, sx, 201), ly + np.linspace(-sy, sy, 1 if g.line else 201))
+    whole = (np.linspace(g.x0 - walked.sx.max(), g.x1 - walked.sx.min(), 401),
+             np.zeros(1) if g.line else np.linspace(g.y0 - walked.sy.max(), g.y1 - walked.sy.min(), 401))
+    box = [lx, lx, ly, ly]
+    for (x, y), widen in ((near, (2 * sx / 200, 2 * sy / 200)), (whole, (0.0, 0.0))):
+        with np.errstate(all="ignore"):
+            inside = np.asarray(scene.body.height(x[:, None], y[None, :]), dtype=float) < depth
+        ii, jj = np.nonzero(inside)
+        if ii.size:
+            box = [min(box[0], x[ii.min()] - widen[0]), max(box[1], x[ii.max()] + widen[0]),
+                   min(box[2], y[jj.min()] - widen[1]), max(box[3], y[jj.max()] + widen[1])]
+    if scene.layer is not None and exact and not g.line:
+        grow = math.sqrt(2)
+        box = [lx + grow * (box[0] - lx), lx + grow * (box[1] - lx), ly + grow * (box[2] - ly),
+               ly + grow * (box[3] - ly)]
+    return tuple(float(b) for b in box)
+
+
+def check_touching(scene) -> None:
+    """SceneError unless the body presses into the surface at some time: the largest penetration or load
+    must be > 0 (at 0 or below the run would report nothing at every step)."""
+    control = "penetration" if scene.penetration is not None else "load"
+    peak = float((scene.penetration if scene.penetration is not None else scene.load).largest())
+    if not peak > 0:
+        value = scene.raw.get("motion", {}).get(control)
+        raise SceneError(scene.source, f"[motion] {control}", value,
+                         f"is never > 0 (largest {peak:g}): the body never presses into the surface; give a "
+                         f"{control} > 0 ({'m' if control == 'penetration' else 'N'}) at some time")
+
+
+def _edge_cells_reached(scene, depth: float, sx: float, sy: float) -> bool:
+    """Whether the body at (sx, sy) interferes (lies below ``depth`` over its lowest point) with a cell
+    centre of the grid's edge rows or columns (line contact: its end strips): the solver's condition."""
+    g = scene.grid
+    x, y = g.x - sx, g.y - sy
+    points = [(x[[0, -1]][:, None], y[None, :])]
+    if not g.line:
+        points.append((x[:, None], y[[0, -1]][None, :]))
+    with np.errstate(all="ignore"):
+        return any(bool(np.any(np.asarray(scene.body.height(px, py), dtype=float) < depth)) for px, py in points)
+
+
+def path_leaves(scene, size: ContactSize, walked: Path, glassy: bool = True) -> tuple[str, str] | None:
+    """The first step at which the body's interference region (:func:`interference_depth`) reaches a cell
+    of the grid's edge rows or columns along ``walked``: (the axis, "x" or "y"; a sentence saying where and
+    the extent the whole run needs); None if it never does. ``glassy``: under load control, with the
+    glassy or the rubbery penetration (:func:`interference_depth`). Steps whose :func:`interference_box` comes
+    within a cell of the edge cells are checked at the edge cells' centres, as the solver does (a layer's
+    box, widened for its bulge, is taken as it is)."""
+    g = scene.grid
+    depth, exact = interference_depth(scene, size, glassy)
+    bx0, bx1, by0, by1 = interference_box(scene, size, walked, glassy)
+    axes = [("x", walked.sx + bx0, walked.sx + bx1, g.x0, g.x1, g.dx)]
+    if not g.line:
+        axes.append(("y", walked.sy + by0, walked.sy + by1, g.y0, g.y1, g.dy))
+    near = np.zeros(len(walked.t), dtype=bool)
+    for _, lo, hi, start, end, cell in axes:
+        near |= (lo <= start + 1.5 * cell) | (hi >= end - 1.5 * cell)
+    widened = scene.layer is not None and exact and not g.line
+    for n in np.flatnonzero(near):
+        if widened or _edge_cells_reached(scene, depth, walked.sx[n], walked.sy[n]):
+            break
+    else:
+        return None
+    axis, lo, hi, start, end, _ = max(axes, key=lambda a: max(a[3] - a[1][n], a[2][n] - a[4]))
+    how = (f"to [time] distance = {scene.time.distance:g} m" if scene.time.distance is not None
+           else f"to [time] end = {scene.time.end:g} s" if scene.time.end is not None else "one step")
+    where = ("at the start" if n == 0 else
+             f"at step {n} (t = {walked.t[n]:.4g} s, after {walked.distance[n]:.4g} m of rolling)")
+    which = "" if exact else f" ({'glassy' if glassy else 'rubbery'} estimate)"
+    return axis, (f"the body's contact region{which} reaches the grid's edge cells {where}: over the whole run "
+                  f"({how}) it spans {axis} from {lo.min():.4g} to {hi.max():.4g} m, beyond the grid's "
+                  f"[{start:g}, {end:g}] less its edge cells; enlarge [grid] {axis} or shorten the run")
+
+
 @dataclass(frozen=True)
 class Preflight:
     """What :func:`check` found: the contact size, cells per half-width (X, Y; the smaller over the
@@ -196,6 +306,8 @@ class Preflight:
     path: Path
     ranks: int
     memory_mib: float
+    leaves: tuple[str, str] | None  # (axis, where) the path's contact region reaches the grid's edge
+    creeping: tuple[str, str] | None = None  # the same with the rubbery estimate (load control): it may
 
     def verdict(self) -> str:
         """What a run makes of the resolution: fine, warned or refused."""
@@ -228,25 +340,37 @@ class Preflight:
                 f"{rubbery} m rubbery (Jinf)",
                 f"cells per contact half-width: {cells}: {self.verdict()}",
                 f"steps: {steps}",
+                "path: " + (self.leaves[1] if self.leaves else f"the body's reference point goes from ({self.path.sx[0]:.4g}, "
+                            f"{self.path.sy[0]:.4g}) to ({self.path.sx[-1]:.4g}, {self.path.sy[-1]:.4g}) m; "
+                            "its contact region stays inside the grid"
+                            + (f", but as it creeps it may not: {self.creeping[1]}" if self.creeping else "")),
                 f"memory: about {self.memory_mib:.0f} MiB per rank on {self.ranks} rank{'s' * (self.ranks != 1)}"
                 f" ({g.nx * g.ny} cells)"]
 
 
 def check(scene, ranks: int = 1) -> Preflight:
     """Estimate, without running: contact size, resolution, the path and steps, memory per rank on
-    ``ranks`` ranks (``petroll check``). Raises nothing about the resolution; :func:`check_run` does."""
+    ``ranks`` ranks (``petroll check``). Raises SceneError only for a body that never touches
+    (:func:`check_touching`, no surface over the grid); :func:`check_run` refuses the rest."""
     g = scene.grid
+    check_touching(scene)
     size = contact_size(scene)
     small = size.smallest
     cells = (small[0] / g.dx,) if g.line else (small[0] / g.dx, small[1] / g.dy)
     memory = FIXED_MIB + BYTES_PER_CELL * g.nx * g.ny / ranks / 2**20
-    return Preflight(scene, size, cells, path(scene), ranks, memory)
+    walked = path(scene)
+    leaves = path_leaves(scene, size, walked)
+    creeping = path_leaves(scene, size, walked, glassy=False) if leaves is None and scene.load is not None else None
+    return Preflight(scene, size, cells, walked, ranks, memory, leaves, creeping)
 
 
 def check_run(scene) -> Preflight:
-    """The checks a run makes before step 1: :func:`check`, then a warning (PetrollWarning, one line)
-    where a contact half-width has fewer than GOOD_CELLS cells along an axis, SceneError (naming the
-    [grid] key) below LEAST_CELLS unless [grid] allow_coarse = true."""
+    """The checks a run makes before step 1: :func:`check` (a body that never touches refused); SceneError
+    (naming the [grid] key) below LEAST_CELLS cells per contact half-width unless [grid] allow_coarse =
+    true; SceneError for a path that leaves the grid (naming [grid] x or y; under load control with the
+    glassy penetration, the least the run will have); a warning (PetrollWarning, one line) where a contact
+    half-width has fewer than GOOD_CELLS cells along an axis, or where under load control the rubbery
+    contact would leave the grid (the run may stop there as its contact creeps)."""
     found = check(scene)
     g = scene.grid
     short = []
@@ -265,6 +389,11 @@ def check_run(scene) -> Preflight:
                              "(docs/accuracy.md)")
         short.append(f"{key} = {count} gives {n:.1f} cells per contact half-width along {axis}; "
                      f"n{axis} >= {good} gives {GOOD_CELLS}")
+    if found.leaves is not None:
+        axis, where = found.leaves
+        raise SceneError(scene.source, f"[grid] {axis}", [g.x0, g.x1] if axis == "x" else [g.y0, g.y1], where)
+    if found.creeping is not None:
+        short.append(f"[grid] {found.creeping[0]}: as the contact creeps under the load {found.creeping[1]}")
     if short:
         warnings.warn(PetrollWarning(f"{scene.source}: {'; '.join(short)} (docs/accuracy.md)"), stacklevel=2)
     return found

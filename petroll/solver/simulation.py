@@ -109,6 +109,9 @@ class Simulation:
         lengths = iter(dts) if dts is not None else None
         resumed, dt = bool(self.records), 0.0
         while True:
+            if not resumed and len(self.records) > self.scene.time.max_steps:
+                raise SceneError(self.scene.source, "[time] max_steps", self.scene.time.max_steps,
+                                 "the run needs more steps: raise max_steps or the time step")
             record = self.records[-1] if resumed else self.step(t, dt)
             if lengths is not None:
                 dt = next(lengths, None)
@@ -116,9 +119,6 @@ class Simulation:
                 dt = self.next_dt(t, record.distance)
                 if dt is not None and self.steady():
                     dt = None
-            if not resumed and record.step > self.scene.time.max_steps:
-                raise SceneError(self.scene.source, "[time] max_steps", self.scene.time.max_steps,
-                                 "the run needs more steps: raise max_steps or the time step")
             self.t, self.dt_next = t, dt
             yield record
             resumed = False
