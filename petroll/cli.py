@@ -1,16 +1,17 @@
 """The ``petroll`` command: a thin layer over the Python API.
 
-    petroll run SCENE.toml [--out DIR] [PETSc options, e.g. -petroll_tao_type gpcg -petroll_tao_monitor]
+    petroll run SCENE.toml [--out DIR] [--estimate-error] [PETSc options, e.g. -petroll_tao_type gpcg]
     petroll restart CHECKPOINT.h5|DIR [--out DIR] [--scene NEW.toml] [PETSc options]   continue a run
     petroll check SCENE.toml [--ranks N]   estimate the contact, its resolution, the steps and the memory
                             per rank without running (docs/accuracy.md)
     petroll keys            print the scene reference (docs/scene.md) generated from the schema
     petroll stability [--fast] [--out DIR]   the stability map (docs/stability.md): CSV and Markdown in DIR
     petroll plot DIR [--out PLOTS] [--times T1,T2,...]   PNG figures of DIR/results.h5 (needs matplotlib)
-    petroll sweep SCENE.toml --vary KEY=SPEC [--out DIR]   one scene over values of a key (docs/sweep.md)
+    petroll sweep SCENE.toml --vary KEY=SPEC [--out DIR] [--estimate-error]   one scene over values of a
+                            key (docs/sweep.md)
     petroll stress DIR [--step N] [--depth z1,z2,... | --depths auto] [--nu NU]   stresses below a saved
                             pressure field: DIR/stress.h5 and DIR/stress.png
-    petroll bench tao|warm|skips|peers|precision|growth|mpi|memory|append [--out DIR]   benchmarks
+    petroll bench tao|warm|skips|peers|precision|growth|mpi|memory|append|estimate|accuracy [--out DIR]
                             (docs/benchmarks.md); bench warm --quick: a seconds-long check that it runs
     petroll material fit DMA.csv [--terms N | --per-decade K] [--nu NU] [--shift LAW] [--out FILE.toml]
                             a Prony series fitted to DMA data: the [material] block (docs/materials.md)
@@ -51,6 +52,8 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("scene", help="scene file (TOML)")
     run.add_argument("--out", help="output directory (default: the scene's [output] dir)")
     run.add_argument("--quiet", action="store_true", help="no progress line (also off when not a terminal)")
+    run.add_argument("--estimate-error", action="store_true", help="also solve on grids 2x (and 4x) coarser "
+                     "and report the discretisation error of the last step's values (docs/accuracy.md)")
     restart = verbs.add_parser("restart", help="continue a run from a checkpoint to its end "
                                "(docs/checkpoints.md)")
     restart.add_argument("checkpoint", help="a checkpoint file, or a run directory (its newest checkpoint)")
@@ -71,7 +74,7 @@ def _parser() -> argparse.ArgumentParser:
     stability.add_argument("--out", default="results/stability", help="directory for stability.csv and .md")
     bench = verbs.add_parser("bench", help="run a benchmark, print its table and write CSV (docs/benchmarks.md)")
     bench.add_argument("which", choices=["tao", "warm", "skips", "peers", "precision", "growth", "mpi", "memory",
-                                         "append", "layer", "steady"],
+                                         "append", "layer", "steady", "estimate", "accuracy"],
                        help="tao: every TAO type on the Hertz step; warm: operator applications per rolling "
                        "step for each first guess; skips: each saving on and off; peers: petroll against Tamaas and "
                        "ContactMechanics on the Hertz step; precision: error against run time of the "
@@ -81,7 +84,9 @@ def _parser() -> argparse.ArgumentParser:
                        "grid's cells at 1, 2 and 4 ranks (--ranks); append: results.h5 writing time per "
                        "saved step over 1000 steps; layer: cost per step of layer scenes against the "
                        "half-space (docs/layer.md); steady: the direct steady solve against the transient "
-                       "run to the same steady tolerance, V tau/a 1e-3 to 1e3")
+                       "run to the same steady tolerance, V tau/a 1e-3 to 1e3; estimate: the error "
+                       "estimate's wall time against the run's; accuracy: the estimate against the true "
+                       "error, and errors against cells per contact half-width (docs/accuracy.md)")
     bench.add_argument("--out", default="results/bench", help="directory for the CSV (and PNG) files")
     bench.add_argument("--ranks", type=_ranks, help="mpi and memory only: rank counts to run side by side as "
                        "mpirun children, e.g. 1,2 (default: mpi: the current communicator only; memory: 1,2,4)")
@@ -100,6 +105,8 @@ def _parser() -> argparse.ArgumentParser:
     sweep.add_argument("--quiet", action="store_true", help="no progress line (also off when not a terminal)")
     sweep.add_argument("--transient", action="store_true", help="run every point from rest to steady state, "
                        "even where its steady state can be solved directly (the default there)")
+    sweep.add_argument("--estimate-error", action="store_true", help="estimate each point's discretisation "
+                       "error (grids 2x and 4x coarser): columns <quantity>_error (docs/accuracy.md)")
     material = verbs.add_parser("material", help="materials from measurements (docs/materials.md)")
     material_verbs = material.add_subparsers(dest="material_verb", required=True, metavar="fit")
     fit = material_verbs.add_parser("fit", help="fit a Maxwell (relaxation) Prony series with non-negative "
@@ -378,7 +385,15 @@ def _main(args: argparse.Namespace, comm) -> int:
         if args.quick and args.which != "warm":
             raise PetrollError(f"petroll bench {args.which}: --quick applies to petroll bench warm only")
         out = pathlib.Path(args.out)
-        if args.which == "steady":
+        if args.which in ("estimate", "accuracy"):
+            from petroll.studies import accuracy
+
+            if args.which == "estimate":
+                accuracy.bench_cost(out, comm)
+            else:
+                accuracy.bench_verify(out, comm)
+                accuracy.bench_convergence(out, comm)
+        elif args.which == "steady":
             from petroll.studies.bench_steady import steady
 
             steady(out, comm)
@@ -402,7 +417,7 @@ def _main(args: argparse.Namespace, comm) -> int:
     if args.verb == "sweep":
         from petroll.studies.sweep import command
 
-        return command(args.scene, args.vary, args.out, args.quiet, comm, args.transient)
+        return command(args.scene, args.vary, args.out, args.quiet, comm, args.transient, args.estimate_error)
     if args.verb == "stress":
         return _stress(args, comm)
     if args.verb == "stability":
@@ -424,7 +439,7 @@ def _main(args: argparse.Namespace, comm) -> int:
     try:
         with stop.handling():
             results = run(scene, comm, out, progress=not args.quiet and sys.stderr.isatty(),
-                          restart=checkpoint, stop=stop)
+                          restart=checkpoint, stop=stop, estimate_error=getattr(args, "estimate_error", False))
     except RunInterrupted as exc:
         if comm.rank == 0:
             print(f"petroll: {scene.source}: {exc}; continue with: petroll restart {exc.checkpoint}",
@@ -436,7 +451,27 @@ def _main(args: argparse.Namespace, comm) -> int:
         raise
     if comm.rank == 0:
         print(summary(scene, results, wall=time.perf_counter() - start))
+        if results.error_estimate is not None:
+            print(estimate_line(results.error_estimate))
     return 0
+
+
+def estimate_line(estimate: dict) -> str:
+    """The summary's line on results.h5's error_estimate group: each value +- its discretisation error."""
+    group = estimate[""]
+    if group.get("failed"):
+        return f"petroll: no error estimate: {group['failed']}"
+    parts = []
+    for name in ("force", "delta", "mu_r", "p_max", "area", "lead", "trail"):
+        if name not in estimate:
+            continue
+        q = estimate[name]
+        if math.isnan(q["error"]):
+            parts.append(f"{name} {q['value']:.4e} (grids not in the asymptotic range: no estimate)")
+        else:
+            parts.append(f"{name} {q['value']:.4e} +- {q['error']:.2g}")
+    grids = ", ".join(f"{nx} x {ny}" for nx, ny in group["grids"])
+    return f"petroll: error estimate: {', '.join(parts)} (discretisation; grids {grids})"
 
 
 def _stress(args: argparse.Namespace, comm) -> int:

@@ -26,7 +26,8 @@ from petroll.solver.simulation import Simulation, StepRecord
 
 
 def run(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, out: str | pathlib.Path | None = None,
-        progress: bool = False, restart=None, stop=None, on_step=None, steady_start=None) -> Results:
+        progress: bool = False, restart=None, stop=None, on_step=None, steady_start=None,
+        estimate_error: bool = False) -> Results:
     """Run a scene to its end and write ``<out>/results.h5`` (default out: the scene's [output] dir).
 
     Before step 1 the scene's contact is estimated and the grid's resolution of it checked
@@ -46,6 +47,9 @@ def run(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, out: str | pathlib.Path |
     far and raises :class:`petroll.io.checkpoint.RunInterrupted`. ``on_step(record)`` is called on every rank
     after every step. ``steady_start`` ([time] mode = "steady" only): the first guess of the steady solve,
     (whole-grid pressure in Pa, penetration in m), e.g. a neighbouring steady state (continuation).
+    ``estimate_error``: after the run, solve the scene again on grids 2x (and 4x) coarser and write the
+    discretisation error of the last step's force, mu_r, p_max, area, lead and trail to results.h5's group
+    error_estimate (petroll.solver.estimate; ``Results.error_estimate``; docs/accuracy.md).
     A step that fails (SolverError, e.g. a contact reaching the grid's edge; SceneError, [time] max_steps)
     raises :class:`RunFailed` naming the scene file, the step, its time and the distance rolled, after
     every step solved before it is written to results.h5 (complete = false).
@@ -100,6 +104,12 @@ def run(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, out: str | pathlib.Path |
         resumed = False
     if progress and comm.rank == 0:
         print(file=sys.stderr)
+    if estimate_error:
+        from petroll.solver.estimate import as_attributes
+        from petroll.solver.estimate import estimate_error as estimate
+
+        per, attrs = as_attributes(estimate(scene, sim.records[-1], comm))
+        results.write_error_estimate(per, {**attrs, "run_wall_s": clock.perf_counter() - wall})
     return Results.open(results.path)
 
 

@@ -149,6 +149,7 @@ class Results:
     line: bool = False  # a line-contact (plane-strain) run: series per unit length, pressure (n, nx, 1)
     fields: tuple[str, ...] = ("pressure",)  # the saved fields in the file (keys of FIELD_UNITS)
     solved_steady: bool = False  # the steady state solved directly ([time] mode = "steady"; attribute steady)
+    error_estimate: dict | None = None  # group error_estimate: {quantity: {attribute: value}, "": group attrs}
 
     @classmethod
     def open(cls, path: str | pathlib.Path) -> "Results":
@@ -159,9 +160,14 @@ class Results:
             k = int(f.attrs.get("fields_written", len(f["fields/step"])))
             series = {name: f["series"][name][:n] for name in f["series"]}
             fields = f["fields"]
+            estimate = None
+            if "error_estimate" in f:
+                group = f["error_estimate"]
+                estimate = {name: dict(group[name].attrs) for name in group} | {"": dict(group.attrs)}
             return cls(path, series, fields["step"][:k], fields["x"][()], fields["y"][()], str(f.attrs["scene"]),
                        bool(f.attrs.get("complete", True)), bool(f.attrs.get("line_contact", False)),
-                       tuple(name for name in FIELD_UNITS if name in fields), bool(f.attrs.get("steady", False)))
+                       tuple(name for name in FIELD_UNITS if name in fields), bool(f.attrs.get("steady", False)),
+                       estimate)
 
     def field(self, name: str) -> np.ndarray:
         """The saved fields ``name`` (a key of FIELD_UNITS), (n_saved, nx, ny), read from the file."""
@@ -335,6 +341,23 @@ class ResultsFile:
             self._agree()
 
     # -- helpers ----------------------------------------------------------------------------------------
+    def write_error_estimate(self, quantities: dict[str, dict], attrs: dict) -> None:
+        """The group ``error_estimate`` (replaced if present): ``attrs`` on the group, one subgroup per
+        quantity with its attributes (value, extrapolated, error, order, ...; docs/results.md). Rank 0
+        writes; collective (OutputError on every rank)."""
+        def work():
+            with h5py.File(self.path, "a") as h:
+                if "error_estimate" in h:
+                    del h["error_estimate"]
+                group = h.create_group("error_estimate")
+                group.attrs.update(attrs)
+                for name, values in quantities.items():
+                    group.create_group(name).attrs.update(values)
+            with open(self.path, "rb") as fh:
+                os.fsync(fh.fileno())
+
+        self._guarded(work, local=True)
+
     @staticmethod
     def _mark(h: h5py.File, steps: int, fields: int, complete: bool) -> None:
         """The attributes saying how far the file is valid: ``steps`` series values, ``fields`` fields."""

@@ -213,9 +213,9 @@ def interference_box(scene, size: ContactSize, walked: Path, glassy: bool = True
     a lattice step) and on a 401-point lattice over all of the body that comes over the grid along
     ``walked`` (a second contact far from the first). A layer's surface bulges up around the load, so its
     contact reaches beyond the interference (up to sqrt(2) times for a thin incompressible bonded layer,
-    docs/layer.md): under penetration control in 3-D its box is widened by sqrt(2) about the lowest point
-    (under load control the half-space's penetration overestimates a layer's, and line contact's box is
-    the contact)."""
+    docs/layer.md): unless ``glassy`` (the least region the run will need), under penetration control in
+    3-D its box is widened by sqrt(2) about the lowest point (under load control the half-space's
+    penetration overestimates a layer's, and line contact's box is the contact)."""
     g, (lx, ly) = scene.grid, size.lowest
     depth, exact = interference_depth(scene, size, glassy)
     sx = 3 * max(size.largest[0], g.dx)
@@ -231,7 +231,7 @@ def interference_box(scene, size: ContactSize, walked: Path, glassy: bool = True
         if ii.size:
             box = [min(box[0], x[ii.min()] - widen[0]), max(box[1], x[ii.max()] + widen[0]),
                    min(box[2], y[jj.min()] - widen[1]), max(box[3], y[jj.max()] + widen[1])]
-    if scene.layer is not None and exact and not g.line:
+    if scene.layer is not None and exact and not g.line and not glassy:
         grow = math.sqrt(2)
         box = [lx + grow * (box[0] - lx), lx + grow * (box[1] - lx), ly + grow * (box[2] - ly),
                ly + grow * (box[3] - ly)]
@@ -265,10 +265,10 @@ def _edge_cells_reached(scene, depth: float, sx: float, sy: float) -> bool:
 def path_leaves(scene, size: ContactSize, walked: Path, glassy: bool = True) -> tuple[str, str] | None:
     """The first step at which the body's interference region (:func:`interference_depth`) reaches a cell
     of the grid's edge rows or columns along ``walked``: (the axis, "x" or "y"; a sentence saying where and
-    the extent the whole run needs); None if it never does. ``glassy``: under load control, with the
-    glassy or the rubbery penetration (:func:`interference_depth`). Steps whose :func:`interference_box` comes
-    within a cell of the edge cells are checked at the edge cells' centres, as the solver does (a layer's
-    box, widened for its bulge, is taken as it is)."""
+    the extent the whole run needs); None if it never does. ``glassy``: the least region the run will
+    need (under load control the glassy penetration), else the most it may (the rubbery one; a layer's
+    bulge). Steps whose :func:`interference_box` comes within a cell of the edge cells are checked at the
+    edge cells' centres, as the solver does (a layer's box widened for its bulge is taken as it is)."""
     g = scene.grid
     depth, exact = interference_depth(scene, size, glassy)
     bx0, bx1, by0, by1 = interference_box(scene, size, walked, glassy)
@@ -278,7 +278,7 @@ def path_leaves(scene, size: ContactSize, walked: Path, glassy: bool = True) -> 
     near = np.zeros(len(walked.t), dtype=bool)
     for _, lo, hi, start, end, cell in axes:
         near |= (lo <= start + 1.5 * cell) | (hi >= end - 1.5 * cell)
-    widened = scene.layer is not None and exact and not g.line
+    widened = scene.layer is not None and exact and not g.line and not glassy
     for n in np.flatnonzero(near):
         if widened or _edge_cells_reached(scene, depth, walked.sx[n], walked.sy[n]):
             break
@@ -289,7 +289,8 @@ def path_leaves(scene, size: ContactSize, walked: Path, glassy: bool = True) -> 
            else f"to [time] end = {scene.time.end:g} s" if scene.time.end is not None else "one step")
     where = ("at the start" if n == 0 else
              f"at step {n} (t = {walked.t[n]:.4g} s, after {walked.distance[n]:.4g} m of rolling)")
-    which = "" if exact else f" ({'glassy' if glassy else 'rubbery'} estimate)"
+    which = ("" if glassy else " (with a layer's bulge)") if exact else \
+        f" ({'glassy' if glassy else 'rubbery'} estimate)"
     return axis, (f"the body's contact region{which} reaches the grid's edge cells {where}: over the whole run "
                   f"({how}) it spans {axis} from {lo.min():.4g} to {hi.max():.4g} m, beyond the grid's "
                   f"[{start:g}, {end:g}] less its edge cells; enlarge [grid] {axis} or shorten the run")
@@ -307,7 +308,7 @@ class Preflight:
     ranks: int
     memory_mib: float
     leaves: tuple[str, str] | None  # (axis, where) the path's contact region reaches the grid's edge
-    creeping: tuple[str, str] | None = None  # the same with the rubbery estimate (load control): it may
+    creeping: tuple[str, str] | None = None  # the same as the contact may grow (load: rubbery; layer: bulge)
 
     def verdict(self) -> str:
         """What a run makes of the resolution: fine, warned or refused."""
@@ -343,7 +344,7 @@ class Preflight:
                 "path: " + (self.leaves[1] if self.leaves else f"the body's reference point goes from ({self.path.sx[0]:.4g}, "
                             f"{self.path.sy[0]:.4g}) to ({self.path.sx[-1]:.4g}, {self.path.sy[-1]:.4g}) m; "
                             "its contact region stays inside the grid"
-                            + (f", but as it creeps it may not: {self.creeping[1]}" if self.creeping else "")),
+                            + (f", but as it grows it may not: {self.creeping[1]}" if self.creeping else "")),
                 f"memory: about {self.memory_mib:.0f} MiB per rank on {self.ranks} rank{'s' * (self.ranks != 1)}"
                 f" ({g.nx * g.ny} cells)"]
 
@@ -360,7 +361,8 @@ def check(scene, ranks: int = 1) -> Preflight:
     memory = FIXED_MIB + BYTES_PER_CELL * g.nx * g.ny / ranks / 2**20
     walked = path(scene)
     leaves = path_leaves(scene, size, walked)
-    creeping = path_leaves(scene, size, walked, glassy=False) if leaves is None and scene.load is not None else None
+    growing = scene.load is not None or (scene.layer is not None and not g.line)  # load: creep; layer: bulge
+    creeping = path_leaves(scene, size, walked, glassy=False) if leaves is None and growing else None
     return Preflight(scene, size, cells, walked, ranks, memory, leaves, creeping)
 
 
@@ -393,7 +395,8 @@ def check_run(scene) -> Preflight:
         axis, where = found.leaves
         raise SceneError(scene.source, f"[grid] {axis}", [g.x0, g.x1] if axis == "x" else [g.y0, g.y1], where)
     if found.creeping is not None:
-        short.append(f"[grid] {found.creeping[0]}: as the contact creeps under the load {found.creeping[1]}")
+        why = "as the contact creeps under the load" if scene.load is not None else "as the layer bulges"
+        short.append(f"[grid] {found.creeping[0]}: {why} {found.creeping[1]}")
     if short:
         warnings.warn(PetrollWarning(f"{scene.source}: {'; '.join(short)} (docs/accuracy.md)"), stacklevel=2)
     return found
