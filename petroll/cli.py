@@ -1,18 +1,21 @@
 """The ``petroll`` command: a thin layer over the Python API.
 
-    petroll run SCENE.toml [--out DIR] [--overwrite] [PETSc options, e.g. -petroll_tao_type gpcg]
+    petroll run SCENE.toml [--out DIR] [--overwrite] [--estimate-error] [PETSc options, e.g. -petroll_tao_type gpcg]
     petroll restart CHECKPOINT.h5|DIR [--out DIR [--overwrite]] [--scene NEW.toml] [PETSc options]
     petroll launch mpirun -n N petroll run ...   the launch line run so that SIGTERM/SIGINT reach the ranks
                             and its exit status is theirs (143, 130; docs/cluster.md)
+    petroll check SCENE.toml [--ranks N]   estimate the contact, its resolution, the steps and the memory
+                            per rank without running (docs/accuracy.md)
     petroll keys            print the scene reference (docs/scene.md) generated from the schema
     petroll stability [--fast] [--out DIR]   the stability map (docs/stability.md): CSV and Markdown in DIR
     petroll plot DIR [--out PLOTS] [--times T1,T2,...]   PNG figures of DIR/results.h5 (needs matplotlib)
-    petroll sweep SCENE.toml --vary KEY=SPEC [--out DIR]   one scene over values of a key (docs/sweep.md)
+    petroll sweep SCENE.toml --vary KEY=SPEC [--out DIR] [--estimate-error]   one scene over values of a
+                            key (docs/sweep.md)
     petroll stress DIR [--step N] [--depth z1,z2,... | --depths auto] [--nu NU]   stresses below a saved
                             pressure field: DIR/stress.h5 and DIR/stress.png
-    petroll bench tao|warm|skips|peers|precision|growth|mpi|memory|append|layer|steady|steady-growth
-                            [--out DIR]   benchmarks (docs/benchmarks.md); bench warm --quick: a
-                            seconds-long check that it runs; bench memory --steady: steady solves
+    petroll bench tao|warm|skips|peers|precision|growth|mpi|memory|append|layer|steady|steady-growth|
+                            estimate|accuracy [--out DIR]   benchmarks (docs/benchmarks.md); bench warm
+                            --quick: a seconds-long check that it runs; bench memory --steady: steady solves
     petroll material fit DMA.csv [--terms N | --per-decade K] [--nu NU] [--shift LAW|auto:T_REF]
                             [--tolerance K] [--einf E | --einf-from-data] [--out FILE.toml]
                             a Prony series fitted to DMA data: the [material] block (docs/materials.md)
@@ -55,6 +58,8 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--quiet", action="store_true", help="no progress line (also off when not a terminal)")
     run.add_argument("--overwrite", action="store_true", help="replace the results of another scene in the "
                      "output directory (refused without it)")
+    run.add_argument("--estimate-error", action="store_true", help="also solve on grids 2x (and 4x) coarser "
+                     "and report the discretisation error of the last step's values (docs/accuracy.md)")
     restart = verbs.add_parser("restart", help="continue a run from a checkpoint to its end "
                                "(docs/checkpoints.md)")
     restart.add_argument("checkpoint", help="a checkpoint file, or a run directory (its newest checkpoint)")
@@ -70,6 +75,11 @@ def _parser() -> argparse.ArgumentParser:
                               "that SIGTERM/SIGINT reach the ranks and its exit status is theirs (143/130; "
                               "docs/cluster.md)")
     launch.add_argument("command", nargs=argparse.REMAINDER, help="the launch line")
+    check = verbs.add_parser("check", help="estimate the contact, cells per contact half-width, steps and "
+                             "memory per rank without running (docs/accuracy.md)")
+    check.add_argument("scene", help="scene file (TOML)")
+    check.add_argument("--ranks", type=_positive(int), help="ranks the memory is predicted for (default: "
+                       "those of this command)")
     verbs.add_parser("keys", help="print the scene reference generated from the schema (Markdown)")
     stability = verbs.add_parser("stability", help="sweep the stability map, write CSV and Markdown "
                                  "(docs/stability.md); exit status 1 if a run fails its checks")
@@ -77,7 +87,7 @@ def _parser() -> argparse.ArgumentParser:
     stability.add_argument("--out", default="results/stability", help="directory for stability.csv and .md")
     bench = verbs.add_parser("bench", help="run a benchmark, print its table and write CSV (docs/benchmarks.md)")
     bench.add_argument("which", choices=["tao", "warm", "skips", "peers", "precision", "growth", "mpi", "memory",
-                                         "append", "layer", "steady", "steady-growth"],
+                                         "append", "layer", "steady", "steady-growth", "estimate", "accuracy"],
                        help="tao: every TAO type on the Hertz step; warm: operator applications per rolling "
                        "step for each first guess; skips: each saving on and off; peers: petroll against Tamaas "
                        "and ContactMechanics on the Hertz step and a wavy sphere, from the same start; "
@@ -89,7 +99,9 @@ def _parser() -> argparse.ArgumentParser:
                        "saved step over 1000 steps; layer: cost per step of layer scenes against the "
                        "half-space (docs/layer.md); steady: the direct steady solve against the transient "
                        "run to the same steady tolerance, V tau/a 1e-3 to 1e3; steady-growth: the direct "
-                       "steady solve's time against the grid (512 x 256 to 2048 x 1024)")
+                       "steady solve's time against the grid (512 x 256 to 2048 x 1024); estimate: the error "
+                       "estimate's wall time against the run's; accuracy: the estimate against the true "
+                       "error, and errors against cells per contact half-width (docs/accuracy.md)")
     bench.add_argument("--out", default="results/bench", help="directory for the CSV (and PNG) files")
     bench.add_argument("--ranks", type=_ranks, help="mpi and memory only: rank counts to run side by side as "
                        "mpirun children, e.g. 1,2 (default: mpi: the current communicator only; memory: 1,2,4)")
@@ -110,6 +122,8 @@ def _parser() -> argparse.ArgumentParser:
     sweep.add_argument("--quiet", action="store_true", help="no progress line (also off when not a terminal)")
     sweep.add_argument("--transient", action="store_true", help="run every point from rest to steady state, "
                        "even where its steady state can be solved directly (the default there)")
+    sweep.add_argument("--estimate-error", action="store_true", help="estimate each point's discretisation "
+                       "error (grids 2x and 4x coarser): columns <quantity>_error (docs/accuracy.md)")
     material = verbs.add_parser("material", help="materials from measurements (docs/materials.md)")
     material_verbs = material.add_subparsers(dest="material_verb", required=True, metavar="fit")
     fit = material_verbs.add_parser("fit", help="fit a Maxwell (relaxation) Prony series with non-negative "
@@ -381,6 +395,14 @@ def _main(args: argparse.Namespace, comm) -> int:
         if comm.rank == 0:
             print(scene_reference(), end="")
         return 0
+    if args.verb == "check":
+        from petroll.model.preflight import check
+        from petroll.model.scene import load_scene
+
+        found = check(load_scene(args.scene), ranks=args.ranks or comm.size)
+        if comm.rank == 0:
+            print("\n".join(f"petroll: {line}" if k == 0 else f"  {line}" for k, line in enumerate(found.lines())))
+        return 0
     if args.verb == "bench":
         import pathlib
 
@@ -397,7 +419,15 @@ def _main(args: argparse.Namespace, comm) -> int:
         if args.steady and args.which != "memory":
             raise PetrollError(f"petroll bench {args.which}: --steady applies to petroll bench memory only")
         out = pathlib.Path(args.out)
-        if args.which in ("steady", "steady-growth"):
+        if args.which in ("estimate", "accuracy"):
+            from petroll.studies import accuracy
+
+            if args.which == "estimate":
+                accuracy.bench_cost(out, comm)
+            else:
+                accuracy.bench_verify(out, comm)
+                accuracy.bench_convergence(out, comm)
+        elif args.which in ("steady", "steady-growth"):
             from petroll.studies import bench_steady
 
             (bench_steady.steady if args.which == "steady" else bench_steady.growth)(out, comm)
@@ -423,16 +453,17 @@ def _main(args: argparse.Namespace, comm) -> int:
     if args.verb == "sweep":
         from petroll.studies.sweep import command
 
-        return command(args.scene, args.vary, args.out, args.quiet, comm, args.transient)
+        return command(args.scene, args.vary, args.out, args.quiet, comm, args.transient, args.estimate_error)
     if args.verb == "stress":
         return _stress(args, comm)
     if args.verb == "stability":
         from petroll.studies.stability import command
 
         return command(args.out, args.fast, comm)
+    from petroll.driver import RunFailed, run
     from petroll.io.checkpoint import RunInterrupted, StopRequest
+    from petroll.io.results import Results
     from petroll.model.scene import load_scene
-    from petroll.driver import run
 
     start = time.perf_counter()
     if args.verb == "restart":
@@ -444,15 +475,40 @@ def _main(args: argparse.Namespace, comm) -> int:
     try:
         with stop.handling():
             results = run(scene, comm, out, progress=not args.quiet and sys.stderr.isatty(),
-                          restart=checkpoint, stop=stop, overwrite=args.overwrite)
+                          restart=checkpoint, stop=stop, overwrite=args.overwrite,
+                          estimate_error=getattr(args, "estimate_error", False))
     except RunInterrupted as exc:
         if comm.rank == 0:
             print(f"petroll: {scene.source}: {exc}; continue with: petroll restart {exc.checkpoint}",
                   file=sys.stderr)
         return exc.exit_code
+    except RunFailed as exc:  # the summary of the steps kept, then the one-line error
+        if comm.rank == 0:
+            print(summary(scene, Results.open(exc.results), wall=time.perf_counter() - start))
+        raise
     if comm.rank == 0:
         print(summary(scene, results, wall=time.perf_counter() - start))
+        if results.error_estimate is not None:
+            print(estimate_line(results.error_estimate))
     return 0
+
+
+def estimate_line(estimate: dict) -> str:
+    """The summary's line on results.h5's error_estimate group: each value +- its discretisation error."""
+    group = estimate[""]
+    if group.get("failed"):
+        return f"petroll: no error estimate: {group['failed']}"
+    parts = []
+    for name in ("force", "delta", "mu_r", "p_max", "area", "lead", "trail"):
+        if name not in estimate:
+            continue
+        q = estimate[name]
+        if math.isnan(q["error"]):
+            parts.append(f"{name} {q['value']:.4e} (grids not in the asymptotic range: no estimate)")
+        else:
+            parts.append(f"{name} {q['value']:.4e} +- {q['error']:.2g}")
+    grids = ", ".join(f"{nx} x {ny}" for nx, ny in group["grids"])
+    return f"petroll: error estimate: {', '.join(parts)} (discretisation; grids {grids})"
 
 
 def _stress(args: argparse.Namespace, comm) -> int:
@@ -501,13 +557,16 @@ def summary(scene, results, wall: float) -> str:
     steady = scene.time.steady is not None and (
         (scene.time.end is not None and s["t"][-1] < scene.time.end * (1 - 1e-9))
         or (scene.time.distance is not None and s["distance"][-1] < scene.time.distance * (1 - 1e-9)))
-    state = "steady state reached, " if steady else ""
+    state = "steady state reached, " if steady and results.complete else ""
+    if not results.complete:
+        state = "partial: the run stopped before its end, results.h5 has complete = false; "
     line = scene.grid.line  # plane strain: per unit length, the penetration relative to the datum
     force, area = ("N/m", "contact width {:.4g} m") if line else ("N", "contact area {:.4g} m^2")
+    patch = (f"patch from {s['trail'][-1]:.4g} to {s['lead'][-1]:.4g} m along the motion"
+             if s["area"][-1] > 0 else "no contact")
     return (f"petroll: {scene.source}: {how} ({state}wall time {wall:.1f} s). Last step: force {s['force'][-1]:.6g} {force} at "
             f"penetration {s['delta'][-1]:.6g} m{' (to the datum)' if line else ''}, mu_r {s['mu_r'][-1]:.4e}, "
-            f"{area.format(s['area'][-1])}, "
-            f"patch from {s['trail'][-1]:.4g} to {s['lead'][-1]:.4g} m along the motion, max pressure "
+            f"{area.format(s['area'][-1])}, {patch}, max pressure "
             f"{s['p_max'][-1]:.6g} Pa; {int(s['applications'].sum())} operator applications in all. "
             f"Results: {results.path}")
 

@@ -18,21 +18,25 @@ from dataclasses import dataclass
 import numpy as np
 from mpi4py import MPI
 
-from petroll.errors import PetrollError, reason
+from petroll.errors import PetrollError, SceneError, SolverError, reason
 from petroll.io.checkpoint import (RunInterrupted, checkpoint_dir, remove_foreign_checkpoints, run_directory,
                                    write_checkpoint)
 from petroll.io.results import OutputError, Results, ResultsFile, results_identity
 from petroll.io.rundir import DirectoryBusy, RunLock, clean_temporaries
+from petroll.model.preflight import check_run
 from petroll.model.scene import Scene
 from petroll.solver.simulation import Simulation, StepRecord
 
 
 def run(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, out: str | pathlib.Path | None = None,
         progress: bool = False, restart=None, stop=None, on_step=None, steady_start=None,
-        overwrite: bool = False) -> Results:
+        overwrite: bool = False, estimate_error: bool = False) -> Results:
     """Run a scene to its end and write ``<out>/results.h5`` (default out: the scene's [output] dir).
 
-    Returns the results read back from the file, on every rank. ``progress`` prints a status line on
+    Before step 1 the scene's contact is estimated and the grid's resolution of it checked
+    (petroll.model.preflight.check_run: a PetrollWarning below 8 cells per contact half-width, SceneError
+    below 2 unless [grid] allow_coarse = true), and its path: SceneError for a body that never presses or
+    whose contact region would reach the grid's edge. Returns the results read back from the file, on every rank. ``progress`` prints a status line on
     rank 0's stderr after every step.
 
     results.h5 grows as the run goes (docs/results.md): the series and each saved field are appended when
@@ -48,6 +52,12 @@ def run(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, out: str | pathlib.Path |
     :class:`petroll.io.checkpoint.RunInterrupted`. ``on_step(record)`` is called on every rank after every
     step. ``steady_start`` ([time] mode = "steady" only): the first guess of the steady solve, (whole-grid
     pressure in Pa, penetration in m), e.g. a neighbouring steady state (continuation).
+    ``estimate_error``: after the run, solve the scene again on grids 2x (and 4x) coarser and write the
+    discretisation error of the last step's force, mu_r, p_max, area, lead and trail to results.h5's group
+    error_estimate (petroll.solver.estimate; ``Results.error_estimate``; docs/accuracy.md).
+    A step that fails (SolverError, e.g. a contact reaching the grid's edge; SceneError, [time] max_steps)
+    raises :class:`RunFailed` naming the scene file, the step, its time and the distance rolled, after
+    every step solved before it is written to results.h5 (complete = false).
 
     ``out`` is held by this run alone (``out/petroll.lock``; OutputError if another process holds it), and
     results of another scene there (another run's, for a restart into another directory) are refused with
@@ -55,18 +65,20 @@ def run(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, out: str | pathlib.Path |
     on every rank, results.h5 holding the steps of its last complete append.
     """
     out = pathlib.Path(out) if out is not None else scene.output_dir
+    if restart is None:
+        check_run(scene)  # before anything is written: touching, path, resolution (petroll.model.preflight)
     lock = claim_output(out, comm, f"petroll run {scene.source}" if restart is None else
                         f"petroll restart {restart.path}")
     try:
         run_id = _run_identity(out, scene, comm, restart, overwrite)
-        return _run(scene, comm, out, run_id, progress, restart, stop, on_step, steady_start)
+        return _run(scene, comm, out, run_id, progress, restart, stop, on_step, steady_start, estimate_error)
     finally:
         if lock is not None:
             lock.release()
 
 
 def _run(scene: Scene, comm: MPI.Comm, out: pathlib.Path, run_id: str, progress: bool, restart, stop,
-         on_step, steady_start) -> Results:
+         on_step, steady_start, estimate_error: bool) -> Results:
     """The time loop of :func:`run`, its output directory claimed."""
     sim = Simulation(scene, comm)
     sim.steady_start = steady_start
@@ -83,7 +95,14 @@ def _run(scene: Scene, comm: MPI.Comm, out: pathlib.Path, run_id: str, progress:
     resumed = restart is not None  # the first record is the restored step's, not solved again
     newest = restart.path if restart is not None else None  # this run's newest checkpoint
     wall = clock.perf_counter()
-    for record in sim.steps(t):
+    steps = sim.steps(t)
+    while True:
+        try:
+            record = next(steps, None)
+        except (SolverError, SceneError) as exc:  # a step failed (on every rank alike): keep what was solved
+            raise _failure(scene, sim, results, newest, exc, progress) from None
+        if record is None:
+            break
         stop_now = sim.dt_next is None
         save = not resumed and (stop_now or record.step == 0
                                 or bool(scene.every and record.step % scene.every == 0))
@@ -100,15 +119,21 @@ def _run(scene: Scene, comm: MPI.Comm, out: pathlib.Path, run_id: str, progress:
         if (record.step == 0 or resumed) and comm.rank == 0:  # results.h5 is this run's now: so are they
             remove_foreign_checkpoints(checkpoint_dir(out), run_id)
         if due or interrupted:
-            path = newest = write_checkpoint(checkpoint_dir(out), sim, sim.t, sim.dt_next,
+            newest = write_checkpoint(checkpoint_dir(out), sim, sim.t, sim.dt_next,
                                              results.field_steps, scene.keep, run_id=run_id)
             if interrupted:
                 if progress and comm.rank == 0:
                     print(file=sys.stderr)
-                raise RunInterrupted(signum, record.step, record.t, path)
+                raise RunInterrupted(signum, record.step, record.t, newest)
         resumed = False
     if progress and comm.rank == 0:
         print(file=sys.stderr)
+    if estimate_error:
+        from petroll.solver.estimate import as_attributes
+        from petroll.solver.estimate import estimate_error as estimate
+
+        per, attrs = as_attributes(estimate(scene, sim.records[-1], comm))
+        results.write_error_estimate(per, {**attrs, "run_wall_s": clock.perf_counter() - wall})
     return Results.open(results.path)
 
 
@@ -124,6 +149,35 @@ def _append(results: ResultsFile, sim: Simulation, save: bool, complete: bool, d
         then = (f"free space (or fix the cause) and continue with: petroll restart {newest}" if newest else
                 "free space (or fix the cause) and run the scene again")
         raise OutputError(f"{exc}; {kept}; {then}") from None
+
+
+class RunFailed(PetrollError):
+    """A step failed after ``steps`` >= 1 steps were solved: results.h5 (``results``) holds them, marked
+    complete = false; ``checkpoint``: the newest checkpoint (or None)."""
+
+    def __init__(self, message: str, results: pathlib.Path, steps: int, checkpoint: pathlib.Path | None):
+        super().__init__(message)
+        self.results, self.steps, self.checkpoint = results, steps, checkpoint
+
+
+def _failure(scene: Scene, sim: Simulation, results: ResultsFile, checkpoint, exc: Exception,
+             progress: bool) -> Exception:
+    """Write every step solved before ``exc`` to results.h5 (complete = false) and say where the run
+    stopped (scene file, step, time, distance) and what it kept (collective): the RunFailed to raise
+    (``exc`` itself where no step was solved)."""
+    if progress and sim.comm.rank == 0:
+        print(file=sys.stderr)
+    done = len(sim.records)
+    if not done:  # nothing solved, nothing kept: the error as it is
+        return exc
+    results.append(sim.records, None, complete=False, describe=True)
+    t, rolled = sim.t + (sim.dt_next or 0.0), sim.records[-1].distance
+    kept = f"{results.path} holds the {done} step{'s' * (done != 1)} solved before it (complete = false)"
+    kept += f"; last checkpoint: {checkpoint}" if checkpoint is not None else "; no checkpoint"
+    cause = f"{exc.key} = {exc.value!r}: {exc.allowed}" if isinstance(exc, SceneError) else str(exc)
+    message = (f"{scene.source}: step {done} (t = {t:.6g} s, {rolled:.6g} m rolled) failed: "
+               f"{' '.join(cause.split())}. {kept}")
+    return RunFailed(message, results.path, done, checkpoint)
 
 
 def saved_fields(sim: Simulation) -> dict[str, np.ndarray]:

@@ -493,7 +493,8 @@ def test_unwritable_output_directory_is_refused_before_any_step(comm, shared_dir
     out = shared_dir / "file" / "out"
     assert main(["run", str(shared_dir / "s.toml"), "--out", str(out), "--quiet"]) == 2
     if comm.rank == 0:
-        assert capsys.readouterr().err.count("\n") == 1
+        errors = [line for line in capsys.readouterr().err.splitlines() if not line.startswith("petroll: warning:")]
+        assert len(errors) == 1  # (the coarse test scene's resolution warning aside)
 
 
 # -- real processes ---------------------------------------------------------------------------------------
@@ -525,6 +526,7 @@ def test_sigterm_during_a_cli_run_leaves_a_checkpoint_that_restart_finishes_iden
     last = list_checkpoints(tmp_path / "stopped" / "checkpoints")[-1]
     step = int(last.stem[5:])
     assert 5 <= step < len(reference.series["t"]) - 1
+    err = "\n".join(line for line in err.splitlines() if not line.startswith("petroll: warning:"))  # coarse
     assert err.strip() == (f"petroll: long.toml: interrupted by SIGTERM after step {step} (t = "
                            f"{reference.series['t'][step]:.6g} s); checkpoint stopped/checkpoints/"
                            f"{last.name}; continue with: petroll restart stopped/checkpoints/{last.name}")

@@ -151,6 +151,7 @@ class Results:
     fields: tuple[str, ...] = ("pressure",)  # the saved fields in the file (keys of FIELD_UNITS)
     solved_steady: bool = False  # the steady state solved directly ([time] mode = "steady"; attribute steady)
     run_id: str = ""  # the run's identifier, shared with its checkpoints ("" in files written before them)
+    error_estimate: dict | None = None  # group error_estimate: {quantity: {attribute: value}, "": group attrs}
 
     @classmethod
     def open(cls, path: str | pathlib.Path) -> "Results":
@@ -161,10 +162,14 @@ class Results:
             k = int(f.attrs.get("fields_written", len(f["fields/step"])))
             series = {name: f["series"][name][:n] for name in f["series"]}
             fields = f["fields"]
+            estimate = None
+            if "error_estimate" in f:
+                group = f["error_estimate"]
+                estimate = {name: dict(group[name].attrs) for name in group} | {"": dict(group.attrs)}
             return cls(path, series, fields["step"][:k], fields["x"][()], fields["y"][()], str(f.attrs["scene"]),
                        bool(f.attrs.get("complete", True)), bool(f.attrs.get("line_contact", False)),
                        tuple(name for name in FIELD_UNITS if name in fields), bool(f.attrs.get("steady", False)),
-                       str(f.attrs.get("run_id", "")))
+                       str(f.attrs.get("run_id", "")), estimate)
 
     def field(self, name: str) -> np.ndarray:
         """The saved fields ``name`` (a key of FIELD_UNITS), (n_saved, nx, ny), read from the file."""
@@ -344,6 +349,22 @@ class ResultsFile:
             self._agree()
 
     # -- helpers ----------------------------------------------------------------------------------------
+    def write_error_estimate(self, quantities: dict[str, dict], attrs: dict) -> None:
+        """The group ``error_estimate`` (replaced if present): ``attrs`` on the group, one subgroup per
+        quantity with its attributes (value, extrapolated, error, order, ...; docs/results.md). Written
+        through the journaled session like an append; collective (OutputError on every rank)."""
+        def work(f: RowFile):
+            if f.writer:
+                h = f.file
+                if "error_estimate" in h:
+                    del h["error_estimate"]
+                group = h.create_group("error_estimate")
+                group.attrs.update(attrs)
+                for name, values in quantities.items():
+                    group.create_group(name).attrs.update(values)
+
+        self._guarded(lambda: self._write(self.path, "r+", work))
+
     @staticmethod
     def _mark(h: h5py.File, steps: int, fields: int, complete: bool) -> None:
         """The attributes saying how far the file is valid: ``steps`` series values, ``fields`` fields."""

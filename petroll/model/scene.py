@@ -138,6 +138,12 @@ def _point(value: Any) -> tuple[float, float]:
         raise _Invalid("must be a pair [x, y] of finite numbers") from None
 
 
+def _flag(value: Any) -> bool:
+    if not isinstance(value, bool):
+        raise _Invalid("must be true or false")
+    return value
+
+
 def _poisson(value: Any) -> float:
     nu = _number(value)
     if not -1.0 < nu <= 0.5:
@@ -294,6 +300,8 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "x": Key("[min, max]", "extent of the grid along X in the material frame", _interval, unit="m"),
         "y": Key("[min, max]", "extent of the grid along Y in the material frame (omitted: line contact)",
                  _interval, default=None, unit="m"),
+        "allow_coarse": Key("boolean", "run even with fewer than 2 cells per estimated contact half-width "
+                            "(refused otherwise; below 8 a run warns: docs/accuracy.md)", _flag, default=False),
     },
     "material": {
         "model": Key("string", 'constitutive model: "elastic", "sls", "prony" or "tabulated"',
@@ -456,6 +464,7 @@ class Scene:
     fields: tuple[str, ...] = ("pressure",)  # saved at the saved steps ([output] fields)
     shift_factor: float = 1.0  # a_T at [material] temperature: material's times / their values at T_ref
     layer: materials.Layer | None = None  # [material] layer: a layer on a rigid base (None: a half-space)
+    allow_coarse: bool = False  # [grid] allow_coarse: run below petroll.model.preflight.LEAST_CELLS
 
     def replace(self, changes: str | dict[str, Any], value: Any = None) -> "Scene":
         """A copy with keys changed, validated again: ``scene.replace("motion.penetration", 3e-5)`` or,
@@ -566,7 +575,8 @@ def parse_scene(raw: dict, source: str = "<python>", base_dir: str | pathlib.Pat
                   checkpoint_every=values["output"]["checkpoint_every"], keep=values["output"]["keep"],
                   fields=_fields(values["output"]["fields"]),
                   shift_factor=shift_factor,
-                  layer=_material_layer(values["material"], raw.get("material", {}), source))
+                  layer=_material_layer(values["material"], raw.get("material", {}), source),
+                  allow_coarse=g["allow_coarse"])
     if time.mode == "steady":
         _check_steady(scene)
     else:

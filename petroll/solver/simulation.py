@@ -22,6 +22,7 @@ from petroll.solver.contact import BeyondReach, ContactSolver
 from petroll.errors import SceneError
 from petroll.solver.history import make_history
 from petroll.solver.steady import SteadySolve
+from petroll.model.clock import step_length
 from petroll.model.scene import Scene
 from petroll.solver.wake import Wake
 from petroll.solver.warm import WarmStart
@@ -102,6 +103,9 @@ class Simulation:
         lengths = iter(dts) if dts is not None else None
         resumed, dt = bool(self.records), 0.0
         while True:
+            if not resumed and len(self.records) > self.scene.time.max_steps:
+                raise SceneError(self.scene.source, "[time] max_steps", self.scene.time.max_steps,
+                                 "the run needs more steps: raise max_steps or the time step")
             record = self.records[-1] if resumed else self.step(t, dt)
             if lengths is not None:
                 dt = next(lengths, None)
@@ -109,9 +113,6 @@ class Simulation:
                 dt = self.next_dt(t, record.distance)
                 if dt is not None and self.steady():
                     dt = None
-            if not resumed and record.step > self.scene.time.max_steps:
-                raise SceneError(self.scene.source, "[time] max_steps", self.scene.time.max_steps,
-                                 "the run needs more steps: raise max_steps or the time step")
             self.t, self.dt_next = t, dt
             yield record
             resumed = False
@@ -121,29 +122,8 @@ class Simulation:
 
     # -- the clock --------------------------------------------------------------------------------------
     def next_dt(self, t: float, distance: float) -> float | None:
-        """Length of the step after time t (None: the run is over)."""
-        tm = self.scene.time
-        if tm.dt is None and tm.steps_per_cell is None:
-            return None
-        if tm.end is not None and t >= tm.end * (1 - 1e-12):
-            return None
-        if tm.distance is not None and distance >= tm.distance * (1 - 1e-12):
-            return None
-        speed = float(np.hypot(*self.scene.velocity(t)))
-        if tm.dt is not None:
-            dt = tm.dt
-        else:
-            scale = self.scene.velocity.peak()
-            if scale == 0:
-                raise SceneError(self.scene.source, "[time] steps_per_cell", tm.steps_per_cell,
-                                 "needs a moving body: give [time] dt for a body at rest")
-            cell = self.scene.grid.cell
-            dt = cell / (tm.steps_per_cell * max(speed, 0.1 * scale))
-        if tm.end is not None:
-            dt = min(dt, tm.end - t)
-        elif speed > 0:
-            dt = min(dt, (tm.distance - distance) / speed * (1 + 1e-9))
-        return dt
+        """Length of the step after time t (None: the run is over): petroll.model.clock.step_length."""
+        return step_length(self.scene, t, distance)
 
     # -- one step ---------------------------------------------------------------------------------------
     def step(self, t: float, dt: float) -> StepRecord:
