@@ -91,7 +91,8 @@ def _row(results: Results, step: int) -> int:
     return int(np.flatnonzero(np.asarray(steps) == step)[0])
 
 
-def _figure(width: float, height: float):
+def new_figure(width: float, height: float):
+    """A matplotlib figure of width x height inches (constrained layout) on the Agg canvas."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
@@ -130,7 +131,7 @@ def _pressure_figure(results: Results, picks: list[int], label: str):
     vmax = max(float(results.pressure[picks].max(initial=0.0)) / scale, 1e-300)
     cols = min(len(picks), MAX_PANELS)
     rows = -(-len(picks) // cols)
-    figure = _figure(max(4.2 * cols, 6.0), 3.9 * rows)
+    figure = new_figure(max(4.2 * cols, 6.0), 3.9 * rows)
     axes = np.atleast_1d(figure.subplots(rows, cols, squeeze=False).ravel())
     image = None
     for ax, k in zip(axes, picks):
@@ -171,7 +172,7 @@ def _surface_figure(results: Results, label: str):
     p = results.pressure[k, :, j]
     x = results.x * MM
     unit, scale = _pressure_unit(float(p.max(initial=0.0)))
-    figure = _figure(7.5, 4.5)
+    figure = new_figure(7.5, 4.5)
     ax = figure.subplots()
     um = 1e6
     ax.plot(x, -w * um, color="C0", label="deformed surface, -w")
@@ -202,7 +203,7 @@ def _surface_figure(results: Results, label: str):
 def _line_pressure_figure(results: Results, picks: list[int], label: str):
     """Line contact: the pressure profiles p(X) of the picked fields, with the body's position."""
     unit, scale = _pressure_unit(float(results.pressure[picks].max(initial=0.0)))
-    figure = _figure(7.5, 4.5)
+    figure = new_figure(7.5, 4.5)
     ax = figure.subplots()
     loaded = np.flatnonzero(results.pressure[picks].max(axis=(0, 2)) > 0)
     for k in picks:
@@ -231,7 +232,7 @@ def _line_patches_figure(results: Results, label: str):
     norm = matplotlib.colors.Normalize(vmin=t_fields.min(), vmax=max(t_fields.max(), t_fields.min() + 1e-300))
     cmap = matplotlib.colormaps["viridis"]
     unit, scale = _pressure_unit(float(results.pressure.max(initial=0.0)))
-    figure = _figure(6.4, 4.5)
+    figure = new_figure(6.4, 4.5)
     ax = figure.subplots()
     for k, t in enumerate(t_fields):
         sx = float(results.series["sx"][_row(results, results.field_steps[k])])
@@ -257,7 +258,7 @@ def _patches_figure(results: Results, label: str):
     t_fields = field_times(results)
     norm = matplotlib.colors.Normalize(vmin=t_fields.min(), vmax=max(t_fields.max(), t_fields.min() + 1e-300))
     cmap = matplotlib.colormaps["viridis"]
-    figure = _figure(6.4, 5.2)
+    figure = new_figure(6.4, 5.2)
     ax = figure.subplots()
     lo, hi = np.array([np.inf, np.inf]), np.array([-np.inf, -np.inf])
     for k, t in enumerate(t_fields):
@@ -312,7 +313,7 @@ def _islands_figure(results: Results, label: str):
     p = results.pressure[-1]
     islands, count = contact_islands(p > 0)
     x, y = results.x * MM, results.y * MM
-    figure = _figure(11, 5)
+    figure = new_figure(11, 5)
     left, right = figure.subplots(1, 2, gridspec_kw={"width_ratios": [1.15, 1]})
     colours = matplotlib.colormaps["tab20"](np.arange(20))
     shade = np.where(islands[..., None] > 0, colours[(islands - 1) % 20], [1.0, 1.0, 1.0, 1.0])
@@ -336,7 +337,7 @@ def _series_figure(results: Results, label: str):
     rolling = float(np.nanmax(s["distance"], initial=0.0)) > 0
     abscissa, xlabel = (s["distance"] * MM, "rolling distance (mm)") if rolling else (s["t"], "time t (s)")
     style = {"marker": "o", "markersize": 3} if len(abscissa) <= 30 else {}
-    figure = _figure(7.5, 8.0)
+    figure = new_figure(7.5, 8.0)
     force_ax, mu_ax, edge_ax = figure.subplots(3, 1, sharex=True)
 
     force_ax.plot(abscissa, s["force"], color="tab:blue", **style)
@@ -565,39 +566,6 @@ def plot_sweep(table, path: str | pathlib.Path) -> pathlib.Path:
     return path
 
 
-def plot_fit(data, fit, path: str | pathlib.Path) -> pathlib.Path:
-    """One PNG (written atomically) of a Prony fit to DMA data (:mod:`petroll.model.dma`): E', E'' and
-    tan delta against the (reduced) frequency, the data as points (one colour per temperature), the fit
-    as a line."""
-    figure = _figure(12, 4)
-    axes = figure.subplots(1, 3)
-    f = np.geomspace(*fit.frequency_range, 400)
-    storage, loss = fit.dynamic(f)
-    from matplotlib import colormaps
-
-    temperatures = [None] if data.temperature is None else sorted(set(data.temperature.tolist()))
-    for i, T in enumerate(temperatures):
-        rows = np.ones(len(data.reduced), bool) if T is None else data.temperature == T
-        colour = "tab:blue" if T is None else colormaps["viridis"](i / max(1, len(temperatures) - 1))
-        label = "data" if T is None else f"data at {T:g} K"
-        for ax, y in zip(axes, (data.storage, data.loss, data.loss / data.storage)):
-            ax.plot(data.reduced[rows], y[rows], "o", markersize=3.5, color=colour, label=label, alpha=0.8)
-    for ax, y, name in zip(axes, (storage, loss, loss / storage), ("E' (Pa)", "E'' (Pa)", "tan delta (-)")):
-        ax.plot(f, y, "-", color="black", linewidth=1.2, label=f"fit: {len(fit.moduli)} Maxwell terms")
-        ax.set_xscale("log")
-        ax.set_yscale("log")
-        ax.set_xlabel("reduced frequency (Hz)" if data.shift is not None else "frequency (Hz)")
-        ax.set_ylabel(name)
-        ax.grid(alpha=0.3, which="both")
-    axes[0].legend(fontsize=8)
-    at = f" at T_ref = {data.shift.T_ref:g} K" if data.shift is not None else ""
-    figure.suptitle(f"{pathlib.Path(data.source).name}: Prony fit{at}; relative error rms "
-                    f"{100 * fit.rms_error:.3g} %, max {100 * fit.max_error:.3g} %")
-    path = pathlib.Path(path)
-    atomic_write(path, lambda tmp: figure.savefig(tmp, dpi=110, format="png"))
-    return path
-
-
 def _proportional(x: np.ndarray, y: np.ndarray, dense: np.ndarray) -> np.ndarray | None:
     """y on ``dense`` if y = k x for one k (to 1e-9), else None."""
     if np.any(x == 0):
@@ -661,7 +629,7 @@ def plot_stress(stress_path: str | pathlib.Path, out: str | pathlib.Path | None 
         import matplotlib  # noqa: F401
     except ImportError:
         raise PetrollError("stress.png needs matplotlib: pip install matplotlib") from None
-    figure = _figure(11.0, 8.0)
+    figure = new_figure(11.0, 8.0)
     axes = figure.subplots(2, 2, squeeze=False)
     for row, (name, title) in enumerate((("von_mises", "von Mises"),
                                           ("max_shear", "max shear (Tresca)"))):

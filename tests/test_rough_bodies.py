@@ -170,3 +170,21 @@ def test_measured_roughness_and_its_mistakes(tmp_path):
         with pytest.raises(SceneError) as err:
             scene_body({"shape": "sphere", "radius": 0.01, "roughness": roughness}, tmp_path)
         assert key in str(err.value) and words in str(err.value), str(err.value)
+
+
+def test_a_generated_rough_surface_has_one_sample_per_cell(tmp_path):
+    """shape = "rough": the keys' surface drawn on the grid's nx x ny cells (self_affine_heights, itself
+    checked against its spectrum in test_roughness.py), sample (i, j) on the centre of cell (i, j) and
+    repeating; on a grid that does not repeat, the surface reaches its edges and is refused there."""
+    keys = {"hurst": 0.7, "rolloff": 0.4e-3, "cutoff": 0.2e-3, "rms_slope": 0.05, "seed": 9}
+    body = scene_body({"shape": "rough", **keys}, tmp_path)
+    samples = self_affine_heights(keys, (32, 24), (50e-6, 50e-6))
+    x, y = (np.arange(32) + 0.5)[:, None] * 50e-6 - 0.8e-3, (np.arange(24) + 0.5)[None, :] * 50e-6 - 0.6e-3
+    np.testing.assert_allclose(body.height(x, y), samples - body.lowest, rtol=0, atol=1e-12 * np.ptp(samples))
+    np.testing.assert_allclose(body.height(x + 1.6e-3, y - 1.2e-3), body.height(x, y), rtol=0, atol=1e-18)
+    raw = {"grid": GRID, "material": MATERIAL, "body": {"shape": "rough", **keys},
+           "motion": {"penetration": 0.5 * np.ptp(samples)}}
+    with pytest.raises(SceneError, match=r"\[grid\] x / y.*up to the grid's edge"):
+        parse_scene(raw, source="test.toml")
+    with pytest.raises(SceneError, match=r"\[body\] seed"):
+        scene_body({"shape": "rough", **keys, "seed": "one"}, tmp_path)

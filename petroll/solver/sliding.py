@@ -41,6 +41,7 @@ from petroll.solver.contact import ContactSolver
 from petroll.solver.history import transfer
 from petroll.solver.influence import Convolution
 from petroll.solver.kernels.periodic import Spectral
+from petroll.solver.steady import Anderson
 
 FORMS = ("operator", "modulus", "lag", "newton")
 """The kernels of the steady sliding solve, each A_k times a factor of H (class SlidingKernel)."""
@@ -121,7 +122,7 @@ class SteadySliding:
         scene, solver, comm = self.scene, self.qp, self.comm
         x = np.zeros(solver.local_shape) if start is None else np.array(start[0], dtype=float)
         delta = None if start is None else start[1]
-        mixer, work = Anderson(comm), list(solver.work)
+        mixer, work = Anderson(comm, depth=8), list(solver.work)
         change, solution, scale, last = math.inf, None, 1.0, False
         try:
             for self.iterations in range(1, max_iterations + 1):
@@ -158,57 +159,3 @@ class SteadySliding:
         solution.iterations = solver.work[0] - work[0]
         solution.applications = solver.work[1] - work[1]
         return solution, self.operator(solution.pressure)
-
-
-class Anderson:
-    """Anderson mixing (type II, ``depth`` differences) of a fixed point x = g(x) whose vectors are split
-    over ``comm`` (each rank passes its rows): the least-squares coefficients from the reduced Gram matrix
-    of the differences, solved on rank 0 and broadcast (every rank mixes with the same numbers). The
-    differences are kept only where some x or g(x) so far was non-zero (the contact's cells: a pressure is
-    zero elsewhere)."""
-
-    def __init__(self, comm: MPI.Comm, depth: int = 8):
-        self.comm, self.depth, self.last, self.df, self.dg = comm, depth, None, [], []
-        self.support = np.zeros(0, dtype=np.intp)  # flat indices where some x or g(x) was non-zero
-
-    def next(self, x: np.ndarray, gx: np.ndarray) -> np.ndarray:
-        self._grow(np.flatnonzero((x != 0) | (gx != 0)))
-        f, g = gx.ravel()[self.support] - x.ravel()[self.support], gx.ravel()[self.support]
-        if self.last is not None:
-            self.df.append(f - self.last[0])
-            self.dg.append(g - self.last[1])
-            if len(self.df) > self.depth:
-                self.df.pop(0)
-                self.dg.pop(0)
-        self.last = (f, g)
-        if not self.df:
-            return gx
-        D = np.array(self.df)
-        products = np.concatenate([(D @ D.T).ravel(), D @ f])
-        self.comm.Allreduce(MPI.IN_PLACE, products, op=MPI.SUM)
-        m = len(self.df)
-        gamma = None
-        if self.comm.rank == 0:
-            gamma = np.linalg.lstsq(products[: m * m].reshape(m, m), products[m * m :], rcond=1e-12)[0]
-        gamma = self.comm.bcast(gamma, root=0)
-        out = gx.copy()
-        out.ravel()[self.support] -= gamma @ np.array(self.dg)
-        return out
-
-    def _grow(self, indices: np.ndarray) -> None:
-        """Add ``indices`` to the support; the kept vectors get zeros there (they were zero there)."""
-        new = np.setdiff1d(indices, self.support, assume_unique=False)
-        if not len(new):
-            return
-        support = np.union1d(self.support, new)
-        where = np.searchsorted(support, self.support)
-
-        def widened(v: np.ndarray) -> np.ndarray:
-            out = np.zeros(len(support))
-            out[where] = v
-            return out
-
-        self.df, self.dg = [widened(v) for v in self.df], [widened(v) for v in self.dg]
-        if self.last is not None:
-            self.last = (widened(self.last[0]), widened(self.last[1]))
-        self.support = support

@@ -249,7 +249,7 @@ def tamaas(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, sides=(128, 256, 
 
     from petroll.model.limits import PetrollWarning
     from petroll.solver.simulation import Simulation
-    from petroll.studies.bench import peer_process, peers_python
+    from petroll.studies.peers.bench import peer_process, peers_python
 
     python = peers_python() if comm.rank == 0 else None
     rows = []
@@ -274,8 +274,8 @@ def tamaas(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, sides=(128, 256, 
         ours = np.concatenate(comm.allgather(sim.pressure))
         if comm.rank == 0:
             answer = peer_process(python, "tamaas_periodic", [str(out / f"tamaas-{n}.npy"), str(length),
-                                                                str(E), str(NU), repr(mean), f"{tol:g}"],
-                                   out / "tamaas-pressure.npy")
+                                                                str(E), str(NU), repr(mean), f"{tol:g}",
+                                                                str(out / "tamaas-pressure.npy")])
             theirs = np.load(out / "tamaas-pressure.npy")
             rows.append(dict(cells=f"{n}x{n}", tol=f"{tol:g}",
                              max_difference=f"{np.abs(ours - theirs).max() / ours.max():.1e}",

@@ -10,9 +10,9 @@ from petroll.model.bodies.analytic import Cylinder, CylinderSection, Ellipsoid, 
 from petroll.model.bodies.base import Body, cell_pair, type_name
 from petroll.model.bodies.maps import HeightMap, HeightProfile
 from petroll.model.bodies.mesh import mesh_height_map
-from petroll.model.bodies.rough import PeriodicSurface, RoughBody
+from petroll.model.bodies.rough import PeriodicSurface, RoughBody, grid_surface
 from petroll.model.grid import Grid
-from petroll.model.roughness import self_affine_heights
+from petroll.model.roughness import ROUGH_KEYS, self_affine_heights
 from petroll.model.topography import FORMATS, UNITS, read_npy, read_topography
 
 _ROUGHNESS = ("a rough surface riding on the body, its heights added, repeating beyond its samples: "
@@ -52,6 +52,7 @@ BODY_KEYS: dict[str, dict[str, str]] = {
                 ".asc, .csv), an xyz list (.xyz) or an ISO 25178-72 .x3p file; +inf: no surface there; "
                 "relative to the scene file (required; docs/rough.md)",
     },
+    "rough": ROUGH_KEYS,
     "mesh": {
         "file": "triangle surface mesh (any format meshio reads, e.g. .stl, .obj), lengths in m; "
         "relative to the scene file (required)",
@@ -74,6 +75,7 @@ _DEFAULTS: dict[str, dict[str, object]] = {
     "ellipsoid": {"roughness": None},
     "cylinder": {"edge_radius": 0.0, "axis": "y", "roughness": None},
     "heightmap": {"cell": None, "format": None, "unit": "m"},
+    "rough": {key: None for key in ROUGH_KEYS if key != "hurst"},  # absent: the generator's defaults
 }
 _COMMON_KEYS = ("shape", "position")  # position is read by the scene reader, not here
 
@@ -174,6 +176,13 @@ def make_body(table: dict, base_dir: pathlib.Path, source: str, line: bool = Fal
     if shape == "heightmap":
         topography = _measured(values, base_dir, source, "[body] ")
         return HeightMap(topography.heights, topography.cell, source=source)
+    if shape == "rough":
+        if grid is None:
+            raise SceneError(source, "[body] shape", shape, "a generated rough surface needs the scene's grid")
+        cell = (grid.dx, grid.dy)
+        rough = {key: value for key, value in table.items() if key in ROUGH_KEYS}
+        heights = self_affine_heights(rough, (grid.nx, grid.ny), cell, source=source)
+        return grid_surface(heights, cell, grid, source=source)
     if shape == "mesh":
         path = _resolve_file(source, values["file"], base_dir)
         return mesh_height_map(path, cell_pair(source, values["cell"]), source=source)
