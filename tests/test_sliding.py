@@ -232,3 +232,45 @@ def test_a_sliding_run_writes_the_contact_fraction_mean_gap_and_pressure_spectru
 
         islands = [path for path in plot_results(shared_dir / "out") if path.name == "islands.png"]
         assert islands and islands[0].read_bytes()[:4] == b"\x89PNG"
+
+
+def test_the_shipped_rough_rubber_scene_slides_to_its_steady_state(comm, shared_dir):
+    """runs/rough-rubber.toml as shipped (256^2 periodic cell of a road-like self-affine surface, the
+    39-term tread rubber of runs/sphere-dma.toml, 3.2 N, steady sliding at 10 mm/s, petroll's defaults): the
+    load is carried; the saved pressure closes the gap of an independent operator (numpy FFTs of
+    S_k = (2/|k|) H(e^{-i kx V dt}), H the integrator's transfer function; its mean from the load) on its
+    contact and leaves it open elsewhere; mu_r is the saved pressure's resisting force on the surface's
+    slope differentiated spectrally; the surface is the one its keys draw."""
+    import petroll
+    from petroll.model.scene import load_scene, shipped_scene
+
+    scene = load_scene(shipped_scene("rough-rubber.toml"))
+    scene = scene.replace("output.fields", ["pressure"])
+    results = petroll.run(scene, comm, out=shared_dir / "rough-rubber")
+    if comm.rank:
+        return
+    g, p = scene.grid, results.pressure[-1]
+    series = results.series
+    assert series["force"][-1] == pytest.approx(3.2, rel=1e-6)
+    z = scene.body.height(*g.offsets(g.x[:, None], g.y[None, :], 0.0, 0.0))
+    keys = {key: scene.raw["body"][key] for key in ("hurst", "rolloff", "cutoff", "rms_slope", "seed")}
+    drawn = self_affine_heights(keys, (g.nx, g.ny), (g.dx, g.dy))
+    assert np.ptp(z - drawn) <= 1e-12 * np.ptp(drawn)  # the keys' surface, up to a constant
+    speed = float(scene.velocity(0.0)[0])
+    dt = g.cell / speed
+    kx = 2 * np.pi * np.fft.fftfreq(g.nx, g.dx)
+    ky = 2 * np.pi * np.fft.fftfreq(g.ny, g.dy)
+    k = np.hypot(kx[:, None], ky[None, :])
+    h = transfer(scene.material, scene.solver.integrator, dt, np.exp(-1j * kx * speed * dt))[:, None]
+    own = (np.arange(g.nx) * 2 % g.nx == 0)[:, None] & (np.arange(g.ny) * 2 % g.ny == 0)[None, :]
+    symbol = np.divide(2.0, k, out=np.zeros(k.shape), where=k > 0) * np.where(own, h.real, h)
+    w = np.fft.ifft2(symbol * np.fft.fft2(p)).real
+    contact = p > 0
+    delta = float(np.mean((z + w)[contact]))
+    gap = z + w - delta
+    scale = np.ptp(z)
+    assert np.abs(gap[contact]).max() <= 1e-8 * scale  # measured 1.7e-10
+    assert gap[~contact].min() >= -1e-8 * scale and 0.2 < contact.mean() < 0.6  # a partial contact
+    slope = np.fft.ifft2(1j * kx[:, None] * np.fft.fft2(z)).real
+    assert series["mu_r"][-1] == pytest.approx((p * slope).sum() / p.sum(), rel=1e-6)
+    assert series["mu_r"][-1] > 0.01
