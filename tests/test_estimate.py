@@ -189,3 +189,14 @@ def test_on_the_sphere_the_estimate_is_within_3_of_the_true_error(comm):
     checks, found = verify(load_scene(shipped_scene("sphere.toml")), comm)
     assert found.failed is None and len(found.grids) == 3  # the fine grid, the 2x grid at two alignments
     assert_verified(checks)
+
+
+def test_the_cost_bench_times_the_run_and_its_estimate_as_results_h5_records_them(comm, shared_dir):
+    """petroll bench estimate's measure on runs/roller-2d.toml: the run's and the estimate's wall times as
+    results.h5 records them, and their ratio."""
+    from petroll.studies.accuracy import cost
+
+    found = cost(roller(), shared_dir / "cost", comm, repeats=1)
+    group = petroll.Results.open(shared_dir / "cost" / "results.h5").error_estimate[""]
+    assert found["fine_s"] == group["run_wall_s"] > 0 and found["estimate_s"] == group["wall_s"] > 0
+    assert found["ratio"] == found["estimate_s"] / found["fine_s"]
