@@ -14,8 +14,9 @@
     petroll stress DIR [--step N] [--depth z1,z2,... | --depths auto] [--nu NU]   stresses below a saved
                             pressure field: DIR/stress.h5 and DIR/stress.png
     petroll bench tao|warm|skips|peers|precision|growth|mpi|memory|append|layer|steady|steady-growth|
-                            estimate|accuracy [--out DIR]   benchmarks (docs/benchmarks.md); bench warm
-                            --quick: a seconds-long check that it runs; bench memory --steady: steady solves
+                            estimate|accuracy|periodic|sliding [--out DIR]   benchmarks (docs/benchmarks.md);
+                            bench warm --quick: a seconds-long check that it runs; bench memory --steady:
+                            steady solves; bench sliding --ranks/--sides: the rough solve's memory per rank
     petroll material fit DMA.csv [--terms N | --per-decade K] [--nu NU] [--shift LAW|auto:T_REF]
                             [--tolerance K] [--einf E | --einf-from-data] [--out FILE.toml]
                             a Prony series fitted to DMA data: the [material] block (docs/materials.md)
@@ -87,7 +88,8 @@ def _parser() -> argparse.ArgumentParser:
     stability.add_argument("--out", default="results/stability", help="directory for stability.csv and .md")
     bench = verbs.add_parser("bench", help="run a benchmark, print its table and write CSV (docs/benchmarks.md)")
     bench.add_argument("which", choices=["tao", "warm", "skips", "peers", "precision", "growth", "mpi", "memory",
-                                         "append", "layer", "steady", "steady-growth", "estimate", "accuracy"],
+                                         "append", "layer", "steady", "steady-growth", "estimate", "accuracy",
+                                         "periodic", "sliding"],
                        help="tao: every TAO type on the Hertz step; warm: operator applications per rolling "
                        "step for each first guess; skips: each saving on and off; peers: petroll against Tamaas "
                        "and ContactMechanics on the Hertz step and a wavy sphere, from the same start; "
@@ -101,12 +103,16 @@ def _parser() -> argparse.ArgumentParser:
                        "run to the same steady tolerance, V tau/a 1e-3 to 1e3; steady-growth: the direct "
                        "steady solve's time against the grid (512 x 256 to 2048 x 1024); estimate: the error "
                        "estimate's wall time against the run's; accuracy: the estimate against the true "
-                       "error, and errors against cells per contact half-width (docs/accuracy.md)")
+                       "error, and errors against cells per contact half-width (docs/accuracy.md); periodic: "
+                       "the periodic operator's cost against the non-periodic one, and periodic rough contact "
+                       "against Tamaas; sliding: steady sliding against its closed forms, a 1024^2 rough "
+                       "surface, a 512^2 friction master curve (docs/rough.md)")
     bench.add_argument("--out", default="results/bench", help="directory for the CSV (and PNG) files")
-    bench.add_argument("--ranks", type=_ranks, help="mpi and memory only: rank counts to run side by side as "
-                       "mpirun children, e.g. 1,2 (default: mpi: the current communicator only; memory: 1,2,4)")
-    bench.add_argument("--sides", type=_ranks, help="memory only: grid sides (cells) to measure, e.g. "
-                       "1024,2048,4096 (the default)")
+    bench.add_argument("--ranks", type=_ranks, help="mpi, memory and sliding only: rank counts to run side by "
+                       "side as mpirun children, e.g. 1,2 (default: mpi: the current communicator only; memory: "
+                       "1,2,4; sliding: 1,2, its memory and time per rank instead of its default tables)")
+    bench.add_argument("--sides", type=_ranks, help="memory and sliding only: grid sides (cells) to measure, "
+                       "e.g. 1024,2048,4096 (memory's default; sliding: 2048,4096)")
     bench.add_argument("--steady", action="store_true", help="memory only: the steady state solved directly "
                        "([time] mode = \"steady\") instead of rolled steps")
     bench.add_argument("--quick", action="store_true", help="warm only: a coarse grid (a/dx = 6) and one "
@@ -410,10 +416,12 @@ def _main(args: argparse.Namespace, comm) -> int:
         from petroll.studies.layer import bench as layer_bench
         from petroll.errors import PetrollError
 
-        if args.ranks is not None and args.which not in ("mpi", "memory"):
-            raise PetrollError(f"petroll bench {args.which}: --ranks applies to petroll bench mpi and memory only")
-        if args.sides is not None and args.which != "memory":
-            raise PetrollError(f"petroll bench {args.which}: --sides applies to petroll bench memory only")
+        if args.ranks is not None and args.which not in ("mpi", "memory", "sliding"):
+            raise PetrollError(f"petroll bench {args.which}: --ranks applies to petroll bench mpi, memory and "
+                               "sliding only")
+        if args.sides is not None and args.which not in ("memory", "sliding"):
+            raise PetrollError(f"petroll bench {args.which}: --sides applies to petroll bench memory and "
+                               "sliding only")
         if args.quick and args.which != "warm":
             raise PetrollError(f"petroll bench {args.which}: --quick applies to petroll bench warm only")
         if args.steady and args.which != "memory":
@@ -441,6 +449,13 @@ def _main(args: argparse.Namespace, comm) -> int:
             else:
                 bench_memory.memory(out, comm, sides=args.sides or bench_memory.SIDES,
                                     ranks=args.ranks or bench_memory.RANKS, steady=args.steady)
+        elif args.which in ("periodic", "sliding"):
+            from petroll.studies import bench_rough
+
+            if args.ranks or args.sides:  # memory and time per rank of the rough sliding solve
+                bench_rough.scale(out, args.sides or bench_rough.SCALE_SIDES, args.ranks or (1, 2))
+            else:
+                getattr(bench_rough, args.which)(out, comm)
         elif args.quick:
             bench.warm_starts(out, comm, cells_per_radius=6, repeats=1)
         else:

@@ -23,8 +23,9 @@ MM = 1e3  # m -> mm
 
 def plot_results(results_dir: str | pathlib.Path, out_dir: str | pathlib.Path | None = None,
                  times: Sequence[float] | None = None) -> list[pathlib.Path]:
-    """Write pressure.png, patches.png and series.png for ``results_dir/results.h5``, and surface.png
-    when the run saved the surface displacement and gap ([output] fields).
+    """Write pressure.png, patches.png and series.png for ``results_dir/results.h5``, surface.png
+    when the run saved the surface displacement and gap ([output] fields), and islands.png for a run on a
+    periodic grid (the contact islands of the last saved field and the pressure's spectrum).
 
     ``out_dir`` defaults to ``results_dir/plots``; ``times`` (s) picks the saved pressure fields nearest to
     those times for pressure.png (default: up to 4 spread over the run). Returns the written paths.
@@ -59,6 +60,10 @@ def plot_results(results_dir: str | pathlib.Path, out_dir: str | pathlib.Path | 
     if "displacement" in results.fields:
         target = out / "surface.png"
         _surface_figure(results, label).savefig(target, dpi=120)
+        written.append(target)
+    if results.rough is not None:
+        target = out / "islands.png"
+        _islands_figure(results, label).savefig(target, dpi=120)
         written.append(target)
     return written
 
@@ -295,6 +300,35 @@ def _patches_figure(results: Results, label: str):
                  f"{len(t_fields)} saved fields coloured by time", fontsize=10)
     mappable = matplotlib.cm.ScalarMappable(norm=norm, cmap=cmap)
     figure.colorbar(mappable, ax=ax, label="time t (s)")
+    return figure
+
+
+def _islands_figure(results: Results, label: str):
+    """The contact islands of the last saved field (cells sharing a side, joined around the periodic cell;
+    each island one colour) and the radially averaged spectrum of its pressure (results.h5 group rough)."""
+    import matplotlib
+
+    from petroll.solver.rough import contact_islands
+
+    p = results.pressure[-1]
+    islands, count = contact_islands(p > 0)
+    x, y = results.x * MM, results.y * MM
+    figure = new_figure(11, 5)
+    left, right = figure.subplots(1, 2, gridspec_kw={"width_ratios": [1.15, 1]})
+    colours = matplotlib.colormaps["tab20"](np.arange(20))
+    shade = np.where(islands[..., None] > 0, colours[(islands - 1) % 20], [1.0, 1.0, 1.0, 1.0])
+    left.imshow(np.transpose(shade, (1, 0, 2)), origin="lower", interpolation="nearest",
+                extent=(*_cell_edges(x)[[0, -1]], *_cell_edges(y)[[0, -1]]))
+    left.set(xlabel="X (mm)", ylabel="Y (mm)", aspect="equal")
+    fraction = float(results.rough["area_fraction"][-1])
+    left.set_title(f"{label}: {count} contact islands, {100 * fraction:.2f} % of the cell\n"
+                   f"(step {int(results.field_steps[-1])}; each island a colour)", fontsize=10)
+    q, spectrum = results.rough["q"][-1], results.rough["spectrum"][-1]
+    shown = np.isfinite(q) & (spectrum > 0)
+    right.loglog(q[shown], spectrum[shown], "o-", markersize=3)
+    right.set(xlabel="wavenumber q (rad/m)", ylabel="C(q) of the pressure (Pa$^2$ m$^2$)")
+    right.set_title("radially averaged power spectrum of the pressure", fontsize=10)
+    right.grid(alpha=0.3, which="both")
     return figure
 
 

@@ -187,5 +187,5 @@ def test_on_a_layer_the_estimate_says_where_its_grids_are_not_asymptotic(comm):
 def test_on_the_sphere_the_estimate_is_within_3_of_the_true_error(comm):
     """runs/sphere.toml (3-D; two 2x alignments) against a reference 4x finer (640 x 216 cells)."""
     checks, found = verify(load_scene(shipped_scene("sphere.toml")), comm)
-    assert found.failed is None and len(found.grids) == 4
+    assert found.failed is None and len(found.grids) == 3  # the fine grid, the 2x grid at two alignments
     assert_verified(checks)

@@ -11,9 +11,10 @@ steady solve's time step) the step grows with the cell, a fixed ``dt`` stays. Th
 last time without the steady stop, so that all grids compare the same instant. For each quantity q of the
 last step, with f1 its fine value, f2 the 2x grids' (mean; s half their spread) and f4 the 4x grid's:
 
-- d1 = f2 - f1, d2 = f4 - f2. Where the 4x grid was solved (it has at least ``SIGN_CELLS`` cells per
-  contact half-width) and d2 does not have d1's sign and a larger size, the grids are not in the
-  asymptotic range: no error and no extrapolated value (nan), rather than a false bound;
+- d1 = f2 - f1, d2 = f4 - f2. Where the 4x grid was solved (it keeps at least ``THIRD_GRID_CELLS`` cells
+  per contact half-width; in line contact ``SIGN_CELLS``) and d2 does not have d1's sign and a larger
+  size, the grids are not in the asymptotic range: no error and no extrapolated value (nan), rather than a
+  false bound;
 - the order p: observed, log2(d2 / d1), where the 4x grid resolves the contact (``THIRD_GRID_CELLS``) and
   that lies within a factor 2 of the method's known order (:data:`KNOWN_ORDER`; else not asymptotic);
   otherwise the known order;
@@ -57,8 +58,12 @@ THIRD_GRID_CELLS = 4.0
 """Cells per contact half-width the 4x coarser grid must keep for the order observed on it to be used."""
 
 SIGN_CELLS = 2.0
-"""Cells per contact half-width the 4x coarser grid must keep to be solved at all: coarser, the run itself
-would be refused; from here to THIRD_GRID_CELLS it checks the asymptotic range only (its order misleads)."""
+"""In line contact, cells per contact half-width the 4x coarser grid must keep to be solved at all (below,
+the run itself would be refused); from here to THIRD_GRID_CELLS it checks the asymptotic range only (its
+order misleads). In 3-D such a grid is not solved: where the contact's edges cross its cells along two axes
+its values scatter with the alignment more than they trend (on the sphere as a height map at 3 cells per
+half-width its mu_r has the other sign of error than the 2x grids', whose estimate is within 1.3 of the
+true error)."""
 
 
 @dataclass(frozen=True)
@@ -135,20 +140,29 @@ def coarser(scene: Scene, factor: int, end: float | None, shift: float = 0.0) ->
     coarse grid is shifted (by less than a coarse cell) so that the body starts at the same fraction of a
     cell from a cell centre on every grid: the error that depends on that fraction (an alignment the grids
     would not share) is not taken for a discretisation error; ``shift``: moved by that many more coarse
-    cells along each axis. In line contact the grid is not shifted: its length is the penetration's datum."""
+    cells along each axis. In line contact the grid is not shifted: its length is the penetration's datum.
+    The solver's tolerance is :func:`coarse_tol`."""
     g, (sx, sy) = scene.grid, scene.position
     if g.line:  # the grid's length is the datum of the penetration (line-contact.md): kept, not shifted
-        nx = math.ceil(g.nx / factor)
-        nx, x = nx, [g.x0, g.x0 + nx * factor * g.dx]
+        nx = math.ceil(g.nx / factor)  # (grown by less than a coarse cell where nx is not a multiple)
+        x = [g.x0, g.x0 + nx * factor * g.dx]
     else:
         nx, x = _aligned(g.x0, g.x1, g.dx, g.nx, factor, sx, shift)
-    changes = {"grid.nx": nx, "grid.x": x}
+    changes = {"grid.nx": nx, "grid.x": x, "solver.tol": coarse_tol(scene.solver.tol)}
     if not g.line:
         ny, y = _aligned(g.y0, g.y1, g.dy, g.ny, factor, sy, shift)
         changes.update({"grid.ny": ny, "grid.y": y})
     if end is not None and scene.time.mode != "steady":
         changes.update({"time.steady": None, "time.distance": None, "time.end": end})
     return scene.replace(changes)
+
+
+def coarse_tol(tol: float) -> float:
+    """The coarser grids' solver tolerance: 100 times the scene's, at most 1e-6 (never looser than the
+    scene's). The values compared differ by 1e-5 to 1e-2 of themselves between the grids; a solve to 1e-6
+    moves them by about 1e-7 of themselves (runs/sphere.toml's 2x grid: mu_r by 4e-7, the force by 4e-8)
+    and takes a quarter fewer operator applications."""
+    return max(tol, min(100 * tol, 1e-6))
 
 
 def last_values(record: StepRecord, quantities: tuple[str, ...]) -> dict[str, float]:
@@ -181,8 +195,8 @@ class ErrorEstimate:
 
 
 def estimate_error(scene: Scene, fine: StepRecord, comm: MPI.Comm = MPI.COMM_WORLD) -> ErrorEstimate:
-    """Solve ``scene`` on the 2x (and, where it still has SIGN_CELLS cells per contact half-width, 4x)
-    coarser grids to the time of the fine run's last record ``fine`` and estimate the error of that
+    """Solve ``scene`` on the 2x (and, where it still has THIRD_GRID_CELLS cells per contact half-width,
+    in line contact SIGN_CELLS, 4x) coarser grids to the time of the fine run's last record ``fine`` and estimate the error of that
     record's values (collective). A 2x run that fails (its contact at the coarser grid's edge) leaves
     ``failed`` set and no quantities; a 4x run that fails is left out."""
     began = clock.perf_counter()
@@ -193,7 +207,8 @@ def estimate_error(scene: Scene, fine: StepRecord, comm: MPI.Comm = MPI.COMM_WOR
     names = QUANTITIES + (("delta",) if scene.penetration is None else ())
     found = ErrorEstimate(grids=[(g.nx, g.ny)])
     solved: dict[tuple[int, float], dict[str, float]] = {}
-    runs = [(2, 0.0)] + ([] if g.line else [(2, 0.5)]) + ([(4, 0.0)] if cells >= SIGN_CELLS else [])
+    fourth = cells >= (SIGN_CELLS if g.line else THIRD_GRID_CELLS)
+    runs = [(2, 0.0)] + ([] if g.line else [(2, 0.5)]) + ([(4, 0.0)] if fourth else [])
     for factor, shift in runs:
         coarse = coarser(scene, factor, end, shift)
         try:
