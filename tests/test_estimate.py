@@ -102,7 +102,25 @@ def test_a_run_with_its_estimate_writes_the_group_and_the_summary_lines(comm, sh
     if comm.rank == 0:
         mu = found["mu_r"]
         assert f"\n  mu_r {mu['value']:.4e} +- {mu['error']:.1e} (discretisation)\n" in out
-        assert "error estimate of the last step (grids 184 x 1, 92 x 1, 46 x 1):" in out
+        assert "error estimate of the last step (grids 184 x 1, 92 x 1, 46 x 1; orders the method's" in out
+
+
+def test_where_the_4x_grid_resolves_the_contact_its_order_is_observed(comm, shared_dir):
+    """runs/roller-2d.toml at 2x its strips (17.5 cells per half-width; the 4x grid 4.4): the penetration's,
+    mu_r's and the peak pressure's orders are observed, log2(d2 / d1) from the coarser grids' values,
+    within a factor 2 of 2; the summary line states them."""
+    from petroll.cli import estimate_line
+    from petroll.studies.accuracy import refined
+
+    results = petroll.run(refined(roller(), 2, None), comm, out=shared_dir / "fine", estimate_error=True)
+    found = results.error_estimate
+    assert [tuple(g) for g in found[""]["grids"]] == [(368, 1), (184, 1), (92, 1)]
+    for name in ("delta", "mu_r", "p_max"):
+        q = found[name]
+        (f2, f4), f1 = q["coarse"], q["value"]
+        assert q["observed_order"] and q["order"] == pytest.approx(math.log2((f4 - f2) / (f2 - f1)), rel=1e-9)
+        assert 1 <= q["order"] <= 4
+        assert f"+- {q['error']:.1e} (discretisation, observed order {q['order']:.2f})" in estimate_line(found)
 
 
 def test_the_coarser_3d_grids_keep_the_body_at_the_same_place_in_its_cell():
