@@ -521,7 +521,8 @@ def estimate_line(estimate: dict) -> str:
     for name in ("force", "delta", "mu_r", "p_max", "area", "lead", "trail"):
         if name in estimate:
             q = estimate[name]
-            observed = f", observed order {q['order']:.2f}" if q["observed_order"] and math.isfinite(q["order"]) else ""
+            observed = (f", observed order {q['order']:.2f}" if q["observed_order"] and math.isfinite(q["order"])
+                        else "")
             lines.append(f"  {name} {q['value']:.4e} " + (
                 "(the grids are not in the asymptotic range: no estimate)" if math.isnan(q["error"]) else
                 f"+- {q['error']:.1e} (discretisation{observed})"))

@@ -77,7 +77,8 @@ def test_a_run_with_its_estimate_writes_the_group_and_the_summary_lines(comm, sh
     scene = roller()
     results = petroll.run(scene, comm, out=shared_dir / "api", estimate_error=True)
     found = results.error_estimate
-    assert [tuple(g) for g in found[""]["grids"]] == [(184, 1), (92, 1), (46, 1)] and found[""]["failed"] == ""
+    assert [tuple(g) for g in found[""]["grids"]] == [(184, 1), (92, 1), (46, 1)]
+    assert found[""]["failed"] == ""
     t_end = float(results.series["t"][-1])
     twice, four = (list(Simulation(coarser(scene, k, t_end), comm).steps())[-1] for k in (2, 4))
     assert twice.t == pytest.approx(t_end, rel=1e-12) and four.t == pytest.approx(t_end, rel=1e-12)
@@ -120,7 +121,8 @@ def test_where_the_4x_grid_resolves_the_contact_its_order_is_observed(comm, shar
         (f2, f4), f1 = q["coarse"], q["value"]
         assert q["observed_order"] and q["order"] == pytest.approx(math.log2((f4 - f2) / (f2 - f1)), rel=1e-9)
         assert 1 <= q["order"] <= 4
-        assert f"+- {q['error']:.1e} (discretisation, observed order {q['order']:.2f})" in estimate_line(found)
+        line = f"+- {q['error']:.1e} (discretisation, observed order {q['order']:.2f})"
+        assert line in estimate_line(found)
 
 
 def test_the_coarser_3d_grids_keep_the_body_at_the_same_place_in_its_cell():
@@ -132,7 +134,8 @@ def test_the_coarser_3d_grids_keep_the_body_at_the_same_place_in_its_cell():
     fine = ((sx - g.x0) / g.dx - 0.5) % 1.0, ((sy - g.y0) / g.dy - 0.5) % 1.0  # past a cell centre
     for factor, shift in ((2, 0.0), (4, 0.0), (2, 0.5)):
         c = coarser(scene, factor, 0.1, shift).grid
-        assert c.dx == pytest.approx(factor * g.dx, rel=1e-12) and c.dy == pytest.approx(factor * g.dy, rel=1e-12)
+        assert c.dx == pytest.approx(factor * g.dx, rel=1e-12)
+        assert c.dy == pytest.approx(factor * g.dy, rel=1e-12)
         assert c.x0 <= g.x0 + 1e-12 and c.x1 >= g.x1 - 1e-12 and c.y0 <= g.y0 + 1e-12 and c.y1 >= g.y1 - 1e-12
         phase = ((sx - c.x0) / c.dx - 0.5 - shift) % 1.0, ((sy - c.y0) / c.dy - 0.5 - shift) % 1.0
         for a, b in zip(phase, fine):

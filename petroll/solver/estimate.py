@@ -88,8 +88,8 @@ def richardson(fine: float, twice: tuple[float, ...], four: float | None, known:
                observe: bool = True) -> QuantityEstimate:
     """The estimate from a quantity's ``fine`` value, its values on the 2x coarser grid (``twice``: one, or
     two alignments: their mean is extrapolated, half their spread added to the error) and on the 4x grid
-    (``four``; None: not solved); ``known``: the method's order; ``observe``: the order is observed on the 4x grid (else that grid checks the
-    asymptotic range only). See the module's text."""
+    (``four``; None: not solved); ``known``: the method's order; ``observe``: the order is observed on the
+    4x grid (else that grid checks the asymptotic range only). See the module's text."""
     coarse = tuple(twice) + (() if four is None else (four,))
     scale = 1e-12 * max(abs(v) for v in (fine,) + coarse)  # differences below it are round-off: none
     f2 = float(np.mean(twice))
@@ -117,7 +117,8 @@ def quantised(fine: float, twice: tuple[float, ...], floor: float) -> QuantityEs
     """The estimate of what counts cells (:data:`COUNTED`): not extrapolated (its value jumps by cells),
     its error the larger of the 2x grids' farthest difference from ``fine`` and its quantisation
     ``floor``; order 1 (the cell's size)."""
-    return QuantityEstimate(fine, fine, max(max(abs(v - fine) for v in twice), floor), 1.0, False, tuple(twice))
+    error = max(max(abs(v - fine) for v in twice), floor)
+    return QuantityEstimate(fine, fine, error, 1.0, False, tuple(twice))
 
 
 def _aligned(start: float, end: float, cell: float, count: int, factor: int, at: float,
@@ -165,6 +166,14 @@ def coarse_tol(tol: float) -> float:
     return max(tol, min(100 * tol, 1e-6))
 
 
+def end_time(scene: Scene, record: StepRecord) -> float | None:
+    """The time (s) the coarser grids run to: that of ``record``, where the scene keeps a clock (its steps
+    follow the cell or ``dt``) and has taken a step; None for a scene of one step or a steady solve."""
+    clocked = scene.time.dt is not None or scene.time.steps_per_cell is not None
+    timed = scene.time.mode != "steady" and clocked
+    return record.t if timed and record.t > 0 else None
+
+
 def last_values(record: StepRecord, quantities: tuple[str, ...]) -> dict[str, float]:
     return {name: float(getattr(record, name)) for name in quantities}
 
@@ -196,13 +205,13 @@ class ErrorEstimate:
 
 def estimate_error(scene: Scene, fine: StepRecord, comm: MPI.Comm = MPI.COMM_WORLD) -> ErrorEstimate:
     """Solve ``scene`` on the 2x (and, where it still has THIRD_GRID_CELLS cells per contact half-width,
-    in line contact SIGN_CELLS, 4x) coarser grids to the time of the fine run's last record ``fine`` and estimate the error of that
+    in line contact SIGN_CELLS, 4x) coarser grids to the time of the fine run's last record ``fine`` and
+    estimate the error of that
     record's values (collective). A 2x run that fails (its contact at the coarser grid's edge) leaves
     ``failed`` set and no quantities; a 4x run that fails is left out."""
     began = clock.perf_counter()
     g = scene.grid
-    timed = scene.time.mode != "steady" and (scene.time.dt is not None or scene.time.steps_per_cell is not None)
-    end = fine.t if timed and fine.t > 0 else None
+    end = end_time(scene, fine)
     cells = min(check(scene).cells) / 4  # on the 4x grid
     names = QUANTITIES + (("delta",) if scene.penetration is None else ())
     found = ErrorEstimate(grids=[(g.nx, g.ny)])
@@ -224,8 +233,9 @@ def estimate_error(scene: Scene, fine: StepRecord, comm: MPI.Comm = MPI.COMM_WOR
     for name, value in last_values(fine, names).items():
         twice = tuple(v[name] for (factor, _), v in solved.items() if factor == 2)
         four = solved[4, 0.0][name] if (4, 0.0) in solved else None
-        found.quantities[name] = (quantised(value, twice, _floor(scene, fine, name)) if name in COUNTED else
-                                  richardson(value, twice, four, KNOWN_ORDER[name], observe=cells >= THIRD_GRID_CELLS))
+        found.quantities[name] = (
+            quantised(value, twice, _floor(scene, fine, name)) if name in COUNTED else
+            richardson(value, twice, four, KNOWN_ORDER[name], observe=cells >= THIRD_GRID_CELLS))
     found.wall_s = comm.allreduce(clock.perf_counter() - began, op=MPI.MAX)
     return found
 
