@@ -58,6 +58,23 @@ def test_a_coarse_fourth_grid_checks_the_range_only():
     assert not q.observed and q.order == 2.0 and q.error == pytest.approx(0.1, rel=1e-12)
 
 
+def test_a_difference_within_the_alignments_spread_takes_the_known_order():
+    """The 2x grids' mean 50 from the fine value, their spread +-650 (runs/hertz.toml's peak pressure): d1
+    is noise, so would be the order from the 4x grid (5.9 here): the known order bounds (50 + 650) / 3."""
+    q = richardson(379420.0, (378719.0, 380020.0), 376433.0, known=2.0)
+    assert not q.observed and q.order == 2.0
+    assert q.error == pytest.approx((abs(0.5 * (378719 + 380020) - 379420) + 650.5) / 3, rel=1e-12)
+
+
+def test_values_that_agree_to_round_off_have_no_error():
+    """mu_r of a symmetric contact, 0 on the fine grid and round-off on the coarser ones (runs/hertz.toml:
+    1.8e-18 and 0 on its 2x grids): an error of 0, not a sign change between round-offs."""
+    for twice, four in (((1.8e-18, 0.0), 0.0), ((1.8e-18,), -5e-19)):
+        q = richardson(0.0, twice, four, known=2.0, round_off=1e-15)
+        assert q.error == 0 and q.extrapolated == 0
+    assert math.isnan(richardson(0.0, (1.8e-18,), -5e-19, known=2.0).error)  # without: a false alarm
+
+
 def test_what_counts_cells_is_bounded_not_extrapolated():
     q = quantised(0.5, (0.6, 0.45), floor=0.01)
     assert q.extrapolated == 0.5 and q.error == pytest.approx(0.1)
