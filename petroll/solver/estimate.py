@@ -11,15 +11,16 @@ steady solve's time step) the step grows with the cell, a fixed ``dt`` stays. Th
 last time without the steady stop, so that all grids compare the same instant. For each quantity q of the
 last step, with f1 its fine value, f2 the 2x grids' (mean; s half their spread) and f4 the 4x grid's:
 
-- d1 = f2 - f1, d2 = f4 - f2. Where the 4x grid was solved (it has at least ``SIGN_CELLS`` cells per
-  contact half-width) and d2 does not have d1's sign and a larger size, the grids are not in the
-  asymptotic range: no error and no extrapolated value (nan), rather than a false bound;
+- d1 = f2 - f1, d2 = f4 - f2. Where the 4x grid was solved (it keeps at least ``THIRD_GRID_CELLS`` cells
+  per contact half-width; in line contact ``SIGN_CELLS``), |d1| exceeds s (else d1 is the alignments'
+  noise, and so would be its order: the known order is taken) and d2 does not have d1's sign and a larger
+  size, the grids are not in the asymptotic range: no error and no extrapolated value (nan), rather than a
+  false bound;
 - the order p: observed, log2(d2 / d1), where the 4x grid resolves the contact (``THIRD_GRID_CELLS``) and
   that lies within a factor 2 of the method's known order (:data:`KNOWN_ORDER`; else not asymptotic);
   otherwise the known order;
 - extrapolated = f1 - d1 / (2^p - 1); the error of f1 is (|d1| + s) / (2^q - 1) with q = min(p, the known
-  order) (an observed order above the known one does not shrink the bound); d1 = 0 on three grids (the
-  finer grids agree): s / 3, nothing extrapolated.
+  order) (an observed order above the known one does not shrink the bound).
 
 What counts cells (the area, the patch edges lead and trail) moves by whole cells, not by a power of the
 cell: it is not extrapolated, and its error is the larger of its 2x grids' difference and its quantisation
@@ -49,6 +50,11 @@ the penetration, mu_r and the peak pressure (the integrals and values of the pie
 on Love's rectangles, and the second-order time integrator with the step following the cell; measured
 orders between successive grids 1.1 to 2.4 around 10 cells per half-width, docs/accuracy.md)."""
 
+ROUND_OFF = {"mu_r": 1e-15}
+"""Differences below which a quantity's values agree whatever their size (absolute): mu_r of a symmetric
+contact is a sum of terms p dZ/dX that cancel to about 1e-18 of the force, not a number to extrapolate.
+Every quantity's differences below 1e-12 of its largest value count as round-off too."""
+
 COUNTED = ("area", "lead", "trail")
 """What counts cells (the contact area, the patch edges): a value that moves by whole cells, not by a
 power of the cell; :func:`quantised`."""
@@ -57,8 +63,12 @@ THIRD_GRID_CELLS = 4.0
 """Cells per contact half-width the 4x coarser grid must keep for the order observed on it to be used."""
 
 SIGN_CELLS = 2.0
-"""Cells per contact half-width the 4x coarser grid must keep to be solved at all: coarser, the run itself
-would be refused; from here to THIRD_GRID_CELLS it checks the asymptotic range only (its order misleads)."""
+"""In line contact, cells per contact half-width the 4x coarser grid must keep to be solved at all (below,
+the run itself would be refused); from here to THIRD_GRID_CELLS it checks the asymptotic range only (its
+order misleads). In 3-D such a grid is not solved: where the contact's edges cross its cells along two axes
+its values scatter with the alignment more than they trend (on the sphere as a height map at 3 cells per
+half-width its mu_r has the other sign of error than the 2x grids', whose estimate is within 1.3 of the
+true error)."""
 
 
 @dataclass(frozen=True)
@@ -80,22 +90,22 @@ class QuantityEstimate:
 
 
 def richardson(fine: float, twice: tuple[float, ...], four: float | None, known: float,
-               observe: bool = True) -> QuantityEstimate:
+               observe: bool = True, round_off: float = 0.0) -> QuantityEstimate:
     """The estimate from a quantity's ``fine`` value, its values on the 2x coarser grid (``twice``: one, or
     two alignments: their mean is extrapolated, half their spread added to the error) and on the 4x grid
-    (``four``; None: not solved); ``known``: the method's order; ``observe``: the order is observed on the 4x grid (else that grid checks the
-    asymptotic range only). See the module's text."""
+    (``four``; None: not solved); ``known``: the method's order; ``observe``: the order is observed on the
+    4x grid (else that grid checks the asymptotic range only); ``round_off``: differences below it are none
+    (:data:`ROUND_OFF`). See the module's text."""
     coarse = tuple(twice) + (() if four is None else (four,))
-    scale = 1e-12 * max(abs(v) for v in (fine,) + coarse)  # differences below it are round-off: none
+    scale = max(1e-12 * max(abs(v) for v in (fine,) + coarse), round_off)  # differences below: none
     f2 = float(np.mean(twice))
-    spread = 0.5 * (max(twice) - min(twice))
+    spread = 0.5 * (max(twice) - min(twice)) if max(twice) - min(twice) > scale else 0.0
     d1 = f2 - fine if abs(f2 - fine) > scale else 0.0
-    observed = four is not None and observe
+    checked = four is not None and abs(d1) > spread  # a difference within the alignments' spread: noise
+    observed = checked and observe
     order = known
-    if four is not None:
+    if checked:
         d2 = four - f2 if abs(four - f2) > scale else 0.0
-        if d1 == 0:  # the finer grids agree: nothing to extrapolate
-            return QuantityEstimate(fine, fine, spread / (2**known - 1), math.nan, observed, coarse)
         if not (d1 * d2 > 0 and abs(d2) > abs(d1)):
             return QuantityEstimate(fine, math.nan, math.nan, math.nan, observed, coarse)
         if observe:
@@ -112,7 +122,8 @@ def quantised(fine: float, twice: tuple[float, ...], floor: float) -> QuantityEs
     """The estimate of what counts cells (:data:`COUNTED`): not extrapolated (its value jumps by cells),
     its error the larger of the 2x grids' farthest difference from ``fine`` and its quantisation
     ``floor``; order 1 (the cell's size)."""
-    return QuantityEstimate(fine, fine, max(max(abs(v - fine) for v in twice), floor), 1.0, False, tuple(twice))
+    error = max(max(abs(v - fine) for v in twice), floor)
+    return QuantityEstimate(fine, fine, error, 1.0, False, tuple(twice))
 
 
 def _aligned(start: float, end: float, cell: float, count: int, factor: int, at: float,
@@ -135,20 +146,37 @@ def coarser(scene: Scene, factor: int, end: float | None, shift: float = 0.0) ->
     coarse grid is shifted (by less than a coarse cell) so that the body starts at the same fraction of a
     cell from a cell centre on every grid: the error that depends on that fraction (an alignment the grids
     would not share) is not taken for a discretisation error; ``shift``: moved by that many more coarse
-    cells along each axis. In line contact the grid is not shifted: its length is the penetration's datum."""
+    cells along each axis. In line contact the grid is not shifted: its length is the penetration's datum.
+    The solver's tolerance is :func:`coarse_tol`."""
     g, (sx, sy) = scene.grid, scene.position
     if g.line:  # the grid's length is the datum of the penetration (line-contact.md): kept, not shifted
-        nx = math.ceil(g.nx / factor)
-        nx, x = nx, [g.x0, g.x0 + nx * factor * g.dx]
+        nx = math.ceil(g.nx / factor)  # (grown by less than a coarse cell where nx is not a multiple)
+        x = [g.x0, g.x0 + nx * factor * g.dx]
     else:
         nx, x = _aligned(g.x0, g.x1, g.dx, g.nx, factor, sx, shift)
-    changes = {"grid.nx": nx, "grid.x": x}
+    changes = {"grid.nx": nx, "grid.x": x, "solver.tol": coarse_tol(scene.solver.tol)}
     if not g.line:
         ny, y = _aligned(g.y0, g.y1, g.dy, g.ny, factor, sy, shift)
         changes.update({"grid.ny": ny, "grid.y": y})
     if end is not None and scene.time.mode != "steady":
         changes.update({"time.steady": None, "time.distance": None, "time.end": end})
     return scene.replace(changes)
+
+
+def coarse_tol(tol: float) -> float:
+    """The coarser grids' solver tolerance: 100 times the scene's, at most 1e-6 (never looser than the
+    scene's). The values compared differ by 1e-5 to 1e-2 of themselves between the grids; a solve to 1e-6
+    moves them by about 1e-7 of themselves (runs/sphere.toml's 2x grid: mu_r by 4e-7, the force by 4e-8)
+    and takes a quarter fewer operator applications."""
+    return max(tol, min(100 * tol, 1e-6))
+
+
+def end_time(scene: Scene, record: StepRecord) -> float | None:
+    """The time (s) the coarser grids run to: that of ``record``, where the scene keeps a clock (its steps
+    follow the cell or ``dt``) and has taken a step; None for a scene of one step or a steady solve."""
+    clocked = scene.time.dt is not None or scene.time.steps_per_cell is not None
+    timed = scene.time.mode != "steady" and clocked
+    return record.t if timed and record.t > 0 else None
 
 
 def last_values(record: StepRecord, quantities: tuple[str, ...]) -> dict[str, float]:
@@ -181,19 +209,20 @@ class ErrorEstimate:
 
 
 def estimate_error(scene: Scene, fine: StepRecord, comm: MPI.Comm = MPI.COMM_WORLD) -> ErrorEstimate:
-    """Solve ``scene`` on the 2x (and, where it still has SIGN_CELLS cells per contact half-width, 4x)
-    coarser grids to the time of the fine run's last record ``fine`` and estimate the error of that
+    """Solve ``scene`` on the 2x (and, where it still has THIRD_GRID_CELLS cells per contact half-width,
+    in line contact SIGN_CELLS, 4x) coarser grids to the time of the fine run's last record ``fine`` and
+    estimate the error of that
     record's values (collective). A 2x run that fails (its contact at the coarser grid's edge) leaves
     ``failed`` set and no quantities; a 4x run that fails is left out."""
     began = clock.perf_counter()
     g = scene.grid
-    timed = scene.time.mode != "steady" and (scene.time.dt is not None or scene.time.steps_per_cell is not None)
-    end = fine.t if timed and fine.t > 0 else None
+    end = end_time(scene, fine)
     cells = min(check(scene).cells) / 4  # on the 4x grid
     names = QUANTITIES + (("delta",) if scene.penetration is None else ())
     found = ErrorEstimate(grids=[(g.nx, g.ny)])
     solved: dict[tuple[int, float], dict[str, float]] = {}
-    runs = [(2, 0.0)] + ([] if g.line else [(2, 0.5)]) + ([(4, 0.0)] if cells >= SIGN_CELLS else [])
+    fourth = cells >= (SIGN_CELLS if g.line else THIRD_GRID_CELLS)
+    runs = [(2, 0.0)] + ([] if g.line else [(2, 0.5)]) + ([(4, 0.0)] if fourth else [])
     for factor, shift in runs:
         coarse = coarser(scene, factor, end, shift)
         try:
@@ -209,8 +238,10 @@ def estimate_error(scene: Scene, fine: StepRecord, comm: MPI.Comm = MPI.COMM_WOR
     for name, value in last_values(fine, names).items():
         twice = tuple(v[name] for (factor, _), v in solved.items() if factor == 2)
         four = solved[4, 0.0][name] if (4, 0.0) in solved else None
-        found.quantities[name] = (quantised(value, twice, _floor(scene, fine, name)) if name in COUNTED else
-                                  richardson(value, twice, four, KNOWN_ORDER[name], observe=cells >= THIRD_GRID_CELLS))
+        found.quantities[name] = (
+            quantised(value, twice, _floor(scene, fine, name)) if name in COUNTED else
+            richardson(value, twice, four, KNOWN_ORDER[name], observe=cells >= THIRD_GRID_CELLS,
+                       round_off=ROUND_OFF.get(name, 0.0)))
     found.wall_s = comm.allreduce(clock.perf_counter() - began, op=MPI.MAX)
     return found
 
