@@ -8,8 +8,8 @@
     petroll sweep SCENE.toml --vary KEY=SPEC [--out DIR]   one scene over values of a key (docs/sweep.md)
     petroll stress DIR [--step N] [--depth z1,z2,... | --depths auto] [--nu NU]   stresses below a saved
                             pressure field: DIR/stress.h5 and DIR/stress.png
-    petroll bench tao|warm|skips|peers|precision|growth|mpi|memory|append [--out DIR]   benchmarks
-                            (docs/benchmarks.md); bench warm --quick: a seconds-long check that it runs
+    petroll bench tao|warm|skips|peers|precision|growth|mpi|memory|append|layer|steady [--out DIR] [--quick]
+                            benchmarks (docs/benchmarks.md); --quick: a seconds-long check that it runs
     petroll material fit DMA.csv [--terms N | --per-decade K] [--nu NU] [--shift LAW] [--out FILE.toml]
                             a Prony series fitted to DMA data: the [material] block (docs/materials.md)
 
@@ -64,7 +64,7 @@ def _parser() -> argparse.ArgumentParser:
     stability.add_argument("--out", default="results/stability", help="directory for stability.csv and .md")
     bench = verbs.add_parser("bench", help="run a benchmark, print its table and write CSV (docs/benchmarks.md)")
     bench.add_argument("which", choices=["tao", "warm", "skips", "peers", "precision", "growth", "mpi", "memory",
-                                         "append", "layer", "steady"],
+                                         "append", "layer", "steady"],  # petroll.studies.bench_verbs.VERBS
                        help="tao: every TAO type on the Hertz step; warm: operator applications per rolling "
                        "step for each first guess; skips: each saving on and off; peers: petroll against Tamaas and "
                        "ContactMechanics on the Hertz step; precision: error against run time of the "
@@ -80,9 +80,9 @@ def _parser() -> argparse.ArgumentParser:
                        "mpirun children, e.g. 1,2 (default: mpi: the current communicator only; memory: 1,2,4)")
     bench.add_argument("--sides", type=_ranks, help="memory only: grid sides (cells) to measure, e.g. "
                        "1024,2048,4096 (the default)")
-    bench.add_argument("--quick", action="store_true", help="warm only: a coarse grid (a/dx = 6) and one "
-                       "repeat, in seconds: shows that the benchmark runs (e.g. from an install); measures "
-                       "nothing")
+    bench.add_argument("--quick", action="store_true", help="the smallest sizes and one repeat, in seconds: "
+                       "shows that the benchmark runs and writes its files (peers: petroll's solver only, "
+                       "nothing installed); measures nothing")
     sweep = verbs.add_parser("sweep", help="run a scene over values of one key to steady state; table and "
                              "plot in DIR (docs/sweep.md); run again to resume")
     sweep.add_argument("scene", help="scene file (TOML)")
@@ -96,7 +96,7 @@ def _parser() -> argparse.ArgumentParser:
     material = verbs.add_parser("material", help="materials from measurements (docs/materials.md)")
     material_verbs = material.add_subparsers(dest="material_verb", required=True, metavar="fit")
     fit = material_verbs.add_parser("fit", help="fit a Maxwell (relaxation) Prony series with non-negative "
-                                    "moduli to DMA data; write the scene's [material] block and fit.png")
+                                    "moduli to DMA data; write the scene's [material] block and its figure")
     fit.add_argument("csv", help="DMA table: header frequency,storage,loss[,temperature] (Hz, Pa, Pa, K)")
     density = fit.add_mutually_exclusive_group()
     density.add_argument("--terms", type=_positive(int), help="candidate relaxation times in all")
@@ -108,8 +108,8 @@ def _parser() -> argparse.ArgumentParser:
                      "wlf:C1,C2,T_ref or arrhenius:Ea,T_ref (C2, T_ref in K; Ea in J/mol) or a TOML file "
                      "whose [material] shift gives it")
     fit.add_argument("--out", help="write the [material] block here (atomically; default: print it)")
-    fit.add_argument("--plot", help="the figure of data and fit (default: fit.png beside --out, or in the "
-                     "current directory)")
+    fit.add_argument("--plot", help="the figure of data and fit (default: beside --out, its name with .png; "
+                     "without --out: none)")
     plot = verbs.add_parser("plot", help="write PNG figures of a run (pressure maps, patch outlines, series)")
     plot.add_argument("dir", help="a run's output directory (holding results.h5)")
     plot.add_argument("--out", help="directory for the PNG files (default: DIR/plots)")
@@ -216,16 +216,17 @@ def _material_fit(args: argparse.Namespace) -> None:
     if args.out:
         out = pathlib.Path(args.out)
         try:
+            out.parent.mkdir(parents=True, exist_ok=True)
             atomic_write(out, lambda tmp: tmp.write_text(text, encoding="utf-8"))
         except OSError as exc:
             raise dma.DMAError(f"--out {out}: cannot write it ({exc.strerror})") from None
     else:
         print(text, end="", flush=True)
         report = sys.stderr  # the block alone on stdout, ready to redirect
-    png = pathlib.Path(args.plot) if args.plot else (pathlib.Path(args.out).with_name("fit.png") if args.out
-                                                      else pathlib.Path("fit.png"))
+    png = pathlib.Path(args.plot or pathlib.Path(args.out).with_suffix(".png")) if args.plot or args.out else None
     try:
-        plot_fit(data, fit, png)
+        if png is not None:
+            plot_fit(data, fit, png)
     except ImportError:
         print("petroll: warning: matplotlib is not installed: no plot", file=sys.stderr)
         png = "none"
@@ -238,7 +239,7 @@ def _material_fit(args: argparse.Namespace) -> None:
           f"{len(fit.moduli)} Maxwell terms (of {fit.candidates} candidate times), Einf = {fit.Einf:.6g} Pa; "
           f"relative error rms {100 * fit.rms_error:.3g} %, max {100 * fit.max_error:.3g} % (E' "
           f"{100 * fit.max_storage_error:.3g} %, E'' {100 * fit.max_loss_error:.3g} %). "
-          f"Block: {args.out or 'printed above'}; plot: {png}", file=report)
+          f"Block: {args.out or 'printed above'}; plot: {png or 'none (--plot PNG draws one)'}", file=report)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -352,37 +353,9 @@ def _main(args: argparse.Namespace, comm) -> int:
     if args.verb == "bench":
         import pathlib
 
-        from petroll.studies import bench, bench_rolling
-        from petroll.studies.layer import bench as layer_bench
-        from petroll.errors import PetrollError
+        from petroll.studies.bench_verbs import run as bench
 
-        if args.ranks is not None and args.which not in ("mpi", "memory"):
-            raise PetrollError(f"petroll bench {args.which}: --ranks applies to petroll bench mpi and memory only")
-        if args.sides is not None and args.which != "memory":
-            raise PetrollError(f"petroll bench {args.which}: --sides applies to petroll bench memory only")
-        if args.quick and args.which != "warm":
-            raise PetrollError(f"petroll bench {args.which}: --quick applies to petroll bench warm only")
-        out = pathlib.Path(args.out)
-        if args.which == "steady":
-            from petroll.studies.bench_steady import steady
-
-            steady(out, comm)
-        elif args.which == "mpi":
-            bench_rolling.mpi_scaling(out, comm, ranks=args.ranks)
-        elif args.which in ("memory", "append"):
-            from petroll.studies import bench_memory
-
-            if args.which == "append":
-                bench_memory.append(out, comm)
-            else:
-                bench_memory.memory(out, comm, sides=args.sides or bench_memory.SIDES,
-                                    ranks=args.ranks or bench_memory.RANKS)
-        elif args.quick:
-            bench.warm_starts(out, comm, cells_per_radius=6, repeats=1)
-        else:
-            {"tao": bench.tao_types, "warm": bench.warm_starts, "peers": bench.peers,
-             "precision": bench_rolling.precision, "growth": bench_rolling.growth,
-             "skips": bench_rolling.skips, "layer": layer_bench}[args.which](out, comm)
+        bench(args.which, pathlib.Path(args.out), comm, args.quick, args.ranks, args.sides)
         return 0
     if args.verb == "sweep":
         from petroll.studies.sweep import command
