@@ -114,8 +114,11 @@ fi
 "$venv/bin/python" -m pip install -q --no-deps --no-build-isolation -e . >"$log" 2>&1 \
   || "$venv/bin/python" -m pip install -q --no-deps -e . >"$log" 2>&1 \
   || fail "pip install -e . (petroll itself): $(last_line "$log"); check that setuptools is installed in $python"
+modules="numpy h5py meshio pytest hypothesis scipy matplotlib"
+# x3pio reads .x3p topographies and needs Python >= 3.11 (older: .x3p files are refused in one line)
+"$venv/bin/python" -c "import sys; sys.exit(sys.version_info < (3, 11))" 2>/dev/null && modules="$modules x3pio"
 missing=()
-for module in numpy h5py meshio pytest hypothesis scipy matplotlib; do
+for module in $modules; do
   "$venv/bin/python" -c "import $module" 2>/dev/null || missing+=("$module")
 done
 if [ ${#missing[@]} -gt 0 ]; then

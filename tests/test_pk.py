@@ -64,8 +64,10 @@ def taos():
         tao.destroy()
 
 
-def dense_tao(comm, h, b, lo, hi, gatol=1e-13, max_it=10000, set_bounds=True, made=None):
-    """A pk TAO on the dense QP (rows split over comm) and its solution Vec; the TAO appended to made."""
+def dense_tao(comm, h, b, lo, hi, gatol=1e-13, max_it=10000, set_bounds=True, made=None, grtol=0.0, gttol=0.0,
+              calls=None):
+    """A pk TAO on the dense QP (rows split over comm) and its solution Vec; the TAO appended to made;
+    ``calls`` (a list) gets one entry per objective-gradient evaluation."""
     mat = PETSc.Mat().createDense([(PETSc.DECIDE, N), (PETSc.DECIDE, N)], comm=comm)
     mat.setUp()
     r0, r1 = mat.getOwnershipRange()
@@ -75,6 +77,8 @@ def dense_tao(comm, h, b, lo, hi, gatol=1e-13, max_it=10000, set_bounds=True, ma
     rhs.setArray(b[r0:r1])
 
     def objective_gradient(tao, p, grad):
+        if calls is not None:
+            calls.append(1)
         mat.mult(p, grad)
         grad.axpy(1.0, rhs)
         return 0.5 * (p.dot(grad) + p.dot(rhs))
@@ -90,7 +94,7 @@ def dense_tao(comm, h, b, lo, hi, gatol=1e-13, max_it=10000, set_bounds=True, ma
         lower.setArray(np.where(np.isfinite(lo), lo, PETSc.NINFINITY)[r0:r1])
         upper.setArray(np.where(np.isfinite(hi), hi, PETSc.INFINITY)[r0:r1])
         tao.setVariableBounds((lower, upper))
-    tao.setTolerances(gatol=gatol, grtol=0.0, gttol=0.0)
+    tao.setTolerances(gatol=gatol, grtol=grtol, gttol=gttol)
     tao.setMaximumIterations(max_it)
     tao.setFromOptions()
     x.set(0.0)
@@ -140,6 +144,50 @@ def test_pk_stop_reasons_mean_what_they_say(comm, taos):
     tao.solve(x)
     assert tao.getConvergedReason() == PETSc.TAO.Reason.DIVERGED_USER
     assert "not positive definite" in tao.getPythonContext().breakdown
+
+
+@pytest.mark.parametrize("which", ["grtol", "gttol"])
+def test_pk_stops_on_tao_relative_tolerances_where_they_are_first_met(comm, taos, which):
+    """gatol 0 and grtol (|r| <= grtol |f|) or gttol (|r| <= gttol |r_0|) set: pk stops with TAO's reason
+    for it at the first iterate that meets it, judged here on the monitor's true f and natural residual
+    (recomputed from the dense QP), not on what pk reports."""
+    h, b, lo, hi = random_qp(7, "mixed")
+    tao, x, _ = dense_tao(comm, h, b, lo, hi, gatol=0.0, made=taos, **{which: 1e-6})
+    seen = []
+
+    def monitor(tao):
+        full = np.concatenate(comm.allgather(tao.getSolution().array_r.copy()))
+        seen.append((0.5 * full @ h @ full + b @ full, natural_residual(h, b, full, lo, hi)))
+
+    tao.setMonitor(monitor)
+    tao.solve(x)
+    met = [res <= 1e-6 * (abs(f) if which == "grtol" else seen[0][1]) for f, res in seen]
+    reason = {"grtol": PETSc.TAO.Reason.CONVERGED_GRTOL, "gttol": PETSc.TAO.Reason.CONVERGED_GTTOL}[which]
+    assert tao.getConvergedReason() == reason
+    assert met[-1] and not any(met[:-1]) and len(seen) >= 5
+    assert seen[-1][1] > 1e-12  # it stopped before the absolute tolerance of the other tests would have
+
+
+def test_pk_counts_its_evaluations_in_tao_and_stops_at_its_limit(comm, taos, tmp_path):
+    """TAO's own counter of function/gradient evaluations (as -tao_view prints it) equals the calls of the
+    objective-gradient routine counted by the routine itself; -tao_max_funcs stops pk at that many."""
+    h, b, lo, hi = random_qp(8, "finite")
+    calls = []
+    tao, x, _ = dense_tao(comm, h, b, lo, hi, made=taos, calls=calls)
+    tao.solve(x)
+    path = comm.bcast(str(tmp_path / "view.txt"))
+    viewer = PETSc.Viewer().createASCII(path, comm=comm)
+    tao.view(viewer)
+    viewer.destroy()
+    text = open(path).read() if comm.rank == 0 else ""
+    counted = comm.bcast(int(text.split("total number of function/gradient evaluations=")[-1].split(",")[0])
+                         if comm.rank == 0 else None)
+    assert counted == len(calls) > 3
+    limited = []
+    tao, x, _ = dense_tao(comm, h, b, lo, hi, made=taos, calls=limited)
+    tao.setMaximumFunctionEvaluations(3)
+    tao.solve(x)
+    assert tao.getConvergedReason() == PETSc.TAO.Reason.DIVERGED_MAXFCN and len(limited) == 3
 
 
 def test_pk_view_shows_its_own_settings(comm, taos, tmp_path):

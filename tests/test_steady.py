@@ -268,3 +268,30 @@ def test_the_memory_restricted_to_the_contact_is_inverted_exactly(axis, sign):
     expected[cells] = np.linalg.solve(columns[np.ix_(cells, cells)], f.ravel()[cells])
     got = memory.solve_restricted(f, on).ravel()
     assert np.abs(got - expected).max() <= 1e-9 * np.abs(expected).max()
+
+
+def test_a_failed_qp_inside_the_steady_solve_leaves_the_solver_as_it_was(comm):
+    """The fixed point loosens the QPs' tolerance while its memory still moves; a QP that fails (here the
+    second one, after the tolerance was loosened) raises its SolverError and leaves the solver's tolerance
+    at the scene's, as does running out of iterations."""
+    from petroll.errors import SolverError
+
+    speed = A / TAU
+    sc = scene(half=HALF, n=N, motion={"velocity": [speed, 0.0], "penetration": DELTA}, solver={"tol": 1e-10})
+    sim = Simulation(sc, comm)
+    solve, seen = sim.solver.solve_penetration, []
+
+    def failing(*args, **kwargs):
+        seen.append(sim.solver.tol)
+        if len(seen) == 2:
+            raise SolverError("TAO did not converge (a test's failure)")
+        return solve(*args, **kwargs)
+
+    sim.solver.solve_penetration = failing
+    with pytest.raises(SolverError, match="a test's failure"):
+        sim.solve_steady(tol=1e-10)
+    assert len(seen) == 2 and seen[1] > 1e-10 and sim.solver.tol == 1e-10
+    sim.solver.solve_penetration = solve
+    with pytest.raises(SolverError, match="did not converge within 2 iterations"):
+        sim.solve_steady(tol=1e-10, max_iterations=2)
+    assert sim.solver.tol == 1e-10

@@ -37,6 +37,18 @@ class Prony:
     def longest_time(self) -> float:
         return max(self.tau, default=0.0)
 
+    def complex_compliance(self, omega) -> np.ndarray:
+        """J*(omega) = J(0) + integral_0^inf J'(t) exp(-i omega t) dt (1/Pa) at angular frequencies omega
+        (rad/s): the steady surface displacement per unit pressure oscillating as exp(i omega t),
+        Jinf - sum_r dJ_r i omega tau_r / (1 + i omega tau_r). Jinf at omega = 0, J0 as |omega| -> inf,
+        Im J* < 0 for omega > 0 (the displacement lags); 1 / J* is the complex plane-strain modulus
+        E*(omega) = E(omega) / (1 - nu^2)."""
+        w = 1j * np.asarray(omega, dtype=float)
+        compliance = np.full(w.shape, self.Jinf, dtype=complex)
+        for d, tau in zip(self.dJ, self.tau):
+            compliance -= d * w * tau / (1.0 + w * tau)
+        return compliance
+
 
 def elastic(E: float, nu: float) -> Prony:
     return Prony((1 - nu**2) / E)

@@ -30,11 +30,15 @@ put back are followed by a rescaling x <- x total / sum x. It is left in ``multi
 vector holds g, and g - lambda is the gradient of the Lagrangian.
 
 Reports to TAO's monitors each iteration the true objective f and, as the residual, the projected
-gradient x - P(x - (g - lambda)) (P the projection onto the bounds) in the max norm; stops when it is
-<= gatol: CONVERGED_GATOL. Other reasons: DIVERGED_MAXITS (the iteration limit), DIVERGED_MAXFCN (the
-objective-gradient evaluation limit), DIVERGED_NAN (a non-finite f or gradient), DIVERGED_USER (a search
-direction of zero or negative curvature, d^T H d <= 0: H is not positive definite; the context's
-``breakdown`` says so in words).
+gradient r = x - P(x - (g - lambda)) (P the projection onto the bounds) in the max norm, and stops on TAO's
+three tolerances applied to it: |r| <= gatol (CONVERGED_GATOL), |r| <= grtol |f| (CONVERGED_GRTOL; f != 0),
+|r| <= gttol |r_0| (CONVERGED_GTTOL; r_0 the first iterate's), each only where it is > 0; TAO's defaults
+are gatol = grtol = 1e-8, gttol = 0 (-tao_gatol, -tao_grtol, -tao_gttol). Every objective-gradient
+evaluation goes through TAO (``computeObjectiveGradient``), so TAO's counter of function/gradient
+evaluations (``-tao_view``) holds them, and -tao_max_funcs limits them. Other reasons: DIVERGED_MAXITS
+(the iteration limit), DIVERGED_MAXFCN (the objective-gradient evaluation limit), DIVERGED_NAN (a
+non-finite f or gradient), DIVERGED_USER (a search direction of zero or negative curvature, d^T H d <= 0:
+H is not positive definite; the context's ``breakdown`` says so in words).
 """
 
 from __future__ import annotations
@@ -92,7 +96,8 @@ class PolonskyKeer:
                  f"recomputed at least every {self.refresh} iterations (-tao_pk_refresh)",
                  "step: exact minimiser along each direction, then projection (no line search: the "
                  "TaoLineSearch below is petsc4py's default for Python types and unused)",
-                 "residual: max norm of the projected gradient x - P(x - g)"]
+                 "residual: max norm of the projected gradient r = x - P(x - g); stops at |r| <= gatol, "
+                 "grtol |f| or gttol |r_0| (those > 0)"]
         for line in lines:
             viewer.printfASCII(f"  {line}\n")
 
@@ -104,7 +109,7 @@ class PolonskyKeer:
         x = tao.getSolution()
         hessian = tao.getHessian()[0]
         comm = x.getComm().tompi4py()
-        gatol = tao.getTolerances()[0]
+        gatol, grtol, gttol = tao.getTolerances()
         max_it, max_fev = tao.getMaximumIterations(), tao.getMaximumFunctionEvaluations()
         lo, hi = self._bounds(tao, x)
         pc = tao.getKSP().getPC()
@@ -149,19 +154,24 @@ class PolonskyKeer:
             return tao.computeObjectiveGradient(x, g)
 
         f = evaluate()
-        conjugate, previous_gz, its, step = False, 1.0, 0, 0.0
+        conjugate, previous_gz, its, step, first = False, 1.0, 0, 0.0, None
         while True:
             xa = x.array_r
             lam = shift(xa, g.array_r)
             ga = g.array_r - lam
             projected = xa - np.clip(xa - ga, lo, hi)
             res = comm.allreduce(float(np.abs(projected).max(initial=0.0)), op=MPI.MAX)
+            first = res if first is None else first
             tao.setIterationNumber(its)
             tao.monitor(its, f, res, 0.0, step)
             if not (np.isfinite(f) and np.isfinite(res)):
                 reason = Reason.DIVERGED_NAN
             elif res <= gatol:
                 reason = Reason.CONVERGED_GATOL
+            elif grtol > 0 and f != 0 and res <= grtol * abs(f):
+                reason = Reason.CONVERGED_GRTOL
+            elif gttol > 0 and res <= gttol * first:
+                reason = Reason.CONVERGED_GTTOL
             elif its >= max_it:
                 reason = Reason.DIVERGED_MAXITS
             elif 0 <= max_fev <= evaluations:  # a negative limit: none

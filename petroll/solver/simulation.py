@@ -280,35 +280,36 @@ class Simulation:
         m = lagged(np.pad(x, pad))
         scene_tol, change, scale, previous = solver.tol, math.inf, 1.0, None
         final = max(scene_tol, min(0.01 * tol, 1e-3))  # the last QPs' tolerance
-        for self.fixed_point_iterations in range(1, max_iterations + 1):
-            height = profile + displacement(m, x)
-            warm = warm if solution is None else solution.pressure
-            # inexact QPs while the memory is far from converged: 1 % of its last change, at least final
-            solver.tol = max(final, min(1e-3, 0.01 * change / scale))
-            if scene.penetration is not None:
-                solution = solver.solve_penetration(height, compliance, float(scene.penetration(0.0)), warm)
+        try:  # a failed QP leaves the solver's tolerance as it was
+            for self.fixed_point_iterations in range(1, max_iterations + 1):
+                height = profile + displacement(m, x)
+                warm = warm if solution is None else solution.pressure
+                # inexact QPs while the memory is far from converged: 1 % of its last change, at least final
+                solver.tol = max(final, min(1e-3, 0.01 * change / scale))
+                if scene.penetration is not None:
+                    solution = solver.solve_penetration(height, compliance, float(scene.penetration(0.0)), warm)
+                else:
+                    solution = solver.solve_load(height, compliance, float(scene.load(0.0)),
+                                                 scene.body.radius_hint, delta, warm)
+                delta = solution.delta
+                p = np.vstack(comm.allgather(solution.pressure))
+                padded = np.pad(p, pad)
+                target = lagged(padded)
+                scale = compliance * float(p.max(initial=0.0))
+                change = float(np.abs(target - m).max(initial=0.0))
+                if change <= tol * scale and solver.tol == final:
+                    break
+                forces = self._forces(solution.pressure, sx, sy, velocity / speed)
+                if steady is not None and previous is not None and solver.tol <= steady / 3 and all(
+                        abs(now - then) <= steady * forces[0] for now, then in zip(forces, previous)):
+                    break
+                previous = forces
+                x = mixer.next(x, x + newton_step(p - x, p > 0))
+                m = lagged(np.pad(x, pad))
             else:
-                solution = solver.solve_load(height, compliance, float(scene.load(0.0)),
-                                             scene.body.radius_hint, delta, warm)
-            delta = solution.delta
-            p = np.vstack(comm.allgather(solution.pressure))
-            padded = np.pad(p, pad)
-            target = lagged(padded)
-            scale = compliance * float(p.max(initial=0.0))
-            change = float(np.abs(target - m).max(initial=0.0))
-            if change <= tol * scale and solver.tol == final:
-                break
-            forces = self._forces(solution.pressure, sx, sy, velocity / speed)
-            if steady is not None and previous is not None and solver.tol <= steady / 3 and all(
-                    abs(now - then) <= steady * forces[0] for now, then in zip(forces, previous)):
-                break
-            previous = forces
-            x = mixer.next(x, x + newton_step(p - x, p > 0))
-            m = lagged(np.pad(x, pad))
-        else:
+                raise SolverError(f"the steady solve did not converge within {max_iterations} iterations")
+        finally:
             solver.tol = scene_tol
-            raise SolverError(f"the steady solve did not converge within {max_iterations} iterations")
-        solver.tol = scene_tol
         solution.iterations = solver.work[0] - work[0]
         solution.applications = solver.work[1] - work[1]
         self.pressure = solution.pressure

@@ -1,0 +1,291 @@
+"""Bodies from sampled data: height maps Z(x, y) (.npy files, rasterised meshes) and, for line contact,
+profiles Z(x)."""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import KW_ONLY, InitVar, dataclass, field
+
+import numpy as np
+from scipy import ndimage, optimize
+from scipy.interpolate import RectBivariateSpline
+
+from petroll.errors import SceneError
+from petroll.model.bodies.base import PYTHON_SOURCE, Body, cell_pair, point_pair, positive, type_name
+
+
+def check_heights(source: str, label: object, heights: object) -> np.ndarray:
+    """Heights as a 2-D float array (own copy), or SceneError on "[body] file" (``label`` is its value)."""
+    key = "[body] file"
+    try:
+        array = np.array(heights, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise SceneError(source, key, label, f"height map must be a 2-D array of numbers ({exc})") from None
+    if array.ndim != 2:
+        raise SceneError(
+            source, key, label,
+            f"height map must be a 2-D array, got {array.ndim}-D shape {array.shape}",
+        )
+    if array.shape[0] < 2 or array.shape[1] < 2:
+        raise SceneError(
+            source, key, label,
+            f"height map needs at least 2 samples along each axis, got shape {array.shape}",
+        )
+    if np.isnan(array).any() or np.isneginf(array).any():
+        raise SceneError(
+            source, key, label,
+            "height map values must be finite numbers (or +inf for no surface), found NaN or -inf",
+        )
+    finite = np.isfinite(array)
+    if not (finite[:-1, :-1] & finite[1:, :-1] & finite[:-1, 1:] & finite[1:, 1:]).any():
+        raise SceneError(
+            source, key, label,
+            "height map has no grid cell with four finite corners (no surface at all)",
+        )
+    return array
+
+
+@dataclass(frozen=True, eq=False)
+class HeightMap(Body):
+    """A body given by sampled heights, interpolated by a bicubic spline.
+
+    ``heights[i, j]`` (m, positive upward) is the lower-surface height at grid point i along x, j along y,
+    spacing ``cell`` = (hx, hy) m (a number means hx = hy).  The midpoint of the map's extent (the box
+    spanned by its sample points) sits at offset ``center`` (m) from the body reference point.
+
+    Z = S - min S, S the interpolating tensor-product cubic spline of the samples (scipy's
+    RectBivariateSpline with s = 0: not-a-knot ends; quadratic or linear along an axis of 3 or 2 samples),
+    min S its lowest point (found by a bounded minimisation around the lowest samples, so that Z >= 0
+    wherever the samples fall); the slope is S's derivative.  S is twice continuously differentiable, so
+    heights and slopes do not depend on where the points they are evaluated at fall between the samples
+    (cubic polynomials are reproduced exactly; on a smooth surface heights are accurate to O(h^4) and slopes
+    to O(h^3)).  +inf outside the extent.  Entries equal to +inf mean "no surface there" (as produced by
+    :func:`mesh_height_map` where no triangle covers a point): Z is +inf in every grid cell with such a
+    corner (the spline is fitted with them replaced by their nearest finite sample).  NaN and -inf are
+    refused.
+    """
+
+    heights: np.ndarray
+    cell: tuple[float, float] | float
+    center: tuple[float, float] = (0.0, 0.0)
+    _: KW_ONLY
+    source: InitVar[str] = PYTHON_SOURCE
+    _spline: RectBivariateSpline = field(init=False, repr=False)
+    _lowest: float = field(init=False, repr=False)
+    _ok: np.ndarray = field(init=False, repr=False)
+    _origin: tuple[float, float] = field(init=False, repr=False)
+    _radius_hint: float = field(init=False, repr=False)
+
+    def __post_init__(self, source: str) -> None:
+        shape = getattr(self.heights, "shape", None)
+        if shape is not None:
+            label = f"<heights array of shape {tuple(shape)}>"
+        else:
+            label = f"<heights {type_name(self.heights)}>"
+        heights = check_heights(source, label, self.heights)
+        cell = cell_pair(source, self.cell)
+        center = point_pair(source, "[body] center", self.center)
+        heights.setflags(write=False)
+        finite = np.isfinite(heights)
+        nx, ny = heights.shape
+        origin = (center[0] - 0.5 * (nx - 1) * cell[0], center[1] - 0.5 * (ny - 1) * cell[1])
+        # the spline on coordinates from the first sample; a missing sample takes its nearest finite one's
+        nearest = ndimage.distance_transform_edt(~finite, return_distances=False, return_indices=True)
+        filled = heights[tuple(nearest)]
+        spline = RectBivariateSpline(np.arange(nx) * cell[0], np.arange(ny) * cell[1], filled,
+                                     kx=min(3, nx - 1), ky=min(3, ny - 1), s=0)
+        set_ = object.__setattr__
+        set_(self, "heights", heights)
+        set_(self, "cell", cell)
+        set_(self, "center", center)
+        set_(self, "_spline", spline)
+        set_(self, "_ok", finite[:-1, :-1] & finite[1:, :-1] & finite[:-1, 1:] & finite[1:, 1:])
+        set_(self, "_origin", origin)
+        set_(self, "_lowest", self._spline_minimum())
+        set_(self, "_radius_hint", self._estimate_radius())
+
+    @classmethod
+    def from_npy(
+        cls,
+        path: str | os.PathLike,
+        cell: tuple[float, float] | float,
+        *,
+        center: tuple[float, float] = (0.0, 0.0),
+        source: str = PYTHON_SOURCE,
+    ) -> HeightMap:
+        """Load ``heights`` from a NumPy ``.npy`` file (axis 0 along x, axis 1 along y, values in m)."""
+        heights = check_heights(source, str(path), read_npy(path, source, "a 2-D array (not .npz)"))
+        return cls(heights, cell, center, source=source)
+
+    # -- geometry ------------------------------------------------------------------------------------------
+
+    def _cells(self, u: np.ndarray, axis: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Along one axis, for coordinates ``u`` (m) from the first sample: the sample interval's index, the
+        coordinate clipped to the samples' span, and the inside mask."""
+        n, h = self.heights.shape[axis], self.cell[axis]
+        tol = 1e-9  # in cells: the sample points themselves count as inside despite rounding
+        f = u / h
+        inside = (f >= -tol) & (f <= (n - 1) + tol)
+        clipped = np.clip(np.where(inside, u, 0.0), 0.0, (n - 1) * h)
+        return np.clip(np.floor(clipped / h).astype(np.intp), 0, n - 2), clipped, inside
+
+    def _evaluate(self, x, y, dx: int, dy: int) -> tuple[np.ndarray, np.ndarray]:
+        """S's derivative of orders (dx, dy) at (x, y) m from the reference point (broadcast; 0 where the
+        map has no surface) and where it has one. Points on a grid (x a column, y a row, both sorted) are
+        evaluated as a tensor product, about 30 times faster than point by point."""
+        u = np.asarray(x, dtype=float) - self._origin[0]
+        v = np.asarray(y, dtype=float) - self._origin[1]
+        i, uc, in_x = self._cells(u, 0)
+        j, vc, in_y = self._cells(v, 1)
+        valid = in_x & in_y & self._ok[i, j]
+        values = np.zeros(valid.shape)
+        if not valid.any():
+            return values, valid
+        if (u.ndim == 2 and v.ndim == 2 and u.shape[1] == 1 and v.shape[0] == 1
+                and np.all(np.diff(uc[:, 0]) >= 0) and np.all(np.diff(vc[0]) >= 0)):
+            rows, cols = in_x[:, 0], in_y[0]
+            values[np.ix_(rows, cols)] = self._spline_at(uc[rows, 0], vc[0, cols], dx, dy, grid=True)
+            values[~valid] = 0.0
+        else:
+            uc, vc = np.broadcast_arrays(uc, vc)
+            values[valid] = self._spline_at(uc[valid], vc[valid], dx, dy, grid=False)
+        return values, valid
+
+    def _spline_at(self, u, v, dx: int, dy: int, grid: bool) -> np.ndarray:
+        """S's derivative of orders (dx, dy) <= 1 at coordinates (u, v) from the first sample; along an axis
+        of two samples (S linear there, which FITPACK cannot differentiate) the difference of its ends."""
+        spline, (kx, ky) = self._spline, self._spline.degrees
+        if dx and kx == 1:
+            end = (self.heights.shape[0] - 1) * self.cell[0]
+            return (spline(end, v, 0, dy, grid=grid) - spline(0.0, v, 0, dy, grid=grid)) / end
+        if dy and ky == 1:
+            end = (self.heights.shape[1] - 1) * self.cell[1]
+            return (spline(u, end, dx, 0, grid=grid) - spline(u, 0.0, dx, 0, grid=grid)) / end
+        return spline(u, v, dx, dy, grid=grid)
+
+    def height(self, x, y):
+        values, valid = self._evaluate(x, y, 0, 0)
+        return np.where(valid, values - self._lowest, np.inf)
+
+    def slope(self, x, y):
+        return self._evaluate(x, y, 1, 0)[0], self._evaluate(x, y, 0, 1)[0]
+
+    def _spline_minimum(self, candidates: int = 8) -> float:
+        """min S over the cells with a surface: a bounded minimisation (L-BFGS-B, in cell units, heights
+        scaled by their spread around the start) from each of the lowest ``candidates`` samples that are
+        corners of such a cell, within the cells around it; the lowest sample if lower."""
+        heights, (hx, hy) = self.heights, self.cell
+        nx, ny = heights.shape
+        corner = np.zeros(heights.shape, dtype=bool)
+        for di in (0, 1):
+            for dj in (0, 1):
+                corner[di : nx - 1 + di, dj : ny - 1 + dj] |= self._ok
+        order = np.argsort(np.where(corner, heights, np.inf), axis=None)[:candidates]
+        best = float(heights.flat[order[0]])
+        for i, j in zip(*np.unravel_index(order, heights.shape)):
+            if not corner[i, j]:
+                break
+            near = heights[max(i - 1, 0) : i + 2, max(j - 1, 0) : j + 2]
+            z0 = float(heights[i, j])
+            scale = float(np.max(near[np.isfinite(near)]) - z0)
+            if scale <= 0.0:
+                continue
+
+            def scaled(point, z0=z0, scale=scale):
+                a, b = np.array([point[0] * hx]), np.array([point[1] * hy])
+                value = (float(self._spline_at(a, b, 0, 0, False)[0]) - z0) / scale
+                grad = np.array([float(self._spline_at(a, b, 1, 0, False)[0]) * hx,
+                                 float(self._spline_at(a, b, 0, 1, False)[0]) * hy]) / scale
+                return value, grad
+
+            bounds = [(max(i - 1, 0), min(i + 1, nx - 1)), (max(j - 1, 0), min(j + 1, ny - 1))]
+            found = optimize.minimize(scaled, [i, j], jac=True, method="L-BFGS-B", bounds=bounds,
+                                      options={"ftol": 1e-15, "gtol": 1e-12})
+            a, b = found.x
+            ci, cj = min(int(a), nx - 2), min(int(b), ny - 2)
+            if self._ok[ci, cj]:
+                best = min(best, z0 + scale * float(found.fun))
+        return best
+
+    def _estimate_radius(self) -> float:
+        z = self.heights - self.heights[np.isfinite(self.heights)].min()
+        hx, hy = self.cell
+        fallback = 0.5 * max((z.shape[0] - 1) * hx, (z.shape[1] - 1) * hy)
+        i, j = np.unravel_index(np.argmin(np.where(np.isfinite(z), z, np.inf)), z.shape)
+        radii = []
+        for axis, (k, h) in enumerate(((i, hx), (j, hy))):
+            line = z[:, j] if axis == 0 else z[i, :]
+            n = line.size
+            # a wide stencil (up to n/8 samples) smooths facets and roughness; narrow it until finite
+            step = min(k, n - 1 - k, max(1, n // 8))  # 0 at the map's edge
+            while step > 0 and not (np.isfinite(line[k - step]) and np.isfinite(line[k + step])):
+                step //= 2
+            if step == 0:
+                continue
+            curvature = (line[k + step] - 2.0 * line[k] + line[k - step]) / (step * h) ** 2
+            if np.isfinite(curvature) and curvature > 0.0:
+                radii.append(1.0 / curvature)
+        if not radii:
+            return fallback
+        return float(math.sqrt(radii[0] * radii[-1]))
+
+    @property
+    def radius_hint(self) -> float:
+        """sqrt(Rx Ry) from discrete curvatures (second differences over up to 1/8 of the map) at the
+        lowest sample (the one radius if only one is positive); half the larger extent if neither is."""
+        return self._radius_hint
+
+
+
+@dataclass(frozen=True, eq=False)
+class HeightProfile(Body):
+    """A line-contact body given by sampled heights ``heights[i]`` (m) at spacing ``cell`` (m) along x,
+    interpolated by a cubic spline (not-a-knot), independent of y; Z = S - min S as for :class:`HeightMap`,
+    +inf outside the samples (and in a sample interval with a +inf end). The middle of the samples sits at
+    the body's reference point."""
+
+    heights: np.ndarray
+    cell: float
+    _: KW_ONLY
+    source: InitVar[str] = PYTHON_SOURCE
+    _map: HeightMap = field(init=False, repr=False)
+
+    def __post_init__(self, source: str) -> None:
+        label = f"<profile of shape {np.shape(self.heights)}>"
+        line = np.asarray(self.heights, dtype=float) if np.ndim(self.heights) == 1 else None
+        if line is None:
+            raise SceneError(source, "[body] file", label, "line contact: the profile must be a 1-D array "
+                             "of heights (m) along x")
+        cell = positive(source, "[body] cell", self.cell, "the profile's spacing in m")
+        # the profile as a two-column height map (equal columns, linear along y, so any y gives the
+        # profile's spline along x); y is always taken at the first column
+        set_ = object.__setattr__
+        set_(self, "_map", HeightMap(np.stack([line, line], axis=1), (cell, 1.0), source=source))
+        set_(self, "heights", self._map.heights[:, 0])
+        set_(self, "cell", cell)
+
+    def height(self, x, y):
+        x, y = np.broadcast_arrays(np.asarray(x, dtype=float), np.asarray(y, dtype=float))
+        return self._map.height(x, np.full(x.shape, -0.5))
+
+    def slope(self, x, y):
+        x, y = np.broadcast_arrays(np.asarray(x, dtype=float), np.asarray(y, dtype=float))
+        return self._map.slope(x, np.full(x.shape, -0.5))[0], np.zeros(x.shape)
+
+    @property
+    def radius_hint(self) -> float:
+        return self._map.radius_hint
+
+
+def read_npy(path: str | os.PathLike, source: str, what: str) -> np.ndarray:
+    """The array of a .npy file, or SceneError on "[body] file" (``what``: the array it must hold)."""
+    try:
+        loaded = np.load(path, allow_pickle=False)
+    except Exception as exc:  # noqa: BLE001 - any read failure is the user's file
+        raise SceneError(source, "[body] file", str(path), f"cannot read a .npy file: {exc}") from None
+    if not isinstance(loaded, np.ndarray):
+        raise SceneError(source, "[body] file", str(path), f"must be a .npy file holding {what}")
+    return loaded
+
+

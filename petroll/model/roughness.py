@@ -1,0 +1,178 @@
+"""Self-affine random rough surfaces: their power spectrum, their generation, and the spectrum of a field.
+
+Power spectral density in Persson's convention (Persson et al., J. Phys.: Condens. Matter 17, R1, 2005):
+C(q) = (2 pi)^-2 * integral <h(x) h(0)> exp(-i q.x) d^2x (m^4), so that for an isotropic surface
+
+    h_rms^2 = 2 pi * integral q C(q) dq,    (rms slope)^2 = <|grad h|^2> = 2 pi * integral q^3 C(q) dq.
+
+A self-affine surface with a rolloff (:class:`SelfAffinePSD`): C = C0 for q < q_r, C0 (q / q_r)^(-2 (1 + H))
+for q_r <= q <= q_s and 0 beyond, with H the Hurst exponent, q_r = 2 pi / (rolloff wavelength) and
+q_s = 2 pi / (short cut-off wavelength); wavenumbers q in rad/m.
+
+On a periodic nx x ny grid of spacing (hx, hy), h(x) = sum_k a_k exp(i k.x) with
+<|a_k|^2> = (2 pi)^2 C(|k|) / (Lx Ly), Lx = nx hx, Ly = ny hy (:func:`self_affine_heights` draws such a
+Gaussian field; :func:`radial_psd` estimates C back from any field).
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.fft
+
+from petroll.errors import MISSING, SceneError
+
+__all__ = ["ROUGH_KEYS", "SelfAffinePSD", "radial_psd", "self_affine_heights"]
+
+ROUGH_KEYS: dict[str, str] = {
+    "hurst": "Hurst exponent H, 0 < H <= 1: C(q) ~ q^(-2 (1 + H)) between rolloff and cutoff (required)",
+    "rolloff": "rolloff wavelength, m: C(q) is flat at longer wavelengths (default: the surface's longer "
+               "side, no plateau)",
+    "cutoff": "short cut-off wavelength, m, at least 2 cells: no roughness at shorter wavelengths (default: "
+              "2 cells)",
+    "rms_height": "rms height of the surface, m (give this or rms_slope)",
+    "rms_slope": "rms slope sqrt(<|grad h|^2>) of the surface, dimensionless (give this or rms_height)",
+    "seed": "seed of the random numbers, an integer >= 0: the same keys give the same surface (default 0)",
+}
+"""The keys of a generated self-affine surface, with their meaning and units."""
+
+
+@dataclass(frozen=True)
+class SelfAffinePSD:
+    """C(q) = c0 (m^4) for q_long <= q < q_rolloff, c0 (q / q_rolloff)^(-2 (1 + hurst)) up to q_cutoff,
+    0 outside [q_long, q_cutoff] (wavenumbers in rad/m, q_long <= q_rolloff <= q_cutoff)."""
+
+    hurst: float
+    q_rolloff: float
+    q_cutoff: float
+    q_long: float = 0.0
+    c0: float = 1.0
+
+    def __call__(self, q) -> np.ndarray:
+        q = np.asarray(q, dtype=float)
+        ratio = np.maximum(q, self.q_rolloff) / self.q_rolloff
+        inside = (q >= self.q_long) & (q <= self.q_cutoff)
+        return np.where(inside, self.c0 * ratio ** (-2.0 * (1.0 + self.hurst)), 0.0)
+
+    def moment(self, order: int) -> float:
+        """2 pi * integral q^(order + 1) C(q) dq in closed form: order 0 is h_rms^2 (m^2), order 2 the mean
+        square slope, order 4 the mean square curvature (1/m^2)."""
+        n = order + 2  # power of q in the plateau's integrand's antiderivative
+        q0, qr, qs = self.q_long, self.q_rolloff, self.q_cutoff
+        plateau = (qr**n - q0**n) / n
+        e = n - 2.0 * (1.0 + self.hurst)  # the power law's integrand is qr^(2 + 2H) q^(e - 1)
+        tail = qr ** (2.0 + 2.0 * self.hurst) * (
+            math.log(qs / qr) if e == 0.0 else (qs**e - qr**e) / e)
+        return 2.0 * math.pi * self.c0 * (plateau + tail)
+
+    def scaled(self, rms_height: float | None = None, rms_slope: float | None = None) -> SelfAffinePSD:
+        """The same shape with c0 set for the given rms height (m) or rms slope."""
+        order, target = (0, rms_height) if rms_height is not None else (2, rms_slope)
+        unit = SelfAffinePSD(self.hurst, self.q_rolloff, self.q_cutoff, self.q_long, 1.0)
+        return SelfAffinePSD(self.hurst, self.q_rolloff, self.q_cutoff, self.q_long,
+                             target**2 / unit.moment(order))
+
+
+def _wavenumbers(shape: tuple[int, int], cell: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
+    """(kx, ky) in rad/m of a real FFT's half spectrum, shaped to broadcast (nx, 1) and (1, ny//2 + 1)."""
+    kx = 2.0 * np.pi * scipy.fft.fftfreq(shape[0], cell[0])
+    ky = 2.0 * np.pi * scipy.fft.rfftfreq(shape[1], cell[1])
+    return kx[:, None], ky[None, :]
+
+
+def _number(table: str, key: str, value: object, source: str, allowed: str) -> float:
+    if not isinstance(value, numbers.Real) or isinstance(value, bool) or not math.isfinite(value):
+        raise SceneError(source, f"{table} {key}", value, allowed)
+    return float(value)
+
+
+def _checked_keys(keys: dict, shape, cell, source: str, table: str) -> tuple[SelfAffinePSD, str, float, int]:
+    """(unit-c0 PSD, "rms_height" or "rms_slope", its value, seed) from the keys, or SceneError."""
+    for key in keys:
+        if key not in ROUGH_KEYS:
+            raise SceneError(source, f"{table} {key}", keys[key], "unknown key; allowed keys: "
+                             + ", ".join(ROUGH_KEYS))
+    if "hurst" not in keys:
+        raise SceneError(source, f"{table} hurst", MISSING, "required: " + ROUGH_KEYS["hurst"])
+    hurst = _number(table, "hurst", keys["hurst"], source, "must be a number in (0, 1]")
+    if not 0.0 < hurst <= 1.0:
+        raise SceneError(source, f"{table} hurst", keys["hurst"], "must be a number in (0, 1]")
+    longest, shortest = max(shape[0] * cell[0], shape[1] * cell[1]), 2.0 * max(cell)
+    cutoff = _number(table, "cutoff", keys.get("cutoff", shortest), source, "must be a wavelength in m")
+    if not shortest * (1 - 1e-12) <= cutoff <= longest:
+        raise SceneError(source, f"{table} cutoff", keys["cutoff"], f"must be a wavelength between 2 cells "
+                         f"({shortest!r} m) and the surface's longer side ({longest!r} m)")
+    rolloff = _number(table, "rolloff", keys.get("rolloff", longest), source, "must be a wavelength in m")
+    if not cutoff <= rolloff:
+        raise SceneError(source, f"{table} rolloff", keys["rolloff"], f"must be a wavelength >= cutoff "
+                         f"({cutoff!r} m)")
+    given = [key for key in ("rms_height", "rms_slope") if key in keys]
+    if len(given) != 1:
+        raise SceneError(source, f"{table} rms_height", keys.get("rms_height", MISSING),
+                         "give exactly one of rms_height (m) and rms_slope")
+    target = _number(table, given[0], keys[given[0]], source, "must be a number > 0")
+    if target <= 0.0:
+        raise SceneError(source, f"{table} {given[0]}", keys[given[0]], "must be a number > 0")
+    seed = keys.get("seed", 0)
+    if not isinstance(seed, numbers.Integral) or isinstance(seed, bool) or seed < 0:
+        raise SceneError(source, f"{table} seed", seed, "must be an integer >= 0")
+    psd = SelfAffinePSD(hurst, 2.0 * np.pi / rolloff, 2.0 * np.pi / cutoff)
+    return psd, given[0], target, int(seed)
+
+
+def self_affine_heights(keys: dict, shape: tuple[int, int], cell: tuple[float, float], *,
+                        source: str = "<python>", table: str = "[body]") -> np.ndarray:
+    """A periodic Gaussian self-affine surface of ``shape`` = (nx, ny) heights (m) at spacing ``cell`` (m).
+
+    ``keys``: those of :data:`ROUGH_KEYS` (a scene table's; errors name them under ``table``). White noise
+    from ``numpy.random.default_rng(seed)``, filtered by sqrt(C(q)) with :class:`SelfAffinePSD`'s shape
+    (the mean and the Nyquist frequencies removed), then scaled so that the surface has exactly the rms
+    height, or the rms slope of its trigonometric interpolant (the continuum slope Persson's theory
+    uses), that the keys ask for. The same keys, shape and cell give the same surface on any machine.
+    """
+    psd, kind, target, seed = _checked_keys(keys, shape, cell, source, table)
+    nx, ny = shape
+    noise = np.random.default_rng(seed).standard_normal((nx, ny))
+    kx, ky = _wavenumbers(shape, cell)
+    spectrum = scipy.fft.rfft2(noise) * np.sqrt(psd(np.hypot(kx, ky)))
+    spectrum[0, 0] = 0.0
+    if nx % 2 == 0:
+        spectrum[nx // 2, :] = 0.0
+    if ny % 2 == 0:
+        spectrum[:, -1] = 0.0
+    heights = scipy.fft.irfft2(spectrum, s=shape)
+    if kind == "rms_height":
+        return heights * (target / math.sqrt(np.mean(heights**2)))
+    slope_x = scipy.fft.irfft2(1j * kx * spectrum, s=shape)
+    slope_y = scipy.fft.irfft2(1j * ky * spectrum, s=shape)
+    return heights * (target / math.sqrt(np.mean(slope_x**2 + slope_y**2)))
+
+
+def radial_psd(field: np.ndarray, cell: tuple[float, float], edges) -> tuple[np.ndarray, np.ndarray,
+                                                                             np.ndarray]:
+    """The radially averaged power spectrum of a periodic field (C(q) in Persson's convention, units of
+    the field^2 m^2) over the wavenumber bins ``edges`` (rad/m): (mean |k| of each bin's modes, mean C,
+    number of independent modes). Each mode of a real field is counted once (the half spectrum without
+    its conjugate twins; the mean is left out)."""
+    nx, ny = field.shape
+    area = nx * cell[0] * ny * cell[1]
+    kx, ky = _wavenumbers(field.shape, cell)
+    amplitude = scipy.fft.rfft2(field) / (nx * ny)
+    power = np.abs(amplitude) ** 2 * area / (2.0 * np.pi) ** 2
+    q = np.broadcast_to(np.hypot(kx, ky), power.shape)
+    # independent modes: ky > 0 (below Nyquist), and ky = 0 or Nyquist with kx > 0
+    own = np.ones(power.shape, dtype=bool)
+    own[:, 0] = kx[:, 0] > 0
+    if ny % 2 == 0:
+        own[:, -1] = kx[:, 0] > 0
+    which = np.digitize(q[own], edges) - 1
+    inside = (which >= 0) & (which < len(edges) - 1)
+    bins = len(edges) - 1
+    count = np.bincount(which[inside], minlength=bins)
+    with np.errstate(invalid="ignore"):
+        mean_q = np.bincount(which[inside], q[own][inside], bins) / count
+        mean_c = np.bincount(which[inside], power[own][inside], bins) / count
+    return mean_q, mean_c, count

@@ -1,0 +1,116 @@
+"""Self-affine surfaces (petroll.model.roughness): the generated surface's power spectrum against the
+prescribed one, bin by bin and by its fitted exponent (a wrong Hurst exponent or rolloff cannot pass);
+its rms height and rms slope against direct sums and finite differences; reproducibility; the PSD's
+moments against numerical quadrature."""
+
+import math
+
+import numpy as np
+import pytest
+from scipy import integrate
+
+from petroll.errors import SceneError
+from petroll.model.roughness import SelfAffinePSD, radial_psd, self_affine_heights
+
+N, H = 512, 1e-6  # 512^2 samples, 1 um apart: L = 512 um
+L = N * H
+Q_L = 2 * np.pi / L
+HURST = 0.8
+KEYS = {"hurst": HURST, "rolloff": L / 8, "cutoff": L / 128, "rms_height": 1e-6}
+
+
+EDGES = Q_L * np.array([0.5, 4, 6, 8, 10, 13, 17, 22, 30, 40, 53, 70, 93, 128, 200])
+
+
+def measured_spectrum(keys):
+    """The radial PSD of 4 realisations, averaged: (mean q, C, independent modes) of each bin."""
+    spectra = [radial_psd(self_affine_heights({**keys, "seed": seed}, (N, N), (H, H)), (H, H), EDGES)
+               for seed in range(4)]
+    return spectra[0][0], np.mean([c for _, c, _ in spectra], axis=0), spectra[0][2]
+
+
+def expected_spectrum(keys):
+    """The mean of the prescribed C over each bin's own modes, scaled so that the sum over every mode
+    of the grid (less the mean and the Nyquist frequencies) is h_rms^2."""
+    shape = SelfAffinePSD(keys["hurst"], 2 * np.pi / keys["rolloff"], 2 * np.pi / keys["cutoff"])
+    kx = 2 * np.pi * np.fft.fftfreq(N, H)
+    q = np.hypot(kx[:, None], kx[None, :])
+    power = shape(q)
+    power[0, 0] = power[N // 2, :] = power[:, N // 2] = 0.0
+    scale = keys["rms_height"] ** 2 / (power.sum() * (2 * np.pi / L) ** 2)
+    return scale * np.array([power[(q >= lo) & (q < hi)].mean() for lo, hi in zip(EDGES[:-1], EDGES[1:])])
+
+
+def spectrum_error(keys):
+    """(largest relative error of a bin, median one, power beyond the cut-off relative to the largest bin,
+    fitted exponent over the self-affine range) of surfaces made with ``keys`` against KEYS's spectrum."""
+    q, c, count = measured_spectrum(keys)
+    expected = expected_spectrum(KEYS)
+    inside = q < 2 * np.pi / KEYS["cutoff"]
+    assert count[inside].min() >= 20
+    error = np.abs(c[inside] / expected[inside] - 1)
+    law = (q > 2 * 2 * np.pi / KEYS["rolloff"]) & inside
+    slope = np.polyfit(np.log(q[law]), np.log(c[law]), 1)[0]
+    return error.max(), np.median(error), c[~inside].max() / c[inside].max(), slope
+
+
+def test_power_spectrum_matches_the_prescribed_one():
+    # 4 realisations of >= 20 independent modes a bin: a bin scatters by about 1/sqrt(80) = 11 %
+    worst, median, beyond, slope = spectrum_error(KEYS)
+    assert worst < 0.3 and median < 0.1
+    assert beyond < 1e-20  # nothing beyond the cut-off
+    assert abs(slope - (-2 * (1 + HURST))) < 0.1, slope
+
+
+@pytest.mark.parametrize("wrong", [{"hurst": 0.7}, {"hurst": 0.9}, {"rolloff": L / 4}, {"rolloff": L / 16}])
+def test_the_spectrum_check_tells_a_wrong_surface(wrong):
+    """The same comparison for surfaces made with a Hurst exponent off by 0.1 or a rolloff off by 2x:
+    the check above fails for each."""
+    worst, _, _, slope = spectrum_error({**KEYS, **wrong})
+    assert worst > 0.3 or abs(slope - (-2 * (1 + HURST))) > 0.1
+
+
+def test_rms_height_and_rms_slope():
+    heights = self_affine_heights({**KEYS, "seed": 3}, (N, 256), (H, 2 * H))
+    assert heights.shape == (N, 256)
+    assert math.isclose(np.sqrt(np.mean(heights**2)), 1e-6, rel_tol=1e-12)
+    assert abs(heights.mean()) < 1e-15
+    # a smooth surface (cut-off 64 cells): central differences approach the spectral slope to (q h)^2 / 6
+    keys = {"hurst": 0.5, "rolloff": L / 4, "cutoff": 64 * H, "rms_slope": 0.2, "seed": 1}
+    smooth = self_affine_heights(keys, (N, N), (H, H))
+    gx = (np.roll(smooth, -1, 0) - np.roll(smooth, 1, 0)) / (2 * H)
+    gy = (np.roll(smooth, -1, 1) - np.roll(smooth, 1, 1)) / (2 * H)
+    assert math.isclose(np.sqrt(np.mean(gx**2 + gy**2)), 0.2, rel_tol=3e-3)
+
+
+def test_reproducible_from_its_keys():
+    a = self_affine_heights({**KEYS, "seed": 5}, (64, 48), (H, H))
+    b = self_affine_heights({**KEYS, "seed": 5}, (64, 48), (H, H))
+    c = self_affine_heights({**KEYS, "seed": 6}, (64, 48), (H, H))
+    np.testing.assert_array_equal(a, b)
+    assert np.abs(a - c).max() > 0.5e-6
+
+
+def test_psd_moments_against_quadrature():
+    psd = SelfAffinePSD(0.7, 2e4, 3e6, q_long=5e3, c0=2.0)
+    for order in (0, 2, 4):
+        parts = [integrate.quad(lambda q, n=order: 2 * np.pi * q ** (n + 1) * psd(q), a, b, limit=200)[0]
+                 for a, b in ((5e3, 2e4), (2e4, 3e5), (3e5, 3e6))]
+        assert math.isclose(psd.moment(order), sum(parts), rel_tol=1e-9)
+    assert math.isclose(psd.scaled(rms_slope=0.3).moment(2), 0.09, rel_tol=1e-12)
+    assert math.isclose(psd.scaled(rms_height=1e-6).moment(0), 1e-12, rel_tol=1e-12)
+
+
+@pytest.mark.parametrize("change, key", [
+    ({"hurst": 1.5}, "[body] hurst"),
+    ({"cutoff": H}, "[body] cutoff"),
+    ({"rolloff": L / 256}, "[body] rolloff"),
+    ({"rms_slope": 0.1}, "[body] rms_height"),
+    ({"seed": -1}, "[body] seed"),
+    ({"seed": 1.5}, "[body] seed"),
+    ({"wavelength": 1.0}, "[body] wavelength"),
+])
+def test_bad_keys_name_the_key(change, key):
+    with pytest.raises(SceneError) as err:
+        self_affine_heights({**KEYS, **change}, (64, 64), (H, H))
+    assert key in str(err.value)
