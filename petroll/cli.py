@@ -4,7 +4,10 @@
     petroll restart CHECKPOINT.h5|DIR [--out DIR] [--scene NEW.toml] [PETSc options]   continue a run
     petroll keys            print the scene reference (docs/scene.md) generated from the schema
     petroll stability [--fast] [--out DIR]   the stability map (docs/stability.md): CSV and Markdown in DIR
-    petroll plot DIR [--out PLOTS] [--times T1,T2,...]   PNG figures of DIR/results.h5 (needs matplotlib)
+    petroll plot PATH [--out DIR] [--times T1,T2,...] [--format png|pdf|svg]   figures (needs matplotlib) of a
+                            run directory or its results.h5, a sweep directory, or a stress.h5
+    petroll info DIR        what a run directory holds: scene, steps, last values, fields, checkpoints
+    petroll export DIR --csv [--field NAME [--step N]] [--out FILE]   the series (or one saved field) as CSV
     petroll sweep SCENE.toml --vary KEY=SPEC [--out DIR]   one scene over values of a key (docs/sweep.md)
     petroll stress DIR [--step N] [--depth z1,z2,... | --depths auto] [--nu NU]   stresses below a saved
                             pressure field: DIR/stress.h5 and DIR/stress.png
@@ -31,6 +34,8 @@ import sys
 import time
 import warnings
 
+FIGURE_FORMATS = ("png", "pdf", "svg")
+
 
 class _Parser(argparse.ArgumentParser):
     """Command-line mistakes as one line ``petroll: error: ...`` (exit status 2), without the usage text."""
@@ -44,6 +49,9 @@ class _Parser(argparse.ArgumentParser):
 def _parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="petroll", description=__doc__.split("\n\n")[0],
                      epilog="PETSc options (-petroll_tao_type, -log_view, ...) may follow.")
+    from petroll import __version__
+
+    parser.add_argument("--version", action="version", version=f"petroll {__version__}")
     verbs = parser.add_subparsers(dest="verb", required=True)
     run = verbs.add_parser("run", help="run a scene and write DIR/results.h5")
     run.add_argument("scene", help="scene file (TOML)")
@@ -110,11 +118,26 @@ def _parser() -> argparse.ArgumentParser:
     fit.add_argument("--out", help="write the [material] block here (atomically; default: print it)")
     fit.add_argument("--plot", help="the figure of data and fit (default: beside --out, its name with .png; "
                      "without --out: none)")
-    plot = verbs.add_parser("plot", help="write PNG figures of a run (pressure maps, patch outlines, series)")
-    plot.add_argument("dir", help="a run's output directory (holding results.h5)")
-    plot.add_argument("--out", help="directory for the PNG files (default: DIR/plots)")
-    plot.add_argument("--times", type=_seconds, help="comma-separated times in s: draw the saved pressure "
-                      "fields nearest to them (default: up to 4 spread over the run)")
+    plot = verbs.add_parser("plot", help="figures of a run (pressure maps, patch outlines, series), a sweep "
+                            "or a stress file")
+    plot.add_argument("path", help="a run directory or its results.h5 (figures in DIR/plots), a sweep "
+                      "directory or its sweep.h5 (sweep figure beside it), or a stress.h5 (stress figure beside it)")
+    plot.add_argument("--out", help="directory for the figures (default: as above)")
+    plot.add_argument("--times", type=_seconds, help="runs: comma-separated times in s: draw the saved "
+                      "pressure fields nearest to them (default: up to 4 spread over the run)")
+    plot.add_argument("--format", choices=FIGURE_FORMATS, default="png", help="file format of the figures "
+                      "(default png)")
+    info = verbs.add_parser("info", help="what a run directory holds: scene, steps written, complete or "
+                            "partial, last values, saved fields, checkpoints, petroll version")
+    info.add_argument("dir", help="a run's output directory (or its results.h5)")
+    export = verbs.add_parser("export", help="a run's series (or one saved field) as CSV for a spreadsheet")
+    export.add_argument("dir", help="a run's output directory (or its results.h5)")
+    export.add_argument("--csv", action="store_true", help="CSV (the default and only format)")
+    export.add_argument("--field", choices=("pressure", "displacement", "gap"), help="one saved field instead "
+                        "of the series: columns x, y (m) and its value, one row per cell")
+    export.add_argument("--step", type=int, help="with --field: the step of the saved field (default: the "
+                        "last saved)")
+    export.add_argument("--out", help="the CSV file (default: DIR/series.csv, DIR/FIELD-step-N.csv)")
     stress = verbs.add_parser("stress", help="the stresses below a saved pressure field: DIR/stress.h5 and "
                               "DIR/stress.png (docs/results.md)")
     stress.add_argument("dir", help="a run's output directory (holding results.h5)")
@@ -193,11 +216,70 @@ def _on_rank0(action, comm) -> int:
 
 
 def _plot(args: argparse.Namespace) -> None:
-    """``petroll plot``."""
-    from petroll.plot import plot_results
+    """``petroll plot``: the figures of a run, a sweep or a stress file, whichever ``args.path`` is."""
+    import pathlib
 
-    paths = plot_results(args.dir, args.out, args.times)
+    from petroll.io.export import file_kind
+    from petroll.plot import plot_results, plot_stress, plot_sweep
+
+    kind, file = file_kind(args.path)
+    if kind == "run":
+        paths = plot_results(file.parent, args.out, args.times, args.format)
+    else:
+        out = pathlib.Path(args.out) if args.out else file.parent
+        out.mkdir(parents=True, exist_ok=True)
+        if kind == "sweep":
+            from petroll.studies.sweep import SweepTable
+
+            paths = [plot_sweep(SweepTable.open(file), out / f"sweep.{args.format}")]
+        else:
+            paths = [plot_stress(file, out / f"stress.{args.format}")]
     print("petroll: wrote " + ", ".join(str(p) for p in paths))
+
+
+def _info(args: argparse.Namespace) -> None:
+    """``petroll info``: what a run directory holds, a few lines."""
+    from petroll.io.export import run_contents
+
+    found = run_contents(args.dir)
+    r, s = found.results, found.results.series
+    n, last = len(s["t"]), len(s["t"]) - 1
+    state = "complete (the run finished)" if r.complete else "partial (still running, or stopped or killed)"
+    per = "/m" if r.line else ""
+    lines = [f"{found.directory}: a petroll run, written by petroll {r.version or '0.1.0'}",
+             f"  scene: {r.scene_file or '(not recorded)'}; its text is in {r.path.name} (attribute scene)",
+             f"  steps: {n} written (0 ... {last}), {state}" + (", the steady state solved directly"
+                                                                 if r.solved_steady else ""),
+             f"  last step {last}: t = {s['t'][-1]:.6g} s, rolled {s['distance'][-1]:.6g} m, force "
+             f"{s['force'][-1]:.6g} N{per}, mu_r {s['mu_r'][-1]:.5g}, penetration {s['delta'][-1]:.6g} m",
+             f"  saved fields: {', '.join(r.fields)} at {len(r.field_steps)} steps "
+             f"({', '.join(str(int(k)) for k in r.field_steps)}); results.xdmf for ParaView"]
+    if found.checkpoints:
+        steps = ", ".join(str(step) for step, _ in found.checkpoints)
+        lines.append(f"  checkpoints: {len(found.checkpoints)} (steps {steps}) in {found.checkpoints[-1][1].parent}"
+                     + ("" if r.complete else f"; petroll restart {found.directory} continues from the newest"))
+    else:
+        lines.append("  checkpoints: none")
+    lines.append(f"  other files: {', '.join(found.others) or 'none'}")
+    print("\n".join(lines))
+
+
+def _export(args: argparse.Namespace) -> None:
+    """``petroll export``: the series, or one saved field, as CSV."""
+    from petroll.io.export import open_results, write_field_csv, write_series_csv
+
+    results = open_results(args.dir)
+    if args.step is not None and args.field is None:
+        args.field = "pressure"
+    if args.field is None:
+        path = write_series_csv(results, args.out or results.path.parent / "series.csv")
+        what = f"{len(results.series['t'])} steps x {len(results.series)} series"
+    else:
+        step = int(results.field_steps[-1]) if args.step is None else args.step
+        default = results.path.parent / f"{args.field}-step-{step}.csv"
+        path = write_field_csv(results, args.field, step, args.out or default)
+        what = f"{args.field} at step {step}, {len(results.x) * len(results.y)} cells"
+    print(f"petroll: wrote {path} ({what})")
 
 
 def _material_fit(args: argparse.Namespace) -> None:
@@ -260,8 +342,8 @@ def main(argv: list[str] | None = None) -> int:
     from petroll.model.limits import PetrollWarning
 
     comm = MPI.COMM_WORLD
-    if args.verb == "plot":
-        return _on_rank0(lambda: _plot(args), comm)
+    if args.verb in ("plot", "info", "export"):
+        return _on_rank0(lambda: {"plot": _plot, "info": _info, "export": _export}[args.verb](args), comm)
     if args.verb == "material":
         return _on_rank0(lambda: _material_fit(args), comm)
     errors = comm.Dup() if comm.size > 1 else None  # only for agreeing on an error (see _failed)
@@ -388,7 +470,7 @@ def _main(args: argparse.Namespace, comm) -> int:
                   file=sys.stderr)
         return exc.exit_code
     if comm.rank == 0:
-        print(summary(scene, results, wall=time.perf_counter() - start))
+        print(summary(scene, results, wall=time.perf_counter() - start, resumed=checkpoint))
     return 0
 
 
@@ -427,8 +509,9 @@ def _restart_inputs(args: argparse.Namespace, comm):
     return scene, checkpoint, args.out if args.out is not None else run_directory(path)
 
 
-def summary(scene, results, wall: float) -> str:
-    """One paragraph on a finished run: its extent, the last (steady) values, wall time and output path."""
+def summary(scene, results, wall: float, resumed=None) -> str:
+    """One paragraph on a finished run: its extent, the last (steady) values, wall time and output path;
+    ``resumed``: the checkpoint a restart continued from (its step is named)."""
     s = results.series
     n = len(s["t"])
     if scene.time.mode == "steady":
@@ -441,6 +524,8 @@ def summary(scene, results, wall: float) -> str:
     state = "steady state reached, " if steady else ""
     line = scene.grid.line  # plane strain: per unit length, the penetration relative to the datum
     force, area = ("N/m", "contact width {:.4g} m") if line else ("N", "contact area {:.4g} m^2")
+    if resumed is not None:
+        how = f"resumed after step {resumed.step} (t = {resumed.t:.4g} s; {resumed.path}), {how}"
     return (f"petroll: {scene.source}: {how} ({state}wall time {wall:.1f} s). Last step: force {s['force'][-1]:.6g} {force} at "
             f"penetration {s['delta'][-1]:.6g} m{' (to the datum)' if line else ''}, mu_r {s['mu_r'][-1]:.4e}, "
             f"{area.format(s['area'][-1])}, "

@@ -50,7 +50,7 @@ def run(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, out: str | pathlib.Path |
     g = scene.grid
     steady = scene.time.mode == "steady"
     results = ResultsFile(out / "results.h5", scene.text, g.x, g.y, comm, fields=scene.fields, line=g.line,
-                          steady=steady)
+                          steady=steady, source=str(scene.source))
     if restart is not None:
         t, field_steps = restart.restore(sim)
         results.resume(run_directory(restart.path) / "results.h5", len(sim.records), field_steps)

@@ -13,6 +13,8 @@ just above a fence; readers do not see it:
   TEXT replaced by SMALLER, e.g. fewer sweep points; every TEXT must occur in the block.
 - ``<!-- docs-test: output -->`` above a plain fence: what the block before it prints, checked against
   that block's output; ``...`` stands for any text within a line (a wall time).
+- ``<!-- docs-test: pvpython -->`` above a ``python`` block: run with ParaView's ``pvpython``
+  (``--force-offscreen-rendering``; scripts/setup-tests.sh installs it).
 - ``<!-- docs-test: skip REASON -->``: not run, for a reason a reader can check (it needs Slurm, it is the
   test suite itself). Other languages (``toml``, ``text``, no language) are not run.
 
@@ -60,6 +62,9 @@ class Block:
         word = self.marker.split()[0] if self.marker.strip() else ""
         if word in ("skip", "output", "long"):
             return word
+        if word == "pvpython":
+            assert self.lang == "python", f"line {self.line}: a pvpython marker above a {self.lang} block"
+            return "run"
         assert not word, f"line {self.line}: unknown docs-test marker {self.marker!r}"
         return "run" if self.lang in SHELL | {"python"} else "text"
 
@@ -97,6 +102,8 @@ def _run(block: Block, cwd: pathlib.Path, timeout: float) -> subprocess.Complete
         script.parent.mkdir(exist_ok=True)
         script.write_text(source, encoding="utf-8")
         argv = [sys.executable, str(script)]
+        if block.marker.startswith("pvpython"):
+            argv = [shutil.which("pvpython") or "pvpython", "--force-offscreen-rendering", str(script)]
     else:
         argv = ["bash", "-euo", "pipefail", "-c", source]
     with subprocess.Popen(argv, cwd=cwd, env=ENV, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
