@@ -488,10 +488,11 @@ def test_make_body_builds_each_shape(tmp_path):
 
 
 def test_body_keys_cover_every_shape():
-    assert set(BODY_KEYS) == {"sphere", "ellipsoid", "cylinder", "heightmap", "mesh"}
+    assert set(BODY_KEYS) == {"sphere", "ellipsoid", "cylinder", "heightmap", "rough", "mesh"}
     for keys in BODY_KEYS.values():
         assert all(isinstance(desc, str) and desc for desc in keys.values())
-    assert set(BODY_KEYS["cylinder"]) == {"radius", "width", "edge_radius", "axis"}
+    assert set(BODY_KEYS["cylinder"]) == {"radius", "width", "edge_radius", "axis", "roughness"}
+    assert set(BODY_KEYS["heightmap"]) == {"file", "cell", "format", "unit"}
 
 
 @pytest.mark.parametrize(

@@ -11,7 +11,8 @@ from petroll.solver.contact import ContactSolver
 from petroll.errors import SolverError
 from petroll.model.grid import Grid
 from petroll.model.scene import DEFAULT_TAO_TYPE
-from petroll.solver.influence import dense_influence, love_coefficients
+from petroll.solver.influence import dense_influence
+from petroll.solver.kernels.love import love_coefficients
 from petroll.solver.partition import gather_field
 
 R, J = 0.01, 7.5e-8  # sphere radius (m) and surface compliance (1/Pa) of rubber, E = 10 MPa, nu = 0.5

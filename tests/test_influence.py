@@ -5,7 +5,8 @@ import pytest
 from mpi4py import MPI
 
 from petroll.solver.partition import RowPartition, move_rows
-from petroll.solver.influence import Convolution, InfluenceOperator, dense_influence, love_coefficients, shell_matrix
+from petroll.solver.influence import Convolution, InfluenceOperator, dense_influence, shell_matrix
+from petroll.solver.kernels.love import Rectangles, love_coefficients
 
 
 def test_centre_of_a_square_cell():
@@ -55,7 +56,7 @@ def test_a_block_beyond_the_kept_table_computes_each_ranks_kernel_rows_from_love
     """Blocks larger than TABLE_CELLS get their kernel from Love's formula, row by row as each rank needs
     them: the same operator as the dense matrix."""
     dx, dy = 0.3, 0.2
-    op = InfluenceOperator(dx, dy, comm)
+    op = InfluenceOperator(Rectangles(dx, dy), comm)
     op.TABLE_CELLS = 10
     conv = op.window(nx, ny)
     x = np.random.default_rng(nx + ny).random((nx, ny))
@@ -68,7 +69,7 @@ def test_a_block_beyond_the_kept_table_computes_each_ranks_kernel_rows_from_love
 @pytest.mark.ranks4
 def test_shell_matrix_mult_symmetry_and_rank_independence(comm):
     nx, ny, dx, dy = 20, 11, 1e-4, 2e-4
-    op = InfluenceOperator(dx, dy, comm)
+    op = InfluenceOperator(Rectangles(dx, dy), comm)
     conv = op.window(nx, ny)
     mat = shell_matrix(conv, 2.5)
     x, y = mat.createVecs()
@@ -87,7 +88,7 @@ def test_shell_matrix_mult_symmetry_and_rank_independence(comm):
     mat.getDiagonal(diagonal)
     assert np.all(diagonal.array == pytest.approx(2.5 * love_coefficients(1, 1, dx, dy)[0, 0], rel=1e-14))
     # the same product on one rank (COMM_SELF) agrees with the distributed one to round-off
-    serial = InfluenceOperator(dx, dy, MPI.COMM_SELF).window(nx, ny)(full_x) * 2.5
+    serial = InfluenceOperator(Rectangles(dx, dy), MPI.COMM_SELF).window(nx, ny)(full_x) * 2.5
     assert np.abs(y.array.reshape(-1, ny) - serial[conv.r0 : conv.r1]).max() <= 1e-13 * np.abs(serial).max()
     assert mat.getPythonContext().applications == 2
     for obj in (mat, x, y, z, az, diagonal):
@@ -133,7 +134,7 @@ def test_shift_field_moves_a_distributed_field_by_whole_cells(comm, di, dj):
 
 
 def test_kernels_of_the_most_recent_window_shapes_are_kept(comm):
-    op = InfluenceOperator(1e-3, 1e-3, comm)
+    op = InfluenceOperator(Rectangles(1e-3, 1e-3), comm)
     first = op.window(4, 5)
     for n in range(6, 6 + op.kept - 1):  # fill the cache
         op.window(n, n)

@@ -15,7 +15,7 @@ from petroll.errors import SceneError
 from petroll.model.materials import Layer
 from petroll.model.scene import parse_scene
 from petroll.solver.influence import dense_influence
-from petroll.solver.layer import layer_coefficients, layer_strip_coefficients, response, thin_compliance
+from petroll.solver.kernels.layer import layer_coefficients, layer_strip_coefficients, response, thin_compliance
 from petroll.solver.partition import gather_field
 from petroll.solver.simulation import Simulation
 
@@ -260,7 +260,7 @@ def test_the_ring_gap_summed_directly_or_convolved_is_the_dense_matrix_product(c
 
 
 def test_a_layers_preconditioner_wraps_its_kernel_on_a_torus_larger_than_the_window(comm):
-    """petroll.solver.layer.TORUS: a layer's inverse circulant on a 20-cell window lives on 30 cells (the
+    """petroll.solver.kernels.layer.TORUS: a layer's inverse circulant on a 20-cell window lives on 30 cells (the
     dense check of that operator: tests/test_tao_objects.py); a half-space's on the window itself."""
     layer = cylinder(comm, {"thickness": 1e-3, "base": "bonded"}, 1000.0, nx=64)[0].solver.influence
     plain = cylinder(comm, None, 1000.0, nx=64)[0].solver.influence

@@ -16,7 +16,8 @@ from petroll.errors import SceneError
 from petroll.io.checkpoint import read_checkpoint
 from petroll.model.grid import line_grid
 from petroll.model.scene import parse_scene
-from petroll.solver.influence import Convolution, dense_influence, influence_operator, strip_coefficients
+from petroll.solver.influence import Convolution, dense_influence, influence_operator
+from petroll.solver.kernels.love import strip_coefficients
 from petroll.solver.simulation import Simulation
 
 E, NU, R = 1e7, 0.3, 0.01

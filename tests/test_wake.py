@@ -10,7 +10,7 @@ from petroll.errors import SolverError
 from petroll.model.bodies import Sphere
 from petroll.solver.contact import ContactSolver
 from petroll.model.grid import Grid
-from petroll.solver.influence import love_coefficients
+from petroll.solver.kernels.love import love_coefficients
 from petroll.solver.wake import Wake
 
 GRID = Grid(200, 40, -2.0e-3, 8.0e-3, -1.0e-3, 1.0e-3)  # 50 um cells, a 10 mm track

@@ -7,7 +7,7 @@ ix * ny + iy.
 A *line-contact* grid (plane strain; a scene whose [grid] has nx and x only) is the same object with
 ``line = True``, ny = 1 and Y from -1/2 to 1/2: its cells are strips of unit length along Y, so that
 ``cell_area`` = dx and every force summed over the cells is a force per unit length (N/m), every area a
-contact width (m). Its influence operator is the plane-strain strip kernel (petroll.solver.influence).
+contact width (m). Its influence operator is the plane-strain strip kernel (petroll.solver.kernels.love).
 """
 
 from __future__ import annotations
@@ -49,7 +49,7 @@ class Grid:
     @property
     def datum(self) -> float | None:
         """Line contact: the datum distance L = x1 - x0 (m) of the plane-strain displacements, which are
-        measured relative to surface points at distance L from each load (petroll.solver.influence);
+        measured relative to surface points at distance L from each load (petroll.solver.kernels.love);
         None for a 3-D grid."""
         return self.x1 - self.x0 if self.line else None
 

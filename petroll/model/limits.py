@@ -71,7 +71,7 @@ def largest_penetration(scene) -> tuple[float, bool]:
 
 LAYER_CELLS = 16
 """A layer thinner than 1/LAYER_CELLS of the largest cell side is warned about: its coefficients' Gauss
-rule (petroll/solver/layer.py) then errs by more than about 1e-6 of the diagonal."""
+rule (petroll/solver/kernels/layer.py) then errs by more than about 1e-6 of the diagonal."""
 
 
 def check_scene(scene) -> None:

@@ -210,7 +210,7 @@ LAYER_BASES = ("bonded", "frictionless")
 class Layer:
     """A layer of ``thickness`` (m) on a rigid base, its bottom ``base`` = "bonded" or "frictionless"; the
     top (the contact surface) is frictionless. ``nu``: the material's Poisson's ratio, constant in time,
-    which the layer's kernel depends on (petroll/solver/layer.py)."""
+    which the layer's kernel depends on (petroll/solver/kernels/layer.py)."""
 
     thickness: float
     base: str

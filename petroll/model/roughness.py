@@ -25,7 +25,7 @@ import scipy.fft
 
 from petroll.errors import MISSING, SceneError
 
-__all__ = ["ROUGH_KEYS", "SelfAffinePSD", "radial_psd", "self_affine_heights"]
+__all__ = ["ROUGH_KEYS", "SelfAffinePSD", "TabulatedPSD", "radial_psd", "self_affine_heights", "self_affine_psd"]
 
 ROUGH_KEYS: dict[str, str] = {
     "hurst": "Hurst exponent H, 0 < H <= 1: C(q) ~ q^(-2 (1 + H)) between rolloff and cutoff (required)",
@@ -76,6 +76,41 @@ class SelfAffinePSD:
                              target**2 / unit.moment(order))
 
 
+@dataclass(frozen=True, eq=False)
+class TabulatedPSD:
+    """C(q) (m^4) given at wavenumbers ``q`` (rad/m, increasing), interpolated linearly in log-log, 0
+    outside [q_long, q_cutoff] = [q[0], q[-1]]: a measured surface's spectrum (:meth:`of`)."""
+
+    q: np.ndarray
+    C: np.ndarray
+
+    @property
+    def q_long(self) -> float:
+        return float(self.q[0])
+
+    @property
+    def q_cutoff(self) -> float:
+        return float(self.q[-1])
+
+    def __call__(self, q) -> np.ndarray:
+        q = np.asarray(q, dtype=float)
+        inside = (q >= self.q[0]) & (q <= self.q[-1])
+        logq = np.log(np.clip(q, self.q[0], self.q[-1]))
+        return np.where(inside, np.exp(np.interp(logq, np.log(self.q), np.log(self.C))), 0.0)
+
+    @classmethod
+    def of(cls, heights: np.ndarray, cell: tuple[float, float], per_decade: int = 10) -> TabulatedPSD:
+        """The radially averaged spectrum of periodic ``heights`` (m) at spacing ``cell`` (m), in bins of
+        1/``per_decade`` decade from the longest wavelength of the shorter side to the Nyquist wavenumber
+        of the coarser spacing (bins without modes, or without power, left out)."""
+        q_low = 2.0 * np.pi / min(heights.shape[0] * cell[0], heights.shape[1] * cell[1])
+        q_high = np.pi / max(cell)
+        bins = max(int(np.ceil(per_decade * np.log10(q_high / q_low))), 1)
+        q, c, count = radial_psd(heights, cell, q_low * (q_high / q_low) ** (np.arange(bins + 1) / bins))
+        keep = (count > 0) & (c > 0)
+        return cls(q[keep], c[keep])
+
+
 def _wavenumbers(shape: tuple[int, int], cell: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
     """(kx, ky) in rad/m of a real FFT's half spectrum, shaped to broadcast (nx, 1) and (1, ny//2 + 1)."""
     kx = 2.0 * np.pi * scipy.fft.fftfreq(shape[0], cell[0])
@@ -83,57 +118,68 @@ def _wavenumbers(shape: tuple[int, int], cell: tuple[float, float]) -> tuple[np.
     return kx[:, None], ky[None, :]
 
 
-def _number(table: str, key: str, value: object, source: str, allowed: str) -> float:
+def _number(prefix: str, key: str, value: object, source: str, allowed: str) -> float:
     if not isinstance(value, numbers.Real) or isinstance(value, bool) or not math.isfinite(value):
-        raise SceneError(source, f"{table} {key}", value, allowed)
+        raise SceneError(source, f"{prefix}{key}", value, allowed)
     return float(value)
 
 
-def _checked_keys(keys: dict, shape, cell, source: str, table: str) -> tuple[SelfAffinePSD, str, float, int]:
+def _checked_keys(keys: dict, shape, cell, source: str, prefix: str) -> tuple[SelfAffinePSD, str, float, int]:
     """(unit-c0 PSD, "rms_height" or "rms_slope", its value, seed) from the keys, or SceneError."""
     for key in keys:
         if key not in ROUGH_KEYS:
-            raise SceneError(source, f"{table} {key}", keys[key], "unknown key; allowed keys: "
+            raise SceneError(source, f"{prefix}{key}", keys[key], "unknown key; allowed keys: "
                              + ", ".join(ROUGH_KEYS))
     if "hurst" not in keys:
-        raise SceneError(source, f"{table} hurst", MISSING, "required: " + ROUGH_KEYS["hurst"])
-    hurst = _number(table, "hurst", keys["hurst"], source, "must be a number in (0, 1]")
+        raise SceneError(source, f"{prefix}hurst", MISSING, "required: " + ROUGH_KEYS["hurst"])
+    hurst = _number(prefix, "hurst", keys["hurst"], source, "must be a number in (0, 1]")
     if not 0.0 < hurst <= 1.0:
-        raise SceneError(source, f"{table} hurst", keys["hurst"], "must be a number in (0, 1]")
+        raise SceneError(source, f"{prefix}hurst", keys["hurst"], "must be a number in (0, 1]")
     longest, shortest = max(shape[0] * cell[0], shape[1] * cell[1]), 2.0 * max(cell)
-    cutoff = _number(table, "cutoff", keys.get("cutoff", shortest), source, "must be a wavelength in m")
+    cutoff = _number(prefix, "cutoff", keys.get("cutoff", shortest), source, "must be a wavelength in m")
     if not shortest * (1 - 1e-12) <= cutoff <= longest:
-        raise SceneError(source, f"{table} cutoff", keys["cutoff"], f"must be a wavelength between 2 cells "
+        raise SceneError(source, f"{prefix}cutoff", keys["cutoff"], f"must be a wavelength between 2 cells "
                          f"({shortest!r} m) and the surface's longer side ({longest!r} m)")
-    rolloff = _number(table, "rolloff", keys.get("rolloff", longest), source, "must be a wavelength in m")
+    rolloff = _number(prefix, "rolloff", keys.get("rolloff", longest), source, "must be a wavelength in m")
     if not cutoff <= rolloff:
-        raise SceneError(source, f"{table} rolloff", keys["rolloff"], f"must be a wavelength >= cutoff "
+        raise SceneError(source, f"{prefix}rolloff", keys["rolloff"], f"must be a wavelength >= cutoff "
                          f"({cutoff!r} m)")
     given = [key for key in ("rms_height", "rms_slope") if key in keys]
     if len(given) != 1:
-        raise SceneError(source, f"{table} rms_height", keys.get("rms_height", MISSING),
+        raise SceneError(source, f"{prefix}rms_height", keys.get("rms_height", MISSING),
                          "give exactly one of rms_height (m) and rms_slope")
-    target = _number(table, given[0], keys[given[0]], source, "must be a number > 0")
+    target = _number(prefix, given[0], keys[given[0]], source, "must be a number > 0")
     if target <= 0.0:
-        raise SceneError(source, f"{table} {given[0]}", keys[given[0]], "must be a number > 0")
+        raise SceneError(source, f"{prefix}{given[0]}", keys[given[0]], "must be a number > 0")
     seed = keys.get("seed", 0)
     if not isinstance(seed, numbers.Integral) or isinstance(seed, bool) or seed < 0:
-        raise SceneError(source, f"{table} seed", seed, "must be an integer >= 0")
+        raise SceneError(source, f"{prefix}seed", seed, "must be an integer >= 0")
     psd = SelfAffinePSD(hurst, 2.0 * np.pi / rolloff, 2.0 * np.pi / cutoff)
     return psd, given[0], target, int(seed)
 
 
+def self_affine_psd(keys: dict, shape: tuple[int, int], cell: tuple[float, float], *,
+                    source: str = "<python>", prefix: str = "[body] ") -> SelfAffinePSD:
+    """The continuum spectrum of the surfaces :func:`self_affine_heights` draws from the same keys, shape
+    and cell: q_long = 2 pi / (the longer side), c0 such that its rms height or rms slope is the one the
+    keys ask for (Persson's theory takes it: petroll.studies.persson)."""
+    psd, kind, target, _ = _checked_keys(keys, shape, cell, source, prefix)
+    longest = max(shape[0] * cell[0], shape[1] * cell[1])
+    psd = SelfAffinePSD(psd.hurst, psd.q_rolloff, psd.q_cutoff, q_long=2.0 * np.pi / longest)
+    return psd.scaled(**{kind: target})
+
+
 def self_affine_heights(keys: dict, shape: tuple[int, int], cell: tuple[float, float], *,
-                        source: str = "<python>", table: str = "[body]") -> np.ndarray:
+                        source: str = "<python>", prefix: str = "[body] ") -> np.ndarray:
     """A periodic Gaussian self-affine surface of ``shape`` = (nx, ny) heights (m) at spacing ``cell`` (m).
 
-    ``keys``: those of :data:`ROUGH_KEYS` (a scene table's; errors name them under ``table``). White noise
+    ``keys``: those of :data:`ROUGH_KEYS` (a scene table's; errors name them after ``prefix``). White noise
     from ``numpy.random.default_rng(seed)``, filtered by sqrt(C(q)) with :class:`SelfAffinePSD`'s shape
     (the mean and the Nyquist frequencies removed), then scaled so that the surface has exactly the rms
     height, or the rms slope of its trigonometric interpolant (the continuum slope Persson's theory
     uses), that the keys ask for. The same keys, shape and cell give the same surface on any machine.
     """
-    psd, kind, target, seed = _checked_keys(keys, shape, cell, source, table)
+    psd, kind, target, seed = _checked_keys(keys, shape, cell, source, prefix)
     nx, ny = shape
     noise = np.random.default_rng(seed).standard_normal((nx, ny))
     kx, ky = _wavenumbers(shape, cell)

@@ -308,7 +308,9 @@ SCHEMA: dict[str, dict[str, Key]] = {
                      default=None, fields=(("thickness", "m"),)),
     },
     "body": {
-        "shape": Key("string", "body shape: " + ", ".join(BODY_KEYS) + " (its own keys: see below)",
+        "shape": Key("string", "body shape: " + ", ".join(BODY_KEYS) + " (its own keys: see below; rough: "
+                     "a generated self-affine surface, one sample per cell, sample (i, j) on cell (i, j) at "
+                     "position [0, 0]: the surface of a periodic grid; docs/rough.md)",
                      _choice(*BODY_KEYS)),
         "position": Key("[x, y]", "position of the body's reference point at t = 0", _point,
                         default=[0.0, 0.0], unit="m"),
@@ -502,7 +504,7 @@ def parse_scene(raw: dict, source: str = "<python>", base_dir: str | pathlib.Pat
         grid = Grid(g["nx"], g["ny"], *g["x"], *g["y"])
     material = _material(values["material"], raw.get("material", {}), base_dir, source)
     material, shift_factor = _temperature(values["material"], raw.get("material", {}), material, source)
-    body = make_body(raw.get("body", {}), base_dir, source, line=line)
+    body = make_body(raw.get("body", {}), base_dir, source, line=line, grid=grid)
     m = values["motion"]
     if line:
         _check_line_motion(m, raw.get("motion", {}), source)

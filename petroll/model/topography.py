@@ -14,8 +14,10 @@ Formats (chosen by the file's extension, or ``fmt``):
 The numbers of ``npy``, ``matrix`` and ``xyz`` files are in ``unit`` (``"m"``, ``"mm"``, ``"um"`` or
 ``"nm"``, heights and xyz's coordinates alike); ``cell`` (the spacing of ``npy`` and ``matrix`` files) is
 in m like every scene length. A point that is not measured (NaN, or a grid point missing from an xyz list)
-is refused: petroll needs every height, so fill such points before (e.g. ``scipy.interpolate.griddata``).
-Every failure is a :class:`~petroll.errors.SceneError` naming the key of ``table`` (default ``[body]``).
+is refused: petroll needs every height, so fill such points before (e.g. ``scipy.interpolate.griddata``);
++inf means "no surface there" (a body's height map, docs/scene.md).
+Every failure is a :class:`~petroll.errors.SceneError` naming the key after ``prefix`` (default
+``[body] ``; ``[body] roughness.`` for a body's roughness).
 """
 
 from __future__ import annotations
@@ -28,7 +30,7 @@ import numpy as np
 
 from petroll.errors import SceneError, reason
 
-__all__ = ["FORMATS", "UNITS", "Topography", "read_topography"]
+__all__ = ["FORMATS", "UNITS", "Topography", "read_npy", "read_topography"]
 
 UNITS: dict[str, float] = {"m": 1.0, "mm": 1e-3, "um": 1e-6, "nm": 1e-9}
 """Length units of a file's numbers, in m."""
@@ -61,11 +63,11 @@ class Topography:
         return (self.heights.shape[0] * self.cell[0], self.heights.shape[1] * self.cell[1])
 
 
-def _format_of(path: pathlib.Path, fmt: str | None, source: str, table: str) -> str:
-    key = f"{table} file"
+def _format_of(path: pathlib.Path, fmt: str | None, source: str, prefix: str) -> str:
+    key = f"{prefix}file"
     if fmt is not None:
         if fmt not in FORMATS:
-            raise SceneError(source, f"{table} format", fmt,
+            raise SceneError(source, f"{prefix}format", fmt,
                              "must be one of: " + ", ".join(FORMATS))
         return fmt
     suffix = path.suffix.lower()
@@ -78,25 +80,27 @@ def _format_of(path: pathlib.Path, fmt: str | None, source: str, table: str) -> 
 
 
 def _checked(heights: np.ndarray, path: pathlib.Path, source: str, key: str) -> np.ndarray:
-    """A 2-D float array of at least 2 x 2 finite heights, or SceneError."""
+    """A 2-D float array of at least 2 x 2 heights, none NaN or -inf (+inf: no surface there), or
+    SceneError."""
     if heights.ndim != 2 or min(heights.shape) < 2:
         raise SceneError(source, key, str(path), "must hold a 2-D array of heights with at least 2 samples "
                          f"along each axis, got shape {heights.shape}")
-    bad = int(np.count_nonzero(~np.isfinite(heights)))
+    bad = int(np.count_nonzero(np.isnan(heights) | np.isneginf(heights)))
     if bad:
-        raise SceneError(source, key, str(path), f"{bad} of {heights.size} heights are not finite (points "
+        raise SceneError(source, key, str(path), f"{bad} of {heights.size} heights are NaN or -inf (points "
                          "not measured?): fill them first, e.g. with scipy.interpolate.griddata")
     return heights
 
 
-def _read_npy(path: pathlib.Path, source: str, key: str) -> np.ndarray:
+def read_npy(path: str | os.PathLike, source: str, what: str, key: str = "[body] file") -> np.ndarray:
+    """The array of a .npy file, or SceneError on ``key`` (``what``: the array it must hold)."""
     try:
         array = np.load(path, allow_pickle=False)
     except Exception as exc:  # noqa: BLE001 - any read failure is the user's file
         raise SceneError(source, key, str(path), f"cannot read a .npy file: {reason(exc)}") from None
     if not isinstance(array, np.ndarray) or not np.issubdtype(array.dtype, np.number):
-        raise SceneError(source, key, str(path), "must be a .npy file holding one numeric array (not .npz)")
-    return np.asarray(array, dtype=float)
+        raise SceneError(source, key, str(path), f"must be a .npy file holding {what}")
+    return array
 
 
 def _read_text(path: pathlib.Path, source: str, key: str, what: str) -> np.ndarray:
@@ -172,16 +176,16 @@ def _read_x3p(path: pathlib.Path, source: str, key: str) -> Topography:
 
 def read_topography(path: str | os.PathLike, *, fmt: str | None = None,
                     cell: tuple[float, float] | None = None, unit: str = "m", source: str = "<python>",
-                    table: str = "[body]") -> Topography:
+                    prefix: str = "[body] ") -> Topography:
     """Read a measured topography (see the module's docstring for the formats and units).
 
     ``cell``: the spacing (hx, hy) in m of ``npy`` and ``matrix`` files (required for them; refused for
     ``xyz`` and ``x3p``, whose files carry it). ``unit``: the unit of the file's numbers (not for ``x3p``).
-    ``table``: the scene table whose keys (file, format, cell, unit) the errors name.
+    ``prefix``: what the errors put before the keys' names (file, format, cell, unit).
     """
     path = pathlib.Path(path)
-    key, unit_key, cell_key = f"{table} file", f"{table} unit", f"{table} cell"
-    fmt = _format_of(path, fmt, source, table)
+    key, unit_key, cell_key = f"{prefix}file", f"{prefix}unit", f"{prefix}cell"
+    fmt = _format_of(path, fmt, source, prefix)
     if unit not in UNITS:
         raise SceneError(source, unit_key, unit, "must be one of: " + ", ".join(UNITS))
     if fmt == "x3p" and unit != "m":
@@ -194,7 +198,7 @@ def read_topography(path: str | os.PathLike, *, fmt: str | None = None,
         raise SceneError(source, cell_key, cell, f"required for a {fmt} file: the spacing in m, a number or "
                          "[hx, hy]")
     if fmt == "npy":
-        heights = _read_npy(path, source, key)
+        heights = read_npy(path, source, "one 2-D numeric array (not .npz)", key).astype(float)
     else:
         heights = _read_text(path, source, key, "a matrix of heights")
     return Topography(_checked(heights * UNITS[unit], path, source, key), (float(cell[0]), float(cell[1])))

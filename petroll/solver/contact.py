@@ -36,8 +36,7 @@ from petroll.errors import SolverError
 from petroll.model.grid import Grid
 from petroll.model.scene import DEFAULT_TAO_TYPE, TAO_TYPES
 from petroll.solver.partition import RowPartition, move_rows
-from petroll.solver.influence import shell_matrix, spare_cores
-from petroll.solver.layer import material_operator
+from petroll.solver.influence import influence_operator, shell_matrix, spare_cores
 from petroll.solver.pk import PK_PYTHON_TYPE, PolonskyKeer, tao_reasons
 from petroll.solver.precondition import CirculantInverse
 
@@ -79,7 +78,7 @@ class ContactSolver:
         workers = options.getInt("fft_workers", spare_cores(comm))
         if workers < 1:
             raise SolverError(f"-{prefix}fft_workers {workers}: the FFT threads per rank must be >= 1")
-        self.influence = material_operator(grid, comm, layer, workers)
+        self.influence = influence_operator(grid, comm, layer, workers)
         self.lift = self.influence.lift_bound(grid.nx, grid.ny)  # upward displacement per unit pressure
         self.rows = RowPartition(grid.nx, comm.size)
         self.r0, self.r1 = self.rows.range(comm.rank)
@@ -447,7 +446,7 @@ def hertz_penetration(grid: Grid, compliance: float, load: float, radius: float)
     """Hertz's penetration (m) of a sphere of ``radius`` (m) under ``load`` (N), or on a line-contact grid of
     a cylinder under ``load`` per length (N/m) relative to the grid's datum L:
     (2 J P/pi) (ln(2 L/a) + 1/2) with a = sqrt(4 P R J/pi) (the Hertz pressure's displacement at the
-    centre with the strip kernel's constant, petroll.solver.influence.strip_coefficients)."""
+    centre with the strip kernel's constant, petroll.solver.kernels.love.strip_coefficients)."""
     if grid.line:
         a = math.sqrt(4 * load * radius * compliance / math.pi)
         return 2 * compliance * load / math.pi * (math.log(2 * grid.datum / a) + 0.5)

@@ -10,8 +10,8 @@ convolution, applied with zero-padded FFTs (DC-FFT) on a grid whose rows are spl
     -> FFT along X (zero-padded to lx >= 2 nx - 1), multiply by the kernel spectrum, inverse FFT along X
     -> transpose back, inverse real FFT along Y, keep the first nx x ny values.
 
-A line-contact grid (plane strain, ny = 1) uses the same machinery with the strip kernel of
-:func:`strip_coefficients` in place of Love's (the Y transforms are then of length 1).
+The coefficients are a kernel's of petroll/solver/kernels (Love's rectangles, a line-contact grid's
+plane-strain strips, whose Y transforms are then of length 1, or a layer's).
 
 The transforms are scipy.fft's (pocketfft: real transforms along Y, about 2.5x numpy's at these sizes),
 on ``workers`` threads (a rank's spare cores, :func:`spare_cores`); the padded lengths are
@@ -30,63 +30,9 @@ import scipy.fft
 from mpi4py import MPI
 
 from petroll.model.grid import Grid
+from petroll.model.materials import Layer
+from petroll.solver.kernels import Kernel, grid_kernel
 from petroll.solver.partition import RowPartition
-
-
-def love_coefficients(nx: int, ny: int, dx: float, dy: float, rows: np.ndarray | None = None) -> np.ndarray:
-    """Love's coefficients A(ix, iy) for cell offsets 0 <= ix < nx, 0 <= iy < ny (units of dx); with
-    ``rows``, only the offsets ix in ``rows`` (shape (len(rows), ny)).
-
-    The displacement at a cell centre offset by (ix dx, iy dy) from a dx x dy cell carrying unit pressure,
-    for unit surface compliance. A is even in both offsets, so these values give every pair of cells.
-    """
-    ix = np.arange(nx) if rows is None else np.asarray(rows)
-    return rectangle_displacement(ix[:, None] * dx, np.arange(ny)[None, :] * dy, dx / 2, dy / 2)
-
-
-def rectangle_displacement(x, y, a: float, b: float):
-    """Displacement at (x, y) (m) from unit pressure on the rectangle |X| < a, |Y| < b, for unit surface
-    compliance (Love 1929): units of length."""
-    return (_f(x + a, y + b) - _f(x + a, y - b) - _f(x - a, y + b) + _f(x - a, y - b)) / np.pi
-
-
-def _f(u: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """u asinh(v/|u|) + v asinh(u/|v|), with the limit 0 of each term where its divisor is 0."""
-    u, v = np.broadcast_arrays(u, v)
-    au, av = np.abs(u), np.abs(v)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t1 = np.where(au > 0, u * np.arcsinh(v / np.where(au > 0, au, 1.0)), 0.0)
-        t2 = np.where(av > 0, v * np.arcsinh(u / np.where(av > 0, av, 1.0)), 0.0)
-    return t1 + t2
-
-
-def strip_coefficients(nx: int, dx: float, datum: float) -> np.ndarray:
-    """The plane-strain strip kernel A(k) for offsets 0 <= k < nx (shape (nx,), m per unit compliance).
-
-    The surface displacement (positive into the half-space) at a strip centre offset by k dx from a strip
-    of width dx carrying unit pressure, for unit surface compliance (w = J A p, J = (1 - nu^2)/E):
-    the exact integral of the line-load kernel -(2/pi) ln(|x - s|/L) over the strip (Johnson, Contact
-    Mechanics, 1985, Eq. 2.19b), with G(u) = u ln(|u|/L) - u:
-
-        A(k) = -(2/pi) [G(k dx + dx/2) - G(k dx - dx/2)]
-
-    The constant of the logarithmic kernel is fixed by the ``datum`` L (m): displacements are measured
-    relative to the surface points at distance L from each load. With L at least the grid's length
-    (petroll uses L = x1 - x0, :attr:`petroll.model.grid.Grid.datum`) every coefficient is positive and the
-    matrix is positive definite (its smallest eigenvalue, measured, >= 0.13 A(0) up to nx = 1000; the
-    continuous operator is positive definite while L exceeds a quarter of the loaded length, the
-    logarithmic capacity of a segment). Under load control the pressure does not depend on L: changing it
-    adds (2 J/pi) ln(L'/L) times the total load to every cell's displacement, which the penetration
-    absorbs. Even in k: these values give every pair of strips.
-    """
-    a = dx / 2
-    x = np.arange(nx) * dx
-
-    def g(u: np.ndarray) -> np.ndarray:
-        au = np.abs(u)
-        return np.where(au > 0, u * np.log(np.where(au > 0, au, 1.0) / datum), 0.0) - u
-
-    return -(2 / np.pi) * (g(x + a) - g(x - a))
 
 
 def dense_influence(coefficients: np.ndarray) -> np.ndarray:
@@ -240,31 +186,29 @@ def _columns_to_rows(a: np.ndarray, rows: RowPartition, cols: RowPartition, comm
 
 
 class InfluenceOperator:
-    """Influence convolutions on windows of one grid's cells (dx x dy), with kernels built once.
+    """Influence convolutions on windows of one grid's cells with one kernel (petroll/solver/kernels),
+    their spectra built once.
 
     ``window(nx, ny)`` returns the :class:`Convolution` for an nx x ny block of cells; each window shape's
-    kernel spectrum is computed on first use and kept (the last ``kept`` shapes). ``coefficients(nx, ny)``
-    gives the table A(|di|, |dj|) for offsets below (nx, ny); the default is Love's rectangles
-    (:func:`love_coefficients`); :func:`influence_operator` picks a grid's. ``torus``: the preconditioner's
-    circulant is built on a torus this many times a block along each of its axes longer than 1
-    (:meth:`pc_torus`; 1: the block itself). Love's table is kept for blocks up to ``TABLE_CELLS`` cells; a
-    larger block's kernel is computed from Love's formula for the rows each rank needs, so that no rank
-    holds a table of a whole large grid.
+    kernel spectrum is computed on first use and kept (the last ``kept`` shapes). The kernel's table is
+    kept for blocks up to ``TABLE_CELLS`` cells; a larger block's kernel, where the kernel computes any
+    rows directly (Love's), is computed for the rows each rank needs, so that no rank holds a table of a
+    whole large grid. :func:`influence_operator` picks a grid's.
     """
 
     TABLE_CELLS = 1 << 20
-    """Largest Love table kept (8 MiB)."""
+    """Largest coefficient table kept (8 MiB) for a kernel that computes its rows directly."""
 
-    def __init__(self, dx: float, dy: float, comm: MPI.Comm = MPI.COMM_SELF,
-                 coefficients: Callable[[int, int], np.ndarray] | None = None, workers: int = 1,
-                 positive: bool = True, torus: float = 1.0):
-        self.dx, self.dy, self.comm, self.workers = dx, dy, comm, workers
-        self.torus_factor = torus
-        self.love = coefficients is None
-        self.positive = positive  # every coefficient > 0 (a layer's are not: its surface bulges)
-        self.coefficients = coefficients or (lambda nx, ny: love_coefficients(nx, ny, dx, dy))
-        self._table = self.coefficients(1, 1)
+    def __init__(self, kernel: Kernel, comm: MPI.Comm = MPI.COMM_SELF, workers: int = 1):
+        self.kernel, self.comm, self.workers = kernel, comm, workers
+        self.dx, self.dy = kernel.dx, kernel.dy
+        self.positive = kernel.positive  # every coefficient > 0 (a layer's are not: its surface bulges)
+        self._table = kernel.table(1, 1)
         self._windows: dict[tuple[int, int], Convolution] = {}
+
+    def coefficients(self, nx: int, ny: int) -> np.ndarray:
+        """The kernel's table A(|di|, |dj|) for offsets below (nx, ny)."""
+        return self.kernel.table(nx, ny)
 
     @property
     def diagonal(self) -> float:
@@ -291,22 +235,21 @@ class InfluenceOperator:
 
     def pc_torus(self, nx: int, ny: int) -> tuple[int, int] | None:
         """The torus of the preconditioner's circulant for an nx x ny block: None (the block itself) unless
-        the operator's ``torus`` factor exceeds 1; then each axis longer than 1 grown by that factor and
+        the kernel's ``torus`` factor exceeds 1; then each axis longer than 1 grown by that factor and
         rounded up to a fast FFT length."""
-        if self.torus_factor <= 1:
+        if self.kernel.torus <= 1:
             return None
-        grown = [n if n == 1 else scipy.fft.next_fast_len(math.ceil(self.torus_factor * n), real=real)
+        grown = [n if n == 1 else scipy.fft.next_fast_len(math.ceil(self.kernel.torus * n), real=real)
                  for n, real in ((nx, False), (ny, True))]
         return grown[0], grown[1]
 
     def row_sum_bound(self, nx: int, ny: int) -> float:
         """An upper bound of every row sum of |A| on an nx x ny block: sum_k |A_ik| <= this (unit
         compliance), i.e. the largest displacement a field of unit magnitude can cause: the sum over all
-        offsets |di| < nx, |dj| < ny. For Love's coefficients that is the displacement at the centre of a
-        (2 nx - 1) dx x (2 ny - 1) dy rectangle under unit pressure: Love's formula, no table."""
-        if self.love:
-            return float(rectangle_displacement(0.0, 0.0, (2 * nx - 1) * self.dx / 2,
-                                                (2 * ny - 1) * self.dy / 2))
+        offsets |di| < nx, |dj| < ny (the kernel's closed form where it has one, else its table's)."""
+        bound = self.kernel.row_sum_bound(nx, ny)
+        if bound is not None:
+            return bound
         return self._offsets_sum(np.abs(self.table_rows(nx, ny)(np.arange(nx))))
 
     def lift_bound(self, nx: int, ny: int) -> float:
@@ -323,26 +266,23 @@ class InfluenceOperator:
 
     def table_rows(self, nx: int, ny: int) -> Callable[[np.ndarray], np.ndarray]:
         """The rows of the coefficient table of an nx x ny block: ``rows(ix)`` = A(ix, 0:ny) for row offsets
-        ix (from a kept table, or for Love's coefficients of a block beyond TABLE_CELLS cells, from
-        Love's formula)."""
-        if self.love and nx * ny > self.TABLE_CELLS:
-            return lambda ix: love_coefficients(nx, ny, self.dx, self.dy, rows=ix)
+        ix (from a kept table, or for a block beyond TABLE_CELLS cells of a kernel that computes its rows
+        directly, from its closed form)."""
+        kernel = self.kernel
+        if kernel.direct and nx * ny > self.TABLE_CELLS:
+            return lambda ix: kernel.table(nx, ny, rows=ix)
         if nx > self._table.shape[0] or ny > self._table.shape[1]:
             big = (max(nx, self._table.shape[0]), max(ny, self._table.shape[1]))
-            self._table = self.coefficients(*big)
+            self._table = kernel.table(*big)
         table = self._table
         return lambda ix: table[ix, :ny]
 
 
-def influence_operator(grid: Grid, comm: MPI.Comm = MPI.COMM_SELF, workers: int = 1) -> InfluenceOperator:
-    """The influence operator of ``grid``: Love's rectangles, or for a line-contact grid the plane-strain
-    strip kernel with the grid's datum (:func:`strip_coefficients`; the table is (nx, 1)); ``workers``
-    FFT threads. A layer's: :func:`petroll.solver.layer.material_operator`."""
-    if not grid.line:
-        return InfluenceOperator(grid.dx, grid.dy, comm, workers=workers)
-    dx, datum = grid.dx, grid.datum
-    return InfluenceOperator(dx, grid.dy, comm, lambda nx, ny: strip_coefficients(nx, dx, datum)[:, None],
-                             workers)
+def influence_operator(grid: Grid, comm: MPI.Comm = MPI.COMM_SELF, layer: Layer | None = None,
+                       workers: int = 1) -> InfluenceOperator:
+    """The influence operator of ``grid`` on a half-space or on ``layer`` (the kernel of
+    :func:`petroll.solver.kernels.grid_kernel`), ``workers`` FFT threads per rank."""
+    return InfluenceOperator(grid_kernel(grid, layer), comm, workers)
 
 
 class ShellInfluence:

@@ -3,7 +3,7 @@
 The contact QP's Hessian is petroll's shell matrix (:class:`petroll.solver.influence.ShellInfluence`,
 scale A on a window of cells). Its preconditioner is (scale C)^-1, C the circulant approximation of A on
 the window (:class:`petroll.solver.influence.Convolution` with ``inverse=True``; for a layer, on a torus
-1.5 times the window, cut back to it: petroll.solver.layer.TORUS): it undoes A's 1/|k| smoothing, so
+1.5 times the window, cut back to it: petroll.solver.kernels.layer.TORUS): it undoes A's 1/|k| smoothing, so
 Krylov iterations hardly grow with the grid.
 
 TAO's active-set types (tron, gpcg, bnls, bntr, bntl) run their KSP on the free variables only: the

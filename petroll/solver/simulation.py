@@ -21,7 +21,7 @@ from mpi4py import MPI
 from petroll.solver.contact import BeyondReach, ContactSolver
 from petroll.errors import SceneError, SolverError
 from petroll.solver.history import make_history
-from petroll.solver.layer import material_operator
+from petroll.solver.influence import influence_operator
 from petroll.solver.steady import Anderson, FarWake, SteadyMemory
 from petroll.model.materials import Prony
 from petroll.model.scene import Scene
@@ -244,7 +244,7 @@ class Simulation:
         pad[axis] = (behind, 0) if sign > 0 else (0, behind)
         inside = [slice(None), slice(None)]
         inside[axis] = slice(pad[axis][0], pad[axis][0] + n_along)
-        extended = material_operator(g, layer=scene.layer).window(*shape)
+        extended = influence_operator(g, layer=scene.layer).window(*shape)
         memory = SteadyMemory(material, scene.solver.integrator, speed, dt, cell, axis, sign,
                               n_along + behind + far + 1)
         wake = None
@@ -331,7 +331,7 @@ class Simulation:
         """The newest solved step's surface displacement w (m, positive into the half-space) and gap
         g = Z + w - delta (m) on this rank's rows. w = J_eff A p + A v is the whole displacement at that
         step: the step's own pressure plus the preceding displacement of the whole history (no cut-off);
-        for line contact it is relative to the datum (petroll.solver.influence.strip_coefficients).
+        for line contact it is relative to the datum (petroll.solver.kernels.love.strip_coefficients).
         One convolution on the whole grid; collective. A step restored from a checkpoint, not solved since,
         has none (RuntimeError)."""
         if self._newest is None:

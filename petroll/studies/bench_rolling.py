@@ -443,11 +443,11 @@ def skips(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, track_cells: int =
           repeats: int = 20) -> list[dict]:
     """Each saving of docs/design.md measured on and off side by side: time with and without it (s), and
     how much it changes the answer. Writes ``out/skips.csv``."""
-    from petroll.solver.influence import Convolution, InfluenceOperator
+    from petroll.solver.influence import Convolution, influence_operator
 
     scene = sphere_scene()
     g = scene.grid
-    window = InfluenceOperator(g.dx, g.dy, comm)
+    window = influence_operator(g, comm)
     i0, i1, j0, j1 = roll(scene, comm)["last_window"]
     shapes = {"window": (i1 - i0, j1 - j0), "grid": (g.nx, g.ny)}
     application = {k: _median_application(window.window(*shape), repeats, comm) for k, shape in shapes.items()}

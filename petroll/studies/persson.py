@@ -25,9 +25,10 @@ relaxation time, dM = M(inf) - M(0)). The flash temperature (the heating of the 
 makes) is left out: petroll's runs are isothermal.
 
 Quadrature: q on a uniform grid in ln q (``per_efold`` points per e-fold), G cumulated by the trapezoidal
-rule; the angle in two pieces, cos(phi) in [1/2, 1] by Gauss-Legendre in phi and cos(phi) in (0, 1/2] by
-Gauss-Legendre in ln cos(phi) down to 1e-16 (the integrands are smooth in ln(omega), where a relaxation
-time shows as a step of width ~1).
+rule; M(omega) from a cubic spline in ln(omega) through 16 exact values per e-fold; the angle in two
+pieces, cos(phi) in [1/2, 1] by Gauss-Legendre in phi and cos(phi) in (0, 1/2] by Gauss-Legendre in
+ln cos(phi) down to 1e-16 (the integrands are smooth in ln(omega), where a relaxation time shows as a step
+of width ~1).
 """
 
 from __future__ import annotations
@@ -36,12 +37,13 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.interpolate import CubicSpline
 from scipy.special import erf
 
 from petroll.model.materials import Prony
-from petroll.model.roughness import SelfAffinePSD
+from petroll.model.roughness import SelfAffinePSD, TabulatedPSD
 
-__all__ = ["PerssonResult", "persson", "angular_rule"]
+__all__ = ["PerssonResult", "angular_rule", "persson", "plane_strain_modulus"]
 
 
 def angular_rule(nodes: int = 8) -> tuple[np.ndarray, np.ndarray]:
@@ -60,6 +62,21 @@ def angular_rule(nodes: int = 8) -> tuple[np.ndarray, np.ndarray]:
     return np.concatenate([c_top, c_low]), np.concatenate([w_top, w_low])
 
 
+def plane_strain_modulus(material: Prony, omega: np.ndarray, per_efold: int = 16) -> np.ndarray:
+    """M(omega) = 1 / J*(omega) (Pa) at angular frequencies ``omega`` >= 0: a cubic spline in ln(omega)
+    through ``per_efold`` exact values per e-fold (relative error ~1e-7 for a Prony series, whose terms
+    change over an e-fold or more), so that a long series costs its table, not every point."""
+    positive = omega[omega > 0.0]
+    if positive.size == 0 or not material.dJ:
+        return np.broadcast_to(1.0 / material.complex_compliance(0.0), omega.shape)
+    low, high = math.log(positive.min()), math.log(positive.max())
+    s = np.linspace(low, high, max(int(math.ceil((high - low) * per_efold)), 4) + 1)
+    table = CubicSpline(s, 1.0 / material.complex_compliance(np.exp(s)))
+    with np.errstate(divide="ignore"):
+        return np.where(omega > 0.0, table(np.log(np.maximum(omega, positive.min()))),
+                        1.0 / material.complex_compliance(0.0))
+
+
 @dataclass(frozen=True)
 class PerssonResult:
     """Persson's theory at one pressure and speed: ``q`` (rad/m), G(q), P(q) (the fraction of the nominal
@@ -76,11 +93,12 @@ class PerssonResult:
         return float(self.P[-1])
 
 
-def persson(psd: SelfAffinePSD, material: Prony, pressure: float, velocity: float, *,
+def persson(psd: SelfAffinePSD | TabulatedPSD, material: Prony, pressure: float, velocity: float, *,
             gamma: float | None = None, per_efold: int = 256, nodes: int = 8) -> PerssonResult:
     """Persson's friction coefficient and contact area (module docstring) of the roughness ``psd`` (its
-    q_long the smallest wavenumber q0 > 0, q_cutoff q1) sliding at ``velocity`` (m/s) on ``material`` (a
-    Prony series; J includes 1 - nu^2) under the nominal ``pressure`` sigma0 (Pa)."""
+    q_long the smallest wavenumber q0 > 0, q_cutoff q1; a measured surface's: ``TabulatedPSD.of``)
+    sliding at ``velocity`` (m/s) on ``material`` (a Prony series; J includes 1 - nu^2) under the nominal
+    ``pressure`` sigma0 (Pa)."""
     q0, q1 = psd.q_long, psd.q_cutoff
     if not 0.0 < q0 < q1:
         raise ValueError(f"the roughness needs 0 < q_long < q_cutoff, got {q0!r}, {q1!r}")
@@ -89,7 +107,7 @@ def persson(psd: SelfAffinePSD, material: Prony, pressure: float, velocity: floa
     q = np.exp(s)
     q[0], q[-1] = q0, q1  # exactly: exp(log(q1)) may round past the cut-off, where C = 0
     c, weights = angular_rule(nodes)
-    modulus = 1.0 / material.complex_compliance(np.abs(velocity) * q[:, None] * c[None, :])
+    modulus = plane_strain_modulus(material, np.abs(velocity) * q[:, None] * c[None, :])
     # integral_0^2pi dphi: 4 x integral_0^pi/2, both integrands being even in cos(phi)
     loss = 4.0 * (modulus.imag * c[None, :]) @ weights / pressure
     square = 4.0 * (np.abs(modulus) ** 2) @ weights / pressure**2

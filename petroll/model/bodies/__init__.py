@@ -14,7 +14,8 @@ Evaluation is vectorised: ``x`` and ``y`` are numpy arrays that broadcast agains
 
 Modules by concern: ``base`` (the :class:`Body` interface, the validation shared by all bodies),
 ``analytic`` (bodies given by formulas), ``maps`` (bodies from sampled heights: maps and profiles),
-``mesh`` (triangle meshes rasterised to maps), ``factory`` (a scene's [body] table: shapes, keys,
+``mesh`` (triangle meshes rasterised to maps), ``rough`` (periodic surfaces from samples, roughness
+riding on a smooth body), ``factory`` (a scene's [body] table: shapes, keys,
 :func:`make_body`).
 """
 

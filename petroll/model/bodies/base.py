@@ -55,9 +55,8 @@ def positive(source: str, key: str, value: object, what: str = "a length in m") 
     return number
 
 
-def cell_pair(source: str, value: object) -> tuple[float, float]:
-    """A grid spacing: a number (hx = hy) or a pair [hx, hy], each finite and > 0."""
-    key = "[body] cell"
+def cell_pair(source: str, value: object, key: str = "[body] cell") -> tuple[float, float]:
+    """A grid spacing: a number (hx = hy) or a pair [hx, hy], each finite and > 0 (SceneError on ``key``)."""
     allowed = "must be a number > 0 or a pair [hx, hy] of numbers > 0 (grid spacing in m)"
     if is_number(value):
         spacing = float(value)

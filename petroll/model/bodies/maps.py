@@ -13,6 +13,7 @@ from scipy.interpolate import RectBivariateSpline
 
 from petroll.errors import SceneError
 from petroll.model.bodies.base import PYTHON_SOURCE, Body, cell_pair, point_pair, positive, type_name
+from petroll.model.topography import read_npy
 
 
 def check_heights(source: str, label: object, heights: object) -> np.ndarray:
@@ -276,16 +277,3 @@ class HeightProfile(Body):
     @property
     def radius_hint(self) -> float:
         return self._map.radius_hint
-
-
-def read_npy(path: str | os.PathLike, source: str, what: str) -> np.ndarray:
-    """The array of a .npy file, or SceneError on "[body] file" (``what``: the array it must hold)."""
-    try:
-        loaded = np.load(path, allow_pickle=False)
-    except Exception as exc:  # noqa: BLE001 - any read failure is the user's file
-        raise SceneError(source, "[body] file", str(path), f"cannot read a .npy file: {exc}") from None
-    if not isinstance(loaded, np.ndarray):
-        raise SceneError(source, "[body] file", str(path), f"must be a .npy file holding {what}")
-    return loaded
-
-

@@ -21,9 +21,10 @@ import scipy.fft
 from scipy import ndimage
 
 from petroll.errors import SceneError
-from petroll.model.bodies import PYTHON_SOURCE, Body
+from petroll.model.bodies.base import PYTHON_SOURCE, Body
+from petroll.model.grid import Grid
 
-__all__ = ["PeriodicSurface", "RoughBody"]
+__all__ = ["PeriodicSurface", "RoughBody", "grid_surface"]
 
 
 def _spectral_slopes(heights: np.ndarray, cell: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
@@ -41,13 +42,26 @@ def _spectral_slopes(heights: np.ndarray, cell: tuple[float, float]) -> tuple[np
             scipy.fft.irfft2(1j * ky[None, :] * spectrum, s=heights.shape))
 
 
+def _spline_minimum(samples: np.ndarray, coefficients: np.ndarray, candidates: int = 8) -> float:
+    """The lowest value of the periodic cubic spline (its B-spline ``coefficients``) on a lattice of 1/16
+    of a cell within a cell of each of the ``candidates`` lowest samples."""
+    lowest = np.unravel_index(np.argsort(samples, axis=None)[:candidates], samples.shape)
+    offsets = np.linspace(-1.0, 1.0, 33)
+    u, v = np.broadcast_arrays(lowest[0][:, None, None] + offsets[None, :, None],
+                               lowest[1][:, None, None] + offsets[None, None, :])
+    values = ndimage.map_coordinates(coefficients, np.stack([u.ravel(), v.ravel()]), order=3,
+                                     mode="grid-wrap", prefilter=False)
+    return min(float(values.min()), float(samples.min()))
+
+
 @dataclass(frozen=True, eq=False)
 class PeriodicSurface(Body):
     """Heights ``heights[i, j]`` (m) at offsets ``origin`` + (i hx, j hy) from the body's reference point,
     ``cell`` = (hx, hy) m, repeated with the period (nx hx, ny hy) in both directions.
 
-    Z = S - min(heights), S the periodic cubic spline through the samples (between samples S may dip
-    below the lowest sample by its overshoot, a small fraction of the local height differences).
+    Z = S - min S, S the periodic cubic spline through the samples and min S its lowest point, found on
+    a lattice of 1/16 of a cell around the lowest samples (so Z >= 0 to within S's variation over 1/32 of
+    a cell).
     """
 
     heights: np.ndarray
@@ -56,6 +70,7 @@ class PeriodicSurface(Body):
     _: KW_ONLY
     source: InitVar[str] = PYTHON_SOURCE
     _coefficients: tuple[np.ndarray, np.ndarray, np.ndarray] = field(init=False, repr=False)
+    _lowest: float = field(init=False, repr=False)
     _radius_hint: float = field(init=False, repr=False)
 
     def __post_init__(self, source: str) -> None:
@@ -64,10 +79,11 @@ class PeriodicSurface(Body):
             raise SceneError(source, "[body] heights", f"<array of shape {heights.shape}>",
                              "a periodic surface needs a 2-D array of at least 4 x 4 finite heights (m)")
         cell = (float(self.cell[0]), float(self.cell[1]))
-        heights -= heights.min()
-        heights.setflags(write=False)
         slopes = _spectral_slopes(heights, cell)
-        coefficients = tuple(ndimage.spline_filter(f, order=3, mode="grid-wrap") for f in (heights, *slopes))
+        surface, *gradient = (ndimage.spline_filter(f, order=3, mode="grid-wrap") for f in (heights, *slopes))
+        lowest = _spline_minimum(heights, surface)
+        coefficients = (surface - lowest, *gradient)  # a constant passes the filter as it is
+        heights.setflags(write=False)
         # the summits' radius of curvature ~ 1 / rms curvature (first guesses only)
         curvature = np.gradient(slopes[0], cell[0], axis=0) + np.gradient(slopes[1], cell[1], axis=1)
         rms = math.sqrt(float(np.mean(curvature**2)))
@@ -76,7 +92,13 @@ class PeriodicSurface(Body):
         set_(self, "cell", cell)
         set_(self, "origin", (float(self.origin[0]), float(self.origin[1])))
         set_(self, "_coefficients", coefficients)
+        set_(self, "_lowest", lowest)
         set_(self, "_radius_hint", 1.0 / rms if rms > 0.0 else max(heights.shape) * max(cell))
+
+    @property
+    def lowest(self) -> float:
+        """min S (m), the spline's lowest point: Z = S - lowest, so Z = heights - lowest at the samples."""
+        return self._lowest
 
     @property
     def period(self) -> tuple[float, float]:
@@ -120,3 +142,18 @@ class RoughBody(Body):
     @property
     def radius_hint(self) -> float:
         return self.body.radius_hint
+
+
+def grid_surface(heights: np.ndarray, cell: tuple[float, float], grid: Grid, *, source: str = PYTHON_SOURCE,
+                 label: object = "<heights>") -> PeriodicSurface:
+    """The surface of a periodic ``grid``: its nx x ny samples at the grid's spacing, sample (i, j) on the
+    centre of cell (i, j) while the body's reference point is at the origin (SceneError on ``[body] file``
+    or ``[body] cell``, ``label`` the file, unless the samples are that many at that spacing)."""
+    if heights.shape != (grid.nx, grid.ny):
+        raise SceneError(source, "[body] file", label, f"on a periodic grid the surface has one sample per "
+                         f"cell, {grid.nx} x {grid.ny}, not {heights.shape[0]} x {heights.shape[1]}")
+    if not np.allclose(cell, (grid.dx, grid.dy), rtol=1e-9, atol=0.0):
+        raise SceneError(source, "[body] cell", list(cell), f"on a periodic grid the samples are the cells: "
+                         f"their spacing is the grid's, [{grid.dx!r}, {grid.dy!r}] m")
+    return PeriodicSurface(heights, (grid.dx, grid.dy), (grid.x0 + 0.5 * grid.dx, grid.y0 + 0.5 * grid.dy),
+                           source=source)

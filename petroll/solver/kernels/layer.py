@@ -53,12 +53,9 @@ import math
 import numpy as np
 from scipy.special import j0
 
-from mpi4py import MPI
-
-from petroll.model.grid import Grid
 from petroll.model.materials import Layer
-from petroll.solver.influence import (InfluenceOperator, influence_operator, love_coefficients,
-                                      strip_coefficients)
+from petroll.solver.kernels.base import Kernel
+from petroll.solver.kernels.love import love_coefficients, strip_coefficients
 
 TABLE_END, TABLE_STEP = 40.0, 0.005
 """The remainder's table covers r/h in [0, TABLE_END] (beyond: its far field) in steps of TABLE_STEP."""
@@ -169,7 +166,7 @@ def layer_coefficients(nx: int, ny: int, dx: float, dy: float, layer: Layer,
 
 def layer_strip_coefficients(nx: int, dx: float, datum: float, layer: Layer) -> np.ndarray:
     """The plane-strain coefficients of strips of width dx on the layer, offsets 0 <= k < nx (shape (nx,),
-    per unit compliance): the strip kernel of :func:`petroll.solver.influence.strip_coefficients` with
+    per unit compliance): the strip kernel of :func:`petroll.solver.kernels.love.strip_coefficients` with
     ``datum`` plus the layer's correction; the sum does not depend on the datum (a layer on a rigid base
     has a displacement that vanishes far from the load)."""
     h, c, a = layer.thickness, layer.thickness, dx / 2
@@ -192,7 +189,7 @@ def layer_strip_coefficients(nx: int, dx: float, datum: float, layer: Layer) -> 
 
 TORUS = 1.5
 """A layer's preconditioner: the circulant of its kernel on a torus 1.5 times the QP's window along each
-axis (:class:`petroll.solver.influence.InfluenceOperator`), not on the window itself. Measured, not
+axis (:meth:`petroll.solver.influence.InfluenceOperator.pc_torus`), not on the window itself. Measured, not
 derived: applications per step of petroll bench layer (docs/layer.md#performance) on the window / at 1.5:
 idler 6 mm and 2 mm bonded, 6 mm frictionless 6.59 / 5.45, 6.47 / 5.47, 5.42 / 4.92 (at 1.25: 5.65,
 5.77, 5.17; at 2: 5.94, 5.50, 4.90); spheres h = 4a, a, a/4 bonded, a frictionless 7.83 / 7.77,
@@ -203,18 +200,32 @@ with the applications, or for h = 4a stayed within the noise). A half-space gain
 4.57 applications; on a torus twice the window its strip kernel's circulant fails: 124)."""
 
 
-def material_operator(grid: Grid, comm: MPI.Comm = MPI.COMM_SELF, layer: Layer | None = None,
-                      workers: int = 1) -> InfluenceOperator:
-    """The influence operator of ``grid`` on a half-space (``layer`` None:
-    :func:`petroll.solver.influence.influence_operator`) or on ``layer``: its coefficients (3-D or line
-    contact), some of them negative (``positive`` False); ``workers`` FFT threads per rank."""
-    if layer is None:
-        return influence_operator(grid, comm, workers)
-    dx, dy, datum = grid.dx, grid.dy, grid.datum
-    if grid.line:
-        def strips(nx: int, ny: int) -> np.ndarray:
-            return layer_strip_coefficients(nx, dx, datum, layer)[:, None]
+class LayerRectangles(Kernel):
+    """dx x dy cells on ``layer`` (:func:`layer_coefficients`): some coefficients negative (the surface
+    bulges around a load), the preconditioner's circulant on a torus TORUS times the window."""
 
-        return InfluenceOperator(dx, dy, comm, strips, workers, positive=False, torus=TORUS)
-    return InfluenceOperator(dx, dy, comm, lambda nx, ny: layer_coefficients(nx, ny, dx, dy, layer), workers,
-                             positive=False, torus=TORUS)
+    positive = False
+    torus = TORUS
+
+    def __init__(self, dx: float, dy: float, layer: Layer):
+        super().__init__(dx, dy)
+        self.layer = layer
+
+    def table(self, nx: int, ny: int, rows: np.ndarray | None = None) -> np.ndarray:
+        return layer_coefficients(nx, ny, self.dx, self.dy, self.layer, rows)
+
+
+class LayerStrips(Kernel):
+    """Plane-strain strips of width dx on ``layer`` with the datum L (m) (:func:`layer_strip_coefficients`;
+    a table of shape (nx, 1)), negative coefficients and torus as :class:`LayerRectangles`."""
+
+    positive = False
+    torus = TORUS
+
+    def __init__(self, dx: float, dy: float, datum: float, layer: Layer):
+        super().__init__(dx, dy)
+        self.datum, self.layer = datum, layer
+
+    def table(self, nx: int, ny: int, rows: np.ndarray | None = None) -> np.ndarray:
+        out = layer_strip_coefficients(nx, self.dx, self.datum, self.layer)[:, None]
+        return out if rows is None else out[rows]
