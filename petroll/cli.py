@@ -47,12 +47,19 @@ class _Parser(argparse.ArgumentParser):
 
 
 def _parser() -> argparse.ArgumentParser:
-    parser = _Parser(prog="petroll", description=__doc__.split("\n\n")[0],
-                     epilog="PETSc options (-petroll_tao_type, -log_view, ...) may follow.")
     from petroll import __version__
 
+    parser = _Parser(prog="petroll", description=__doc__.split("\n\n")[0],
+                     epilog="PETSc options (-petroll_tao_type, -log_view, ...) may follow.")
     parser.add_argument("--version", action="version", version=f"petroll {__version__}")
     verbs = parser.add_subparsers(dest="verb", required=True)
+    for add in (_run_verbs, _study_verbs, _material_verbs, _file_verbs):
+        add(verbs)
+    return parser
+
+
+def _run_verbs(verbs) -> None:
+    """run, restart, keys."""
     run = verbs.add_parser("run", help="run a scene and write DIR/results.h5")
     run.add_argument("scene", help="scene file (TOML)")
     run.add_argument("--out", help="output directory (default: the scene's [output] dir)")
@@ -66,26 +73,32 @@ def _parser() -> argparse.ArgumentParser:
     restart.add_argument("--quiet", action="store_true", help="no progress line (also off when not a "
                          "terminal)")
     verbs.add_parser("keys", help="print the scene reference generated from the schema (Markdown)")
+
+
+def _study_verbs(verbs) -> None:
+    """stability, bench, sweep."""
     stability = verbs.add_parser("stability", help="sweep the stability map, write CSV and Markdown "
                                  "(docs/stability.md); exit status 1 if a run fails its checks")
     stability.add_argument("--fast", action="store_true", help="only the subset that the test suite runs")
     stability.add_argument("--out", default="results/stability", help="directory for stability.csv and .md")
-    bench = verbs.add_parser("bench", help="run a benchmark, print its table and write CSV (docs/benchmarks.md)")
-    bench.add_argument("which", choices=["tao", "warm", "skips", "peers", "precision", "growth", "mpi", "memory",
-                                         "append", "layer", "steady"],  # petroll.studies.bench_verbs.VERBS
+    bench = verbs.add_parser("bench", help="run a benchmark, print its table and write CSV "
+                             "(docs/benchmarks.md)")
+    bench.add_argument("which", choices=["tao", "warm", "skips", "peers", "precision", "growth", "mpi",
+                                         "memory", "append", "layer", "steady"],  # studies.bench_verbs.VERBS
                        help="tao: every TAO type on the Hertz step; warm: operator applications per rolling "
-                       "step for each first guess; skips: each saving on and off; peers: petroll against Tamaas and "
-                       "ContactMechanics on the Hertz step; precision: error against run time of the "
-                       "integrators and of grid refinement on the rolling sphere; growth: time per rolling "
-                       "step against the contact window's cells, and along a long track; mpi: time per "
-                       "rolling step against the rank count; memory: peak memory of every rank against the "
-                       "grid's cells at 1, 2 and 4 ranks (--ranks); append: results.h5 writing time per "
+                       "step for each first guess; skips: each saving on and off; peers: petroll against "
+                       "Tamaas and ContactMechanics on the Hertz step; precision: error against run time of "
+                       "the integrators and of grid refinement on the rolling sphere; growth: time per "
+                       "rolling step against the contact window's cells, and along a long track; mpi: time "
+                       "per rolling step against the rank count; memory: peak memory of every rank against "
+                       "the grid's cells at 1, 2 and 4 ranks (--ranks); append: results.h5 writing time per "
                        "saved step over 1000 steps; layer: cost per step of layer scenes against the "
                        "half-space (docs/layer.md); steady: the direct steady solve against the transient "
                        "run to the same steady tolerance, V tau/a 1e-3 to 1e3")
     bench.add_argument("--out", default="results/bench", help="directory for the CSV (and PNG) files")
-    bench.add_argument("--ranks", type=_ranks, help="mpi and memory only: rank counts to run side by side as "
-                       "mpirun children, e.g. 1,2 (default: mpi: the current communicator only; memory: 1,2,4)")
+    bench.add_argument("--ranks", type=_ranks, help="mpi and memory only: rank counts to run side by side "
+                       "as mpirun children, e.g. 1,2 (default: mpi: the current communicator only; memory: "
+                       "1,2,4)")
     bench.add_argument("--sides", type=_ranks, help="memory only: grid sides (cells) to measure, e.g. "
                        "1024,2048,4096 (the default)")
     bench.add_argument("--quick", action="store_true", help="the smallest sizes and one repeat, in seconds: "
@@ -101,6 +114,10 @@ def _parser() -> argparse.ArgumentParser:
     sweep.add_argument("--quiet", action="store_true", help="no progress line (also off when not a terminal)")
     sweep.add_argument("--transient", action="store_true", help="run every point from rest to steady state, "
                        "even where its steady state can be solved directly (the default there)")
+
+
+def _material_verbs(verbs) -> None:
+    """material fit."""
     material = verbs.add_parser("material", help="materials from measurements (docs/materials.md)")
     material_verbs = material.add_subparsers(dest="material_verb", required=True, metavar="fit")
     fit = material_verbs.add_parser("fit", help="fit a Maxwell (relaxation) Prony series with non-negative "
@@ -118,10 +135,15 @@ def _parser() -> argparse.ArgumentParser:
     fit.add_argument("--out", help="write the [material] block here (atomically; default: print it)")
     fit.add_argument("--plot", help="the figure of data and fit (default: beside --out, its name with .png; "
                      "without --out: none)")
+
+
+def _file_verbs(verbs) -> None:
+    """plot, info, export, stress: verbs on a run's files."""
     plot = verbs.add_parser("plot", help="figures of a run (pressure maps, patch outlines, series), a sweep "
                             "or a stress file")
     plot.add_argument("path", help="a run directory or its results.h5 (figures in DIR/plots), a sweep "
-                      "directory or its sweep.h5 (sweep figure beside it), or a stress.h5 (stress figure beside it)")
+                      "directory or its sweep.h5 (sweep figure beside it), or a stress.h5 (stress figure "
+                      "beside it)")
     plot.add_argument("--out", help="directory for the figures (default: as above)")
     plot.add_argument("--times", type=_seconds, help="runs: comma-separated times in s: draw the saved "
                       "pressure fields nearest to them (default: up to 4 spread over the run)")
@@ -133,8 +155,8 @@ def _parser() -> argparse.ArgumentParser:
     export = verbs.add_parser("export", help="a run's series (or one saved field) as CSV for a spreadsheet")
     export.add_argument("dir", help="a run's output directory (or its results.h5)")
     export.add_argument("--csv", action="store_true", help="CSV (the default and only format)")
-    export.add_argument("--field", choices=("pressure", "displacement", "gap"), help="one saved field instead "
-                        "of the series: columns x, y (m) and its value, one row per cell")
+    export.add_argument("--field", choices=("pressure", "displacement", "gap"), help="one saved field "
+                        "instead of the series: columns x, y (m) and its value, one row per cell")
     export.add_argument("--step", type=int, help="with --field: the step of the saved field (default: the "
                         "last saved)")
     export.add_argument("--out", help="the CSV file (default: DIR/series.csv, DIR/FIELD-step-N.csv)")
@@ -149,7 +171,6 @@ def _parser() -> argparse.ArgumentParser:
     depth.add_argument("--depths", choices=["auto"], help="auto (the default): 41 depths from 0 to twice "
                        "the contact's smaller half-width")
     stress.add_argument("--nu", type=float, help="Poisson's ratio (default: the scene's [material] nu)")
-    return parser
 
 
 def _depths(text: str) -> list[float]:
@@ -256,8 +277,10 @@ def _info(args: argparse.Namespace) -> None:
              f"({', '.join(str(int(k)) for k in r.field_steps)}); results.xdmf for ParaView"]
     if found.checkpoints:
         steps = ", ".join(str(step) for step, _ in found.checkpoints)
-        lines.append(f"  checkpoints: {len(found.checkpoints)} (steps {steps}) in {found.checkpoints[-1][1].parent}"
-                     + ("" if r.complete else f"; petroll restart {found.directory} continues from the newest"))
+        where = found.checkpoints[-1][1].parent
+        lines.append(f"  checkpoints: {len(found.checkpoints)} (steps {steps}) in {where}"
+                     + ("" if r.complete else f"; petroll restart {found.directory} continues from the "
+                                              "newest"))
     else:
         lines.append("  checkpoints: none")
     lines.append(f"  other files: {', '.join(found.others) or 'none'}")
@@ -305,7 +328,9 @@ def _material_fit(args: argparse.Namespace) -> None:
     else:
         print(text, end="", flush=True)
         report = sys.stderr  # the block alone on stdout, ready to redirect
-    png = pathlib.Path(args.plot or pathlib.Path(args.out).with_suffix(".png")) if args.plot or args.out else None
+    png = None  # the figure: --plot, else beside --out, else none
+    if args.plot or args.out:
+        png = pathlib.Path(args.plot or pathlib.Path(args.out).with_suffix(".png"))
     try:
         if png is not None:
             plot_fit(data, fit, png)
@@ -526,8 +551,9 @@ def summary(scene, results, wall: float, resumed=None) -> str:
     force, area = ("N/m", "contact width {:.4g} m") if line else ("N", "contact area {:.4g} m^2")
     if resumed is not None:
         how = f"resumed after step {resumed.step} (t = {resumed.t:.4g} s; {resumed.path}), {how}"
-    return (f"petroll: {scene.source}: {how} ({state}wall time {wall:.1f} s). Last step: force {s['force'][-1]:.6g} {force} at "
-            f"penetration {s['delta'][-1]:.6g} m{' (to the datum)' if line else ''}, mu_r {s['mu_r'][-1]:.4e}, "
+    return (f"petroll: {scene.source}: {how} ({state}wall time {wall:.1f} s). Last step: force "
+            f"{s['force'][-1]:.6g} {force} at penetration {s['delta'][-1]:.6g} m"
+            f"{' (to the datum)' if line else ''}, mu_r {s['mu_r'][-1]:.4e}, "
             f"{area.format(s['area'][-1])}, "
             f"patch from {s['trail'][-1]:.4g} to {s['lead'][-1]:.4g} m along the motion, max pressure "
             f"{s['p_max'][-1]:.6g} Pa; {int(s['applications'].sum())} operator applications in all. "

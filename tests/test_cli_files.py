@@ -40,7 +40,8 @@ def test_plot_takes_a_run_directory_its_results_file_a_sweep_and_a_stress_file(r
     sweep(scene, "motion.velocity=0.01,0.1", shared_dir / "sweep", comm, plot=False)
     petroll.stress(run_dir, depths=[0.0, 1e-4], comm=comm)
     cases = [([str(run_dir)], ["pressure", "patches", "series", "surface"], run_dir / "plots"),
-             ([str(run_dir / "results.h5"), "--out", str(shared_dir / "figs")], ["pressure"], shared_dir / "figs"),
+             ([str(run_dir / "results.h5"), "--out", str(shared_dir / "figs")], ["pressure"],
+              shared_dir / "figs"),
              ([str(shared_dir / "sweep")], ["sweep"], shared_dir / "sweep"),
              ([str(run_dir / "stress.h5"), "--out", str(shared_dir / "s")], ["stress"], shared_dir / "s")]
     for argv, names, where in cases:
@@ -59,7 +60,8 @@ def test_plot_and_info_refuse_what_is_not_petroll_output_in_one_line(cli_main, c
     comm.Barrier()
     for argv, says in ((["plot", str(shared_dir / "missing")], "no such file or directory"),
                        (["plot", str(shared_dir / "empty")], "holds no results.h5, sweep.h5 or stress.h5"),
-                       (["info", str(shared_dir / "other.h5")], "not a petroll results.h5, sweep.h5 or stress.h5"),
+                       (["info", str(shared_dir / "other.h5")], "not a petroll results.h5, sweep.h5 or "
+                                                                 "stress.h5"),
                        (["export", str(shared_dir / "empty")], "holds no results.h5")):
         code, _, err = cli_main(argv)
         assert code == 2
@@ -119,7 +121,8 @@ def test_export_writes_the_series_and_a_saved_field_as_csv(run_dir, cli_main, co
         gap, x, y = f["fields/gap"][k], f["fields/x"][()], f["fields/y"][()]
     header, table = _read_csv(shared_dir / "gap.csv")
     assert header == ["x (m)", "y (m)", "gap (m)"]
-    assert np.array_equal(table[:, 0], np.repeat(x, len(y))) and np.array_equal(table[:, 1], np.tile(y, len(x)))
+    assert np.array_equal(table[:, 0], np.repeat(x, len(y)))
+    assert np.array_equal(table[:, 1], np.tile(y, len(x)))
     assert np.array_equal(table[:, 2], gap.ravel())
 
 

@@ -53,9 +53,10 @@ def _pvpython() -> str:
 def _read_in_paraview(xdmf: pathlib.Path, tmp_path: pathlib.Path) -> tuple[dict, str]:
     script, out = tmp_path / "read.py", tmp_path / "read.json"
     script.write_text(READ, encoding="utf-8")
-    env = {k: v for k, v in os.environ.items() if not k.startswith(("PYTHON", "VIRTUAL_ENV", "OMPI_", "PMIX"))}
-    done = subprocess.run([_pvpython(), "--force-offscreen-rendering", str(script), str(xdmf.resolve()), str(out)],
-                          capture_output=True, text=True, env=env, timeout=600)
+    own = ("PYTHON", "VIRTUAL_ENV", "OMPI_", "PMIX")  # this Python's and MPI's: not pvpython's
+    env = {k: v for k, v in os.environ.items() if not k.startswith(own)}
+    argv = [_pvpython(), "--force-offscreen-rendering", str(script), str(xdmf.resolve()), str(out)]
+    done = subprocess.run(argv, capture_output=True, text=True, env=env, timeout=600)
     assert done.returncode == 0, done.stderr[-3000:]
     return json.loads(out.read_text()), done.stdout + done.stderr
 
@@ -81,7 +82,7 @@ def test_both_paraview_readers_read_every_field_at_every_step_as_saved(tmp_path,
         assert np.array_equal([s["t"] for s in read["steps"]], times), label
         for k, step in enumerate(read["steps"]):
             centres = np.array(step["centres"]).reshape(nx, ny, 2)  # cell k: the value k of each array
-            assert np.allclose(centres[..., 0], results.x[:, None], rtol=0, atol=1e-9 * np.ptp(results.x)), label
+            assert np.allclose(centres[..., 0], results.x[:, None], rtol=0, atol=1e-9 * np.ptp(results.x))
             if not line:
                 assert np.allclose(centres[..., 1], results.y[None, :], rtol=0, atol=1e-9 * np.ptp(results.y))
             assert sorted(step["arrays"]) == sorted(FIELDS), label

@@ -13,7 +13,14 @@ import numpy as np
 
 from petroll.errors import PetrollError
 from petroll.io.checkpoint import checkpoint_dir, list_checkpoints
-from petroll.io.results import FIELD_UNITS, LINE_SERIES_UNITS, SERIES_UNITS, OutputError, Results, atomic_write
+from petroll.io.results import (
+    FIELD_UNITS,
+    LINE_SERIES_UNITS,
+    SERIES_UNITS,
+    OutputError,
+    Results,
+    atomic_write,
+)
 
 KINDS = {"results.h5": "run", "sweep.h5": "sweep", "stress.h5": "stress"}
 """The file a directory of each kind holds."""

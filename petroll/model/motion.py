@@ -30,13 +30,14 @@ PROGRAMS = {
         "velocity = [0.01, 0.0]"),
     "ramp": ProgramKind(
         "from start at t = 0 linearly to end at t = duration, then constant at end",
-        {"start": ("value", "the value at t = 0 (a load: >= 0)"), "end": ("value", "the value from t = duration on"),
+        {"start": ("value", "the value at t = 0 (a load: >= 0)"),
+         "end": ("value", "the value from t = duration on"),
          "duration": ("s", "the ramp's length in time, > 0")},
         'load = {kind = "ramp", start = 0.0, end = 0.05, duration = 0.02}'),
     "sinusoidal": ProgramKind(
         "value = mean + amplitude sin(2 pi t / period + phase)",
-        {"mean": ("value", "the mean value"), "amplitude": ("value", "the amplitude (a load: no larger than the "
-                                                             "mean)"),
+        {"mean": ("value", "the mean value"),
+         "amplitude": ("value", "the amplitude (a load: no larger than the mean)"),
          "period": ("s", "the period, > 0"), "phase": ("rad", "the phase at t = 0 (default 0)")},
         'velocity = {kind = "sinusoidal", mean = [0.01, 0.0], amplitude = [0.008, 0.0], period = 0.2}',
         optional={"phase": 0.0}),

@@ -788,28 +788,27 @@ def _check_contact_inside(scene: Scene) -> None:
 
 
 def dumps(raw: dict) -> str:
-    """A TOML text for a scene dict (sections of scalars and flat lists): what ``results.h5`` stores."""
-    lines = []
-    for section, table in raw.items():
-        lines.append(f"[{section}]")
-        lines += [f"{key} = {toml_value(value)}" for key, value in table.items()]
-        lines.append("")
-    return "\n".join(lines)
+    """A TOML text for a scene dict (written by tomli-w; numpy values as plain Python): what ``results.h5``
+    stores and ``petroll material fit`` writes. Inline tables come out as sub-tables ([material.layer]):
+    the same scene to a TOML reader."""
+    import tomli_w
+
+    return tomli_w.dumps(_plain(raw))
 
 
 def toml_value(value: Any) -> str:
-    """``value`` written as a TOML value: bool, int, float, str, list or tuple (array), dict (inline table),
-    numpy scalars and arrays too. petroll's one TOML writer (with :func:`dumps`)."""
-    if isinstance(value, np.ndarray):
-        value = value.tolist()
-    if isinstance(value, (bool, np.bool_)):
-        return "true" if value else "false"
-    if isinstance(value, str):
-        return '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
-    if isinstance(value, (list, tuple)):
-        return "[" + ", ".join(toml_value(v) for v in value) + "]"
+    """``value`` (not a table) written as one line of TOML, tomli-w's text of it without its line breaks:
+    the defaults of the scene reference."""
+    import tomli_w
+
+    lines = tomli_w.dumps({"v": _plain(value)}).strip().partition(" = ")[2].splitlines()
+    return " ".join(line.strip() for line in lines).replace("[ ", "[").replace(", ]", "]")
+
+
+def _plain(value: Any) -> Any:
+    """``value`` with numpy arrays and scalars as Python lists and numbers, tuples as lists."""
     if isinstance(value, dict):
-        return "{" + ", ".join(f"{k} = {toml_value(v)}" for k, v in value.items()) + "}"
-    if isinstance(value, (int, np.integer)):
-        return str(int(value))
-    return repr(float(value))
+        return {k: _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple, np.ndarray)):
+        return [_plain(v) for v in value]
+    return value.item() if isinstance(value, np.generic) else value

@@ -104,7 +104,7 @@ def _stress_map(figure, ax, title: str, planes: dict) -> None:
 
 def _stress_profile(figure, ax, title: str, planes: dict) -> None:
     """Line contact: the stress along X at the maximum's depth."""
-    x, peak, (px, py, pz), plane = planes["x"], planes["peak"], planes["at"], planes["map"]
+    x, peak, (px, _, pz), plane = planes["x"], planes["peak"], planes["at"], planes["map"]
     unit, scale = pressure_unit(max(peak, 1e-300))
     span = span_above(plane, 0.1 * peak)
     ax.plot(x * MM, plane / scale, color="tab:blue")

@@ -10,7 +10,6 @@ import numpy as np
 
 from petroll.plot.common import MM
 
-
 STYLE = {"marker": "o", "markersize": 4}
 TITLE = {"fontsize": 10, "y": 1.0}
 """Titles at a fixed height: matplotlib's own placement measures every tick label (about 1 s here)."""

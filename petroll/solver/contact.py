@@ -91,9 +91,8 @@ class ContactSolver:
     GROW = 1
     """Cells added at both ends of a line-contact layer's QP window: its contact often grows a cell beyond
     the interference and the previous step's contact (the bulge ahead of a rolling body), which the ring
-    would find only after a solve, to be solved again (petroll bench layer: the bonded idler covers take
-    5.20 / 5.13 instead of 5.45 / 5.47 applications per step; not in 3-D, where the spheres' applications
-    changed by under 1.5 % and each window had more cells)."""
+    would find only after a solve, to be solved again (docs/layer.md#performance measures the saving; in
+    3-D the windows are not grown: there it saves nothing)."""
 
     kept = 6
     """Window shapes whose TAO, shell matrix and vectors are kept (the most recently used)."""
