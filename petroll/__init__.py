@@ -7,7 +7,8 @@ The Python API (the ``petroll`` command is a thin layer over it)::
     results = petroll.run(scene, out="results/faster")   # collective under mpirun
     results.series["mu_r"], results.pressure, results.x, results.y
 
-Scenes can also be built from a dict of sections with :func:`parse_scene`; :class:`Results` reopens a
+:func:`check` estimates a scene's contact, its resolution, steps and memory without running it (``petroll
+check``). Scenes can also be built from a dict of sections with :func:`parse_scene`; :class:`Results` reopens a
 results file, and ``results.steady`` (:class:`SteadyState`) gives the final force and mu_r with their
 convergence measure. Sweeps over a key: :func:`petroll.studies.sweep.sweep`. Reference: docs/api.md.
 
@@ -32,6 +33,7 @@ _PUBLIC = {
     "load_scene": "petroll.model.scene",
     "parse_scene": "petroll.model.scene",
     "run": "petroll.driver",
+    "check": "petroll.model.preflight",
     "stress": "petroll.driver",
 }
 

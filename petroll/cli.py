@@ -1,19 +1,26 @@
 """The ``petroll`` command: a thin layer over the Python API.
 
-    petroll run SCENE.toml [--out DIR] [PETSc options, e.g. -petroll_tao_type gpcg -petroll_tao_monitor]
-    petroll restart CHECKPOINT.h5|DIR [--out DIR] [--scene NEW.toml] [PETSc options]   continue a run
+    petroll run SCENE.toml [--out DIR] [--overwrite] [--estimate-error] [PETSc options, e.g. -petroll_tao_type gpcg]
+    petroll restart CHECKPOINT.h5|DIR [--out DIR [--overwrite]] [--scene NEW.toml] [PETSc options]
+    petroll launch mpirun -n N petroll run ...   the launch line run so that SIGTERM/SIGINT reach the ranks
+                            and its exit status is theirs (143, 130; docs/cluster.md)
+    petroll check SCENE.toml [--ranks N]   estimate the contact, its resolution, the steps and the memory
+                            per rank without running (docs/accuracy.md)
     petroll keys            print the scene reference (docs/scene.md) generated from the schema
     petroll stability [--fast] [--out DIR]   the stability map (docs/stability.md): CSV and Markdown in DIR
     petroll plot PATH [--out DIR] [--times T1,T2,...] [--format png|pdf|svg]   figures (needs matplotlib) of a
                             run directory or its results.h5, a sweep directory, or a stress.h5
     petroll info DIR        what a run directory holds: scene, steps, last values, fields, checkpoints
     petroll export DIR --csv [--field NAME [--step N]] [--out FILE]   the series (or one saved field) as CSV
-    petroll sweep SCENE.toml --vary KEY=SPEC [--out DIR]   one scene over values of a key (docs/sweep.md)
+    petroll sweep SCENE.toml --vary KEY=SPEC [--out DIR] [--estimate-error]   one scene over values of a
+                            key (docs/sweep.md)
     petroll stress DIR [--step N] [--depth z1,z2,... | --depths auto] [--nu NU]   stresses below a saved
                             pressure field: DIR/stress.h5 and DIR/stress.png
-    petroll bench tao|warm|skips|peers|precision|growth|mpi|memory|append|layer|steady [--out DIR] [--quick]
-                            benchmarks (docs/benchmarks.md); --quick: a seconds-long check that it runs
-    petroll material fit DMA.csv [--terms N | --per-decade K] [--nu NU] [--shift LAW] [--out FILE.toml]
+    petroll bench tao|warm|skips|peers|precision|growth|mpi|memory|append|layer|steady|steady-growth|
+                            estimate|accuracy [--out DIR] [--quick]   benchmarks (docs/benchmarks.md);
+                            --quick: a seconds-long check that it runs; bench memory --steady: steady solves
+    petroll material fit DMA.csv [--terms N | --per-decade K] [--nu NU] [--shift LAW|auto:T_REF]
+                            [--tolerance K] [--einf E | --einf-from-data] [--out FILE.toml]
                             a Prony series fitted to DMA data: the [material] block (docs/materials.md)
 
 Options that argparse does not know are handed to PETSc's options database. A user mistake (bad scene,
@@ -64,14 +71,30 @@ def _run_verbs(verbs) -> None:
     run.add_argument("scene", help="scene file (TOML)")
     run.add_argument("--out", help="output directory (default: the scene's [output] dir)")
     run.add_argument("--quiet", action="store_true", help="no progress line (also off when not a terminal)")
+    run.add_argument("--overwrite", action="store_true", help="replace the results of another scene in the "
+                     "output directory (refused without it)")
+    run.add_argument("--estimate-error", action="store_true", help="also solve on grids 2x (and 4x) coarser "
+                     "and report the discretisation error of the last step's values (docs/accuracy.md)")
     restart = verbs.add_parser("restart", help="continue a run from a checkpoint to its end "
                                "(docs/checkpoints.md)")
     restart.add_argument("checkpoint", help="a checkpoint file, or a run directory (its newest checkpoint)")
     restart.add_argument("--out", help="output directory (default: the run directory of the checkpoint)")
     restart.add_argument("--scene", help="scene file replacing the checkpoint's own; it may change only "
-                         "[time] end, distance, steady, max_steps and [output] keys")
+                         "[time] end, distance, steady, max_steps and [output] dir, every, checkpoint_every, "
+                         "keep")
     restart.add_argument("--quiet", action="store_true", help="no progress line (also off when not a "
                          "terminal)")
+    restart.add_argument("--overwrite", action="store_true", help="with --out: replace the results of another "
+                         "run there (refused without it)")
+    launch = verbs.add_parser("launch", help="run an MPI launch line (e.g. mpirun -n 4 petroll run ...) so "
+                              "that SIGTERM/SIGINT reach the ranks and its exit status is theirs (143/130; "
+                              "docs/cluster.md)")
+    launch.add_argument("command", nargs=argparse.REMAINDER, help="the launch line")
+    check = verbs.add_parser("check", help="estimate the contact, cells per contact half-width, steps and "
+                             "memory per rank without running (docs/accuracy.md)")
+    check.add_argument("scene", help="scene file (TOML)")
+    check.add_argument("--ranks", type=_positive(int), help="ranks the memory is predicted for (default: "
+                       "those of this command)")
     verbs.add_parser("keys", help="print the scene reference generated from the schema (Markdown)")
 
 
@@ -84,23 +107,30 @@ def _study_verbs(verbs) -> None:
     bench = verbs.add_parser("bench", help="run a benchmark, print its table and write CSV "
                              "(docs/benchmarks.md)")
     bench.add_argument("which", choices=["tao", "warm", "skips", "peers", "precision", "growth", "mpi",
-                                         "memory", "append", "layer", "steady"],  # studies.bench_verbs.VERBS
+                                         "memory", "append", "layer", "steady", "steady-growth", "estimate",
+                                         "accuracy"],  # studies.bench_verbs.VERBS (tests/test_bench_quick.py)
                        help="tao: every TAO type on the Hertz step; warm: operator applications per rolling "
                        "step for each first guess; skips: each saving on and off; peers: petroll against "
-                       "Tamaas and ContactMechanics on the Hertz step; precision: error against run time of "
-                       "the integrators and of grid refinement on the rolling sphere; growth: time per "
-                       "rolling step against the contact window's cells, and along a long track; mpi: time "
-                       "per rolling step against the rank count; memory: peak memory of every rank against "
-                       "the grid's cells at 1, 2 and 4 ranks (--ranks); append: results.h5 writing time per "
+                       "Tamaas and ContactMechanics on the Hertz step and a wavy sphere, from the same start; "
+                       "precision: error against run time of the "
+                       "integrators and of grid refinement on the rolling sphere; growth: time per rolling "
+                       "step against the contact window's cells, and along a long track; mpi: time per "
+                       "rolling step against the rank count; memory: peak memory of every rank against the "
+                       "grid's cells at 1, 2 and 4 ranks (--ranks); append: results.h5 writing time per "
                        "saved step over 1000 steps; layer: cost per step of layer scenes against the "
                        "half-space (docs/layer.md); steady: the direct steady solve against the transient "
-                       "run to the same steady tolerance, V tau/a 1e-3 to 1e3")
+                       "run to the same steady tolerance, V tau/a 1e-3 to 1e3; steady-growth: the direct "
+                       "steady solve's time against the grid (512 x 256 to 2048 x 1024); estimate: the error "
+                       "estimate's wall time against the run's; accuracy: the estimate against the true "
+                       "error, and errors against cells per contact half-width (docs/accuracy.md)")
     bench.add_argument("--out", default="results/bench", help="directory for the CSV (and PNG) files")
     bench.add_argument("--ranks", type=_ranks, help="mpi and memory only: rank counts to run side by side "
                        "as mpirun children, e.g. 1,2 (default: mpi: the current communicator only; memory: "
                        "1,2,4)")
     bench.add_argument("--sides", type=_ranks, help="memory only: grid sides (cells) to measure, e.g. "
                        "1024,2048,4096 (the default)")
+    bench.add_argument("--steady", action="store_true", help="memory only: the steady state solved directly "
+                       "([time] mode = \"steady\") instead of rolled steps")
     bench.add_argument("--quick", action="store_true", help="the smallest sizes and one repeat, in seconds: "
                        "shows that the benchmark runs and writes its files (peers: petroll's solver only, "
                        "nothing installed); measures nothing")
@@ -114,6 +144,8 @@ def _study_verbs(verbs) -> None:
     sweep.add_argument("--quiet", action="store_true", help="no progress line (also off when not a terminal)")
     sweep.add_argument("--transient", action="store_true", help="run every point from rest to steady state, "
                        "even where its steady state can be solved directly (the default there)")
+    sweep.add_argument("--estimate-error", action="store_true", help="estimate each point's discretisation "
+                       "error (grids 2x and 4x coarser): columns <quantity>_error (docs/accuracy.md)")
 
 
 def _material_verbs(verbs) -> None:
@@ -122,19 +154,31 @@ def _material_verbs(verbs) -> None:
     material_verbs = material.add_subparsers(dest="material_verb", required=True, metavar="fit")
     fit = material_verbs.add_parser("fit", help="fit a Maxwell (relaxation) Prony series with non-negative "
                                     "moduli to DMA data; write the scene's [material] block and its figure")
-    fit.add_argument("csv", help="DMA table: header frequency,storage,loss[,temperature] (Hz, Pa, Pa, K)")
+    fit.add_argument("csv", help="DMA table: header frequency,storage,loss[,temperature][,set] (Hz, Pa, Pa, "
+                     "K, a label)")
     density = fit.add_mutually_exclusive_group()
-    density.add_argument("--terms", type=_positive(int), help="candidate relaxation times in all")
+    density.add_argument("--terms", type=_positive(int), help="candidate relaxation times in all, evenly in "
+                         "log (the fit keeps at most N terms)")
     density.add_argument("--per-decade", type=_positive(float), help="candidate relaxation times per decade "
-                         "(default 20; NNLS keeps few of them)")
+                         "(default: chosen for the data, the coarsest whose error is within 5 %% of the best; "
+                         "about 2 for measured data)")
+    relaxed = fit.add_mutually_exclusive_group()
+    relaxed.add_argument("--einf", type=_positive(float), help="the relaxed modulus Einf (Pa), instead of "
+                         "fitting it")
+    relaxed.add_argument("--einf-from-data", action="store_true", help="Einf = the mean E' within a quarter "
+                         "decade of the lowest frequency")
     fit.add_argument("--nu", type=float, default=0.5, help="Poisson's ratio written into the block (default "
                      "0.5)")
     fit.add_argument("--shift", help="shift law for a temperature column, written into the block: "
-                     "wlf:C1,C2,T_ref or arrhenius:Ea,T_ref (C2, T_ref in K; Ea in J/mol) or a TOML file "
-                     "whose [material] shift gives it")
-    fit.add_argument("--out", help="write the [material] block here (atomically; default: print it)")
+                     "auto:T_ref (the factors found from the data, kept as a table law; WLF and Arrhenius "
+                     "fitted to them are reported), wlf:C1,C2,T_ref or arrhenius:Ea,T_ref (C2, T_ref in K; Ea "
+                     "in J/mol) or a TOML file whose [material] shift gives it")
+    fit.add_argument("--tolerance", type=float, default=0.5, help="temperatures (K) within which rows belong "
+                     "to one measurement set, without a set column (default 0.5)")
+    fit.add_argument("--out", help="write the [material] block here (atomically, its folder made if need "
+                     "be; default: print it)")
     fit.add_argument("--plot", help="the figure of data and fit (default: beside --out, its name with .png; "
-                     "without --out: none)")
+                     "without --out: none); with --shift auto, the shift factors' figure beside it, NAME-shift.png")
 
 
 def _file_verbs(verbs) -> None:
@@ -311,12 +355,13 @@ def _material_fit(args: argparse.Namespace) -> None:
 
     from petroll.io.results import atomic_write
     from petroll.model import dma
-    from petroll.plot import plot_fit  # imports matplotlib only when drawing
+    from petroll.plot import plot_fit, plot_shifts  # matplotlib imported only when drawing
 
     shift = dma.parse_shift(args.shift) if args.shift else None
-    data = dma.read_dma(args.csv, shift)
-    fit = dma.fit_prony(data.reduced, data.storage, data.loss, args.terms, args.per_decade, args.nu)
-    text = dma.material_toml(fit, shift, args.csv)
+    data = dma.read_dma(args.csv, shift, args.tolerance)
+    einf = "data" if args.einf_from_data else args.einf
+    fit = dma.fit_prony(data.reduced, data.storage, data.loss, args.terms, args.per_decade, args.nu, einf)
+    text = dma.material_toml(fit, data.shift, args.csv, data.T_ref)
     report = sys.stdout
     if args.out:
         out = pathlib.Path(args.out)
@@ -331,27 +376,29 @@ def _material_fit(args: argparse.Namespace) -> None:
     png = None  # the figure: --plot, else beside --out, else none
     if args.plot or args.out:
         png = pathlib.Path(args.plot or pathlib.Path(args.out).with_suffix(".png"))
+    drawn = [] if png is None else [png] + (
+        [png.with_name(png.stem + "-shift.png")] if data.found is not None else [])
     try:
-        if png is not None:
-            plot_fit(data, fit, png)
+        if drawn:
+            plot_fit(data, fit, drawn[0])
+        if len(drawn) > 1:
+            plot_shifts(data, drawn[1])
     except ImportError:
         print("petroll: warning: matplotlib is not installed: no plot", file=sys.stderr)
-        png = "none"
+        drawn = ["none"]
     except OSError as exc:
         raise dma.DMAError(f"--plot {png}: cannot write it ({exc.strerror})") from None
-    lo, hi = fit.frequency_range
-    temperatures = "" if data.temperature is None else (
-        f", {len(set(data.temperature.tolist()))} temperatures shifted to T_ref = {shift.T_ref:g} K")
-    print(f"petroll: {args.csv}: {len(data.frequency)} points{temperatures} over {lo:.4g} ... {hi:.4g} Hz: "
-          f"{len(fit.moduli)} Maxwell terms (of {fit.candidates} candidate times), Einf = {fit.Einf:.6g} Pa; "
-          f"relative error rms {100 * fit.rms_error:.3g} %, max {100 * fit.max_error:.3g} % (E' "
-          f"{100 * fit.max_storage_error:.3g} %, E'' {100 * fit.max_loss_error:.3g} %). "
-          f"Block: {args.out or 'printed above'}; plot: {png or 'none (--plot PNG draws one)'}", file=report)
+    print(dma.report(data, fit) + f" Block: {args.out or 'printed above'}; plot: "
+          f"{', '.join(str(p) for p in drawn) or 'none (--plot PNG draws one)'}", file=report)
 
 
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     args, petsc_args = _parser().parse_known_args(argv)
+    if args.verb == "launch":  # no MPI here: the launched command has it
+        from petroll.launch import launch
+
+        return launch(args.command + petsc_args)
     stray = [a for a in petsc_args if a.startswith("--")]
     if stray:
         _parser().error(f"unknown option {stray[0]} (PETSc options start with a single dash)")
@@ -457,26 +504,35 @@ def _main(args: argparse.Namespace, comm) -> int:
         if comm.rank == 0:
             print(scene_reference(), end="")
         return 0
+    if args.verb == "check":
+        from petroll.model.preflight import check
+        from petroll.model.scene import load_scene
+
+        found = check(load_scene(args.scene), ranks=args.ranks or comm.size)
+        if comm.rank == 0:
+            print("\n".join(f"petroll: {line}" if k == 0 else f"  {line}" for k, line in enumerate(found.lines())))
+        return 0
     if args.verb == "bench":
         import pathlib
 
         from petroll.studies.bench_verbs import run as bench
 
-        bench(args.which, pathlib.Path(args.out), comm, args.quick, args.ranks, args.sides)
+        bench(args.which, pathlib.Path(args.out), comm, args.quick, args.ranks, args.sides, args.steady)
         return 0
     if args.verb == "sweep":
         from petroll.studies.sweep import command
 
-        return command(args.scene, args.vary, args.out, args.quiet, comm, args.transient)
+        return command(args.scene, args.vary, args.out, args.quiet, comm, args.transient, args.estimate_error)
     if args.verb == "stress":
         return _stress(args, comm)
     if args.verb == "stability":
         from petroll.studies.stability import command
 
         return command(args.out, args.fast, comm)
+    from petroll.driver import RunFailed, run
     from petroll.io.checkpoint import RunInterrupted, StopRequest
+    from petroll.io.results import Results
     from petroll.model.scene import load_scene
-    from petroll.driver import run
 
     start = time.perf_counter()
     if args.verb == "restart":
@@ -488,15 +544,40 @@ def _main(args: argparse.Namespace, comm) -> int:
     try:
         with stop.handling():
             results = run(scene, comm, out, progress=not args.quiet and sys.stderr.isatty(),
-                          restart=checkpoint, stop=stop)
+                          restart=checkpoint, stop=stop, overwrite=args.overwrite,
+                          estimate_error=getattr(args, "estimate_error", False))
     except RunInterrupted as exc:
         if comm.rank == 0:
             print(f"petroll: {scene.source}: {exc}; continue with: petroll restart {exc.checkpoint}",
                   file=sys.stderr)
         return exc.exit_code
+    except RunFailed as exc:  # the summary of the steps kept, then the one-line error
+        if comm.rank == 0:
+            print(summary(scene, Results.open(exc.results), wall=time.perf_counter() - start))
+        raise
     if comm.rank == 0:
         print(summary(scene, results, wall=time.perf_counter() - start, resumed=checkpoint))
+        if results.error_estimate is not None:
+            print(estimate_line(results.error_estimate))
     return 0
+
+
+def estimate_line(estimate: dict) -> str:
+    """The summary's line on results.h5's error_estimate group: each value +- its discretisation error."""
+    group = estimate[""]
+    if group.get("failed"):
+        return f"petroll: no error estimate: {group['failed']}"
+    parts = []
+    for name in ("force", "delta", "mu_r", "p_max", "area", "lead", "trail"):
+        if name not in estimate:
+            continue
+        q = estimate[name]
+        if math.isnan(q["error"]):
+            parts.append(f"{name} {q['value']:.4e} (grids not in the asymptotic range: no estimate)")
+        else:
+            parts.append(f"{name} {q['value']:.4e} +- {q['error']:.2g}")
+    grids = ", ".join(f"{nx} x {ny}" for nx, ny in group["grids"])
+    return f"petroll: error estimate: {', '.join(parts)} (discretisation; grids {grids})"
 
 
 def _stress(args: argparse.Namespace, comm) -> int:
@@ -546,16 +627,19 @@ def summary(scene, results, wall: float, resumed=None) -> str:
     steady = scene.time.steady is not None and (
         (scene.time.end is not None and s["t"][-1] < scene.time.end * (1 - 1e-9))
         or (scene.time.distance is not None and s["distance"][-1] < scene.time.distance * (1 - 1e-9)))
-    state = "steady state reached, " if steady else ""
+    state = "steady state reached, " if steady and results.complete else ""
+    if not results.complete:
+        state = "partial: the run stopped before its end, results.h5 has complete = false; "
     line = scene.grid.line  # plane strain: per unit length, the penetration relative to the datum
     force, area = ("N/m", "contact width {:.4g} m") if line else ("N", "contact area {:.4g} m^2")
     if resumed is not None:
         how = f"resumed after step {resumed.step} (t = {resumed.t:.4g} s; {resumed.path}), {how}"
+    patch = (f"patch from {s['trail'][-1]:.4g} to {s['lead'][-1]:.4g} m along the motion"
+             if s["area"][-1] > 0 else "no contact")
     return (f"petroll: {scene.source}: {how} ({state}wall time {wall:.1f} s). Last step: force "
             f"{s['force'][-1]:.6g} {force} at penetration {s['delta'][-1]:.6g} m"
             f"{' (to the datum)' if line else ''}, mu_r {s['mu_r'][-1]:.4e}, "
-            f"{area.format(s['area'][-1])}, "
-            f"patch from {s['trail'][-1]:.4g} to {s['lead'][-1]:.4g} m along the motion, max pressure "
+            f"{area.format(s['area'][-1])}, {patch}, max pressure "
             f"{s['p_max'][-1]:.6g} Pa; {int(s['applications'].sum())} operator applications in all. "
             f"Results: {results.path}")
 

@@ -12,23 +12,31 @@ import os
 import pathlib
 import sys
 import time as clock
+import uuid
 from dataclasses import dataclass
 
 import numpy as np
 from mpi4py import MPI
 
-from petroll.errors import PetrollError
-from petroll.io.checkpoint import RunInterrupted, checkpoint_dir, run_directory, write_checkpoint
-from petroll.io.results import OutputError, Results, ResultsFile
+from petroll.errors import PetrollError, SceneError, SolverError, reason
+from petroll.io.checkpoint import (RunInterrupted, checkpoint_dir, remove_foreign_checkpoints, run_directory,
+                                   write_checkpoint)
+from petroll.io.results import OutputError, Results, ResultsFile, results_identity
+from petroll.io.rundir import DirectoryBusy, RunLock, clean_temporaries
+from petroll.model.preflight import check_run
 from petroll.model.scene import Scene
 from petroll.solver.simulation import Simulation, StepRecord
 
 
 def run(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, out: str | pathlib.Path | None = None,
-        progress: bool = False, restart=None, stop=None, on_step=None, steady_start=None) -> Results:
+        progress: bool = False, restart=None, stop=None, on_step=None, steady_start=None,
+        overwrite: bool = False, estimate_error: bool = False) -> Results:
     """Run a scene to its end and write ``<out>/results.h5`` (default out: the scene's [output] dir).
 
-    Returns the results read back from the file, on every rank. ``progress`` prints a status line on
+    Before step 1 the scene's contact is estimated and the grid's resolution of it checked
+    (petroll.model.preflight.check_run: a PetrollWarning below 8 cells per contact half-width, SceneError
+    below 2 unless [grid] allow_coarse = true), and its path: SceneError for a body that never presses or
+    whose contact region would reach the grid's edge. Returns the results read back from the file, on every rank. ``progress`` prints a status line on
     rank 0's stderr after every step.
 
     results.h5 grows as the run goes (docs/results.md): the series and each saved field are appended when
@@ -37,28 +45,64 @@ def run(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, out: str | pathlib.Path |
     ``<out>/checkpoints/step-NNNNNNNN.h5`` is written (after results.h5 is brought up to that step).
     ``restart`` (a :class:`petroll.io.checkpoint.Checkpoint` of a compatible scene, see ``restart_scene``)
     continues that run from its step: results.h5 of the checkpoint's run is continued (copied to ``out``
-    first if that is another directory) and then holds the whole run, identical to an uninterrupted one. ``stop`` (a :class:`petroll.io.checkpoint.StopRequest`)
-    is agreed on by the ranks after every step: once set, the run writes a checkpoint and the results so
-    far and raises :class:`petroll.io.checkpoint.RunInterrupted`. ``on_step(record)`` is called on every rank
-    after every step. ``steady_start`` ([time] mode = "steady" only): the first guess of the steady solve,
-    (whole-grid pressure in Pa, penetration in m), e.g. a neighbouring steady state (continuation).
+    first if that is another directory) and then holds the whole run, identical to an uninterrupted one;
+    it must be that run's (same run id, scene, grid and series up to the step), or nothing is touched.
+    ``stop`` (a :class:`petroll.io.checkpoint.StopRequest`) is agreed on by the ranks after every step:
+    once set, the run writes a checkpoint and the results so far and raises
+    :class:`petroll.io.checkpoint.RunInterrupted`. ``on_step(record)`` is called on every rank after every
+    step. ``steady_start`` ([time] mode = "steady" only): the first guess of the steady solve, (whole-grid
+    pressure in Pa, penetration in m), e.g. a neighbouring steady state (continuation).
+    ``estimate_error``: after the run, solve the scene again on grids 2x (and 4x) coarser and write the
+    discretisation error of the last step's force, mu_r, p_max, area, lead and trail to results.h5's group
+    error_estimate (petroll.solver.estimate; ``Results.error_estimate``; docs/accuracy.md).
+    A step that fails (SolverError, e.g. a contact reaching the grid's edge; SceneError, [time] max_steps)
+    raises :class:`RunFailed` naming the scene file, the step, its time and the distance rolled, after
+    every step solved before it is written to results.h5 (complete = false).
+
+    ``out`` is held by this run alone (``out/petroll.lock``; OutputError if another process holds it), and
+    results of another scene there (another run's, for a restart into another directory) are refused with
+    OutputError unless ``overwrite``. A results file that cannot be written stops the run with OutputError
+    on every rank, results.h5 holding the steps of its last complete append.
     """
     out = pathlib.Path(out) if out is not None else scene.output_dir
-    prepare_output(out, comm)
+    if restart is None:
+        check_run(scene)  # before anything is written: touching, path, resolution (petroll.model.preflight)
+    lock = claim_output(out, comm, f"petroll run {scene.source}" if restart is None else
+                        f"petroll restart {restart.path}")
+    try:
+        run_id = _run_identity(out, scene, comm, restart, overwrite)
+        return _run(scene, comm, out, run_id, progress, restart, stop, on_step, steady_start, estimate_error)
+    finally:
+        if lock is not None:
+            lock.release()
+
+
+def _run(scene: Scene, comm: MPI.Comm, out: pathlib.Path, run_id: str, progress: bool, restart, stop,
+         on_step, steady_start, estimate_error: bool) -> Results:
+    """The time loop of :func:`run`, its output directory claimed."""
     sim = Simulation(scene, comm)
     sim.steady_start = steady_start
     g = scene.grid
     steady = scene.time.mode == "steady"
     results = ResultsFile(out / "results.h5", scene.text, g.x, g.y, comm, fields=scene.fields, line=g.line,
-                          steady=steady, source=str(scene.source))
+                          steady=steady, source=str(scene.source), run_id=run_id)
     if restart is not None:
         t, field_steps = restart.restore(sim)
-        results.resume(run_directory(restart.path) / "results.h5", len(sim.records), field_steps)
+        results.resume(run_directory(restart.path) / "results.h5", len(sim.records), field_steps,
+                       check=restart.matches)
     else:
         t = 0.0
     resumed = restart is not None  # the first record is the restored step's, not solved again
+    newest = restart.path if restart is not None else None  # this run's newest checkpoint
     wall = clock.perf_counter()
-    for record in sim.steps(t):
+    steps = sim.steps(t)
+    while True:
+        try:
+            record = next(steps, None)
+        except (SolverError, SceneError) as exc:  # a step failed (on every rank alike): keep what was solved
+            raise _failure(scene, sim, results, newest, exc, progress) from None
+        if record is None:
+            break
         stop_now = sim.dt_next is None
         save = not resumed and (stop_now or record.step == 0
                                 or bool(scene.every and record.step % scene.every == 0))
@@ -71,19 +115,69 @@ def run(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, out: str | pathlib.Path |
         if progress and comm.rank == 0:
             _show_progress(scene, record, clock.perf_counter() - wall)
         if save or due or interrupted or stop_now:  # the results first: a checkpoint's fields are in them
-            results.append(sim.records, saved_fields(sim) if save else None, complete=stop_now,
-                           describe=bool(due or interrupted or stop_now))
+            _append(results, sim, save, stop_now, bool(due or interrupted or stop_now), newest)
+        if (record.step == 0 or resumed) and comm.rank == 0:  # results.h5 is this run's now: so are they
+            remove_foreign_checkpoints(checkpoint_dir(out), run_id)
         if due or interrupted:
-            path = write_checkpoint(checkpoint_dir(out), sim, sim.t, sim.dt_next, results.field_steps,
-                                    scene.keep)
+            newest = write_checkpoint(checkpoint_dir(out), sim, sim.t, sim.dt_next,
+                                             results.field_steps, scene.keep, run_id=run_id)
             if interrupted:
                 if progress and comm.rank == 0:
                     print(file=sys.stderr)
-                raise RunInterrupted(signum, record.step, record.t, path)
+                raise RunInterrupted(signum, record.step, record.t, newest)
         resumed = False
     if progress and comm.rank == 0:
         print(file=sys.stderr)
+    if estimate_error:
+        from petroll.solver.estimate import as_attributes
+        from petroll.solver.estimate import estimate_error as estimate
+
+        per, attrs = as_attributes(estimate(scene, sim.records[-1], comm))
+        results.write_error_estimate(per, {**attrs, "run_wall_s": clock.perf_counter() - wall})
     return Results.open(results.path)
+
+
+def _append(results: ResultsFile, sim: Simulation, save: bool, complete: bool, describe: bool,
+            newest: pathlib.Path | None) -> None:
+    """Bring results.h5 up to the newest step; a failure (OutputError, every rank) says what the file
+    holds and how the run continues (``newest``: this run's newest checkpoint)."""
+    try:
+        results.append(sim.records, saved_fields(sim) if save else None, complete=complete, describe=describe)
+    except OutputError as exc:
+        n = results.steps
+        kept = f"results.h5 holds steps 0 to {n - 1}" if n else "no results file was written"
+        then = (f"free space (or fix the cause) and continue with: petroll restart {newest}" if newest else
+                "free space (or fix the cause) and run the scene again")
+        raise OutputError(f"{exc}; {kept}; {then}") from None
+
+
+class RunFailed(PetrollError):
+    """A step failed after ``steps`` >= 1 steps were solved: results.h5 (``results``) holds them, marked
+    complete = false; ``checkpoint``: the newest checkpoint (or None)."""
+
+    def __init__(self, message: str, results: pathlib.Path, steps: int, checkpoint: pathlib.Path | None):
+        super().__init__(message)
+        self.results, self.steps, self.checkpoint = results, steps, checkpoint
+
+
+def _failure(scene: Scene, sim: Simulation, results: ResultsFile, checkpoint, exc: Exception,
+             progress: bool) -> Exception:
+    """Write every step solved before ``exc`` to results.h5 (complete = false) and say where the run
+    stopped (scene file, step, time, distance) and what it kept (collective): the RunFailed to raise
+    (``exc`` itself where no step was solved)."""
+    if progress and sim.comm.rank == 0:
+        print(file=sys.stderr)
+    done = len(sim.records)
+    if not done:  # nothing solved, nothing kept: the error as it is
+        return exc
+    results.append(sim.records, None, complete=False, describe=True)
+    t, rolled = sim.t + (sim.dt_next or 0.0), sim.records[-1].distance
+    kept = f"{results.path} holds the {done} step{'s' * (done != 1)} solved before it (complete = false)"
+    kept += f"; last checkpoint: {checkpoint}" if checkpoint is not None else "; no checkpoint"
+    cause = f"{exc.key} = {exc.value!r}: {exc.allowed}" if isinstance(exc, SceneError) else str(exc)
+    message = (f"{scene.source}: step {done} (t = {t:.6g} s, {rolled:.6g} m rolled) failed: "
+               f"{' '.join(cause.split())}. {kept}")
+    return RunFailed(message, results.path, done, checkpoint)
 
 
 def saved_fields(sim: Simulation) -> dict[str, np.ndarray]:
@@ -98,18 +192,74 @@ def saved_fields(sim: Simulation) -> dict[str, np.ndarray]:
 def prepare_output(out: pathlib.Path, comm: MPI.Comm) -> None:
     """Create the output directory and check that files can be made in it (collective): OutputError with
     one line otherwise, before any step is computed."""
-    message = None
-    if comm.rank == 0:
-        probe = out / f".petroll-write-test.{os.getpid()}"
-        try:
-            out.mkdir(parents=True, exist_ok=True)
-            probe.write_bytes(b"")
-            probe.unlink()
-        except OSError as exc:
-            message = f"{out}: cannot write to the output directory ({exc.strerror or exc})"
+    message = _writable(out) if comm.rank == 0 else None
     message = comm.bcast(message, root=0)
     if message is not None:
         raise OutputError(message)
+
+
+def _writable(out: pathlib.Path) -> str | None:
+    """Why files cannot be written in ``out`` (made if missing), or None."""
+    probe = out / f".petroll-write-test.tmp{os.getpid()}"
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        probe.write_bytes(b"")
+        probe.unlink()
+    except OSError as exc:
+        return f"{out}: cannot write to the output directory ({exc.strerror or exc})"
+    return None
+
+
+def claim_output(out: pathlib.Path, comm: MPI.Comm, what: str) -> RunLock | None:
+    """Make ``out`` writable (as :func:`prepare_output`) and lock it for this run (rank 0 holds the lock,
+    returned there; None elsewhere); the temporary files of writers killed earlier are removed. Collective:
+    OutputError on every rank if the directory cannot be written or another process holds it."""
+    lock, message = None, None
+    if comm.rank == 0:
+        message = _writable(out)
+        if message is None:
+            lock = RunLock(out, what)
+            try:
+                lock.acquire()
+                for directory in (out, checkpoint_dir(out)):
+                    clean_temporaries(directory)
+            except DirectoryBusy as exc:
+                message, lock = str(exc), None
+            except OSError as exc:
+                message, lock = f"{out}: cannot lock the output directory ({reason(exc)})", None
+    message = comm.bcast(message, root=0)
+    if message is not None:
+        raise OutputError(message)
+    return lock
+
+
+def _run_identity(out: pathlib.Path, scene: Scene, comm: MPI.Comm, restart, overwrite: bool) -> str:
+    """The run id of this run (a new one, or the checkpoint's run's), after checking that ``out`` holds no
+    results that it would replace without ``overwrite``: another scene's (a new run), another run's (a
+    restart into another directory than its run's). Collective; OutputError on every rank."""
+    message, run_id = None, None
+    if comm.rank == 0:
+        path = out / "results.h5"
+        held = results_identity(path) if path.is_file() else None
+        if restart is None:
+            run_id = uuid.uuid4().hex
+            if held is not None and held["scene"] != scene.text and not overwrite:
+                message = (f"{out}: holds the {'complete' if held['complete'] else 'unfinished'} results of "
+                           f"another scene ({path}); give --overwrite (Python: overwrite=True) to replace "
+                           "them, or another output directory")
+        else:
+            run_id = restart.run_id  # "" for a checkpoint written before run ids: kept so
+            elsewhere = out.resolve() != run_directory(restart.path)
+            same = held is not None and held["run_id"] == restart.run_id and (
+                restart.run_id or held["scene"] == restart.scene_text)  # files without run ids: the scene
+            if elsewhere and held is not None and not same and not overwrite:
+                message = (f"{out}: holds the {'complete' if held['complete'] else 'unfinished'} results of "
+                           f"another run ({path}), not of checkpoint {restart.path}'s; give --overwrite "
+                           "(Python: overwrite=True) to replace them, or another --out")
+    message, run_id = comm.bcast((message, run_id), root=0)
+    if message is not None:
+        raise OutputError(message)
+    return run_id
 
 
 def _show_progress(scene: Scene, r: StepRecord, wall: float) -> None:

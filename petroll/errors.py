@@ -35,3 +35,8 @@ def reason(exc: BaseException) -> str:
     """An exception's message on one line (an OSError's strerror when it names no file)."""
     text = exc.strerror if isinstance(exc, OSError) and exc.strerror and not exc.filename else str(exc)
     return " ".join(str(text or type(exc).__name__).split())
+
+
+class DMAError(PetrollError):
+    """A DMA table or fit request that cannot be used (``petroll material fit``): the message names the
+    file, the line or option, and what is allowed."""

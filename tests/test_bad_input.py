@@ -27,8 +27,8 @@ FUZZ = settings(max_examples=300, deadline=None, derandomize=True,
                 suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow,
                                        HealthCheck.data_too_large])
 
-BASE = {  # a small valid scene: 8 x 8 cells, an SLS sphere, a few steps
-    "grid": {"nx": 8, "ny": 8, "x": [-1e-3, 1e-3], "y": [-1e-3, 1e-3]},
+BASE = {  # a small valid scene: 32 x 32 cells (9 per contact radius), an SLS sphere, a few steps
+    "grid": {"nx": 32, "ny": 32, "x": [-0.8e-3, 0.8e-3], "y": [-0.8e-3, 0.8e-3]},
     "material": {"model": "sls", "E0": 1e7, "Einf": 2e6, "nu": 0.5, "tau_relax": 0.01},
     "body": {"shape": "sphere", "radius": 0.01},
     "motion": {"penetration": 2e-5},

@@ -103,18 +103,34 @@ def test_tao_types_on_the_rolling_scene_agree(tmp_path):
     assert (tmp_path / "tao_rolling.csv").exists()
 
 
-def test_memory_bench_reports_every_ranks_peak_and_the_same_force_on_1_and_2_ranks(tmp_path):
-    """petroll bench memory on a 256^2 grid: a peak above the fixed cost on every rank, rank 0 / mean near 1,
-    and one answer whatever the rank count (the children run the same scene)."""
+@pytest.mark.parametrize("steady", [False, True])
+def test_memory_bench_reports_every_ranks_peak_and_the_same_force_on_1_and_2_ranks(tmp_path, steady):
+    """petroll bench memory on a 256^2 grid, rolled or its steady state solved directly: a peak above the
+    fixed cost on every rank, rank 0 / mean near 1, and one answer whatever the rank count (the children
+    run the same scene)."""
     from petroll.studies.bench_memory import memory
 
-    rows = memory(tmp_path, sides=(256,), ranks=(1, 2), steps=2)
+    rows = memory(tmp_path, sides=(256,), ranks=(1, 2), steps=2, steady=steady)
     assert [r["ranks"] for r in rows] == [1, 2] and all(r["cells"] == 256 * 256 for r in rows)
     assert all(r["mean_mib"] > r["fixed_mib"] > 20 and r["run_mib"] > 0 for r in rows)
-    assert rows[1]["rank0_over_mean"] < 1.15 and rows[0]["steps"] == rows[1]["steps"] == 3
-    assert rows[1]["force"] == pytest.approx(rows[0]["force"], rel=1e-12)
-    with open(tmp_path / "memory.csv") as fh:
+    assert rows[1]["rank0_over_mean"] < 1.15 and rows[0]["steps"] == rows[1]["steps"] == (1 if steady else 3)
+    assert rows[1]["force"] == pytest.approx(rows[0]["force"], rel=1e-10 if steady else 1e-12)
+    with open(tmp_path / f"memory{'_steady' if steady else ''}.csv") as fh:
         assert len(list(csv.DictReader(fh))) == 2
+
+
+def test_steady_growth_times_the_direct_solve_on_each_grid(tmp_path):
+    """bench steady-growth on two small grids of runs/sphere.toml (one round): a row per grid, the first
+    grid's ratio 1, iterations and applications counted, and the refined grid's force within the first's
+    discretisation error (1 %)."""
+    from petroll.studies.bench_steady import growth
+
+    rows = growth(tmp_path, grids=((80, 27), (160, 54)), repeats=1)
+    assert [r["grid"] for r in rows] == ["80x27", "160x54"] and rows[0]["ratio"] == "1.00"
+    assert all(r["iterations"] > 1 and r["applications"] > r["iterations"] for r in rows)
+    assert all(int(r["equivalents"]) > r["applications"] for r in rows)
+    assert float(rows[1]["force"]) == pytest.approx(float(rows[0]["force"]), rel=0.01)
+    assert (tmp_path / "steady_growth.csv").exists()
 
 
 def test_append_bench_times_every_append(tmp_path):
@@ -126,17 +142,47 @@ def test_append_bench_times_every_append(tmp_path):
 
 
 def test_peers_bench_converges_each_solver_to_the_reference(tmp_path):
-    """petroll alone (the peers need their own environment): the tolerance chosen is one whose pressure
-    is within the target of the 1e-12 reference, tighter than the loosest tried."""
-    from petroll.studies.bench import PEER_TOLERANCES, peers
+    """petroll alone (the peers need their own environment), from zero and from Hertz's pressure: the
+    tolerance chosen is one whose pressure is within the target of the 1e-12 reference, tighter than the
+    loosest tried, with a residual to match; times and ratios filled."""
+    from petroll.studies.peers.bench import TOLERANCES, peers
 
-    rows = peers(tmp_path, cells=(24,), repeats=1, target=1e-8, solvers=("petroll",))
-    assert len(rows) == 1
-    row = rows[0]
-    assert row["solver"] == "petroll" and float(row["difference"]) <= 1e-8
-    assert float(row["tol"]) in PEER_TOLERANCES and float(row["tol"]) < PEER_TOLERANCES[0]  # 1e-6 is too loose
-    assert float(row["cold_s"]) > float(row["warm_s"]) > 0 and row["cold_ratio"] == "1.000"
+    rows = peers(tmp_path, problems=("hertz",), cells=(24,), repeats=1, target=1e-8, solvers=("petroll",))
+    assert [(r["solver"], r["start"]) for r in rows] == [("petroll", "zero"), ("petroll", "hertz")]
+    for row in rows:
+        assert float(row["difference"]) <= 1e-8 and row["within"] == 1, row
+        assert float(row["tol"]) in TOLERANCES and float(row["tol"]) < TOLERANCES[0]
+        assert 0 < float(row["residual"]) <= 10 * float(row["tol"])
+        assert float(row["cold_s"]) > float(row["warm_s"]) > 0 and row["count"] > 0
+    assert rows[0]["cold_ratio"] == "1.000"
     assert (tmp_path / "peers.csv").exists() and (tmp_path / "peers.png").stat().st_size > 0
+
+
+def test_the_peers_residual_is_the_dense_gap_of_the_pressure(tmp_path):
+    """residual() (the FFT operator) against the gap computed with the assembled influence matrix of the
+    problem's grid, for a pressure near the solution and a perturbed one."""
+    import numpy as np
+
+    from petroll.model.grid import Grid
+    from petroll.solver.contact import ContactSolver
+    from petroll.solver.influence import dense_influence
+    from petroll.solver.kernels.love import love_coefficients
+    from petroll.studies.peers.bench import residual, write_problem
+    from mpi4py import MPI
+
+    n = 20
+    write_problem("wavy", n, tmp_path / "p.npz")
+    data = np.load(tmp_path / "p.npz")
+    heights, cell, compliance = data["heights"], float(data["cell"]), float(data["compliance"])
+    solver = ContactSolver(Grid(n, n, 0, n * cell, 0, n * cell), MPI.COMM_SELF, tol=1e-6)
+    pressure = solver.solve_penetration(heights, compliance, 0.01).pressure
+    A = dense_influence(love_coefficients(n, n, cell, cell))
+    for p in (pressure, pressure * (1 + 0.1 * np.random.default_rng(0).random((n, n)))):
+        w = compliance * (A @ p.ravel()).reshape(n, n)
+        delta = (heights + w)[p > 0].mean()
+        expected = np.abs(np.minimum(p / p.max(), (heights + w - delta) / delta)).max()
+        assert residual(tmp_path / "p.npz", p) == pytest.approx(expected, rel=1e-9)
+    assert residual(tmp_path / "p.npz", pressure) < 1e-5 < expected
 
 
 def test_load_control_bench_finds_the_same_penetration(tmp_path):
@@ -153,7 +199,8 @@ def test_load_control_bench_finds_the_same_penetration(tmp_path):
 
 def test_steady_compares_the_direct_solve_with_the_transient_run(tmp_path):
     """bench steady on a 32 x 32 window (a/dx = 9): both methods against the exact steady state (the direct
-    solve at 1e-10), the direct one far cheaper in operator applications at the same tolerance."""
+    solve at 1e-10), the direct one far cheaper in operator applications at the same tolerance, every
+    convolution counted beside them."""
     from petroll.model.scene import parse_scene
     from petroll.studies.bench_steady import steady
 
@@ -172,5 +219,10 @@ def test_steady_compares_the_direct_solve_with_the_transient_run(tmp_path):
         assert float(row["direct_mu_r_error"]) * float(row["mu_r"]) < 1e-4, row
         assert row["transient_steady"] == 1 and float(row["transient_force_error"]) < 1e-3, row
         assert row["direct_applications"] < row["transient_applications"], row
+        # every convolution counted: the direct solve's wake-extended convolutions and memory correlations
+        # add to its QPs' applications, the transient's history convolutions and preconditioner to its own
+        assert int(row["direct_equivalents"]) > row["direct_applications"] + row["direct_iterations"], row
+        assert int(row["transient_equivalents"]) > row["transient_applications"], row
+        assert float(row["time_ratio"]) > 0 and float(row["equivalents_ratio"]) > 0
     with open(tmp_path / "steady.csv") as fh:
         assert [float(r["v_tau_a"]) for r in csv.DictReader(fh)] == [0.01, 1.0]

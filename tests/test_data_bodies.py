@@ -135,3 +135,50 @@ def test_rolling_profile_cylinder_is_the_cylinder(comm, shared_dir, ratio):
     got, exact = records(raw, comm, shared_dir), analytic("roller-2d.toml", None, comm.size)
     assert_rolls_alike(got, exact, force="delta")
     assert math.isclose(got[-1].force, exact[-1].force, rel_tol=1e-9)
+
+
+def textured_sphere(kind: str, n: int, h: float) -> np.ndarray:
+    """A sphere of radius 100 sampled on n x n points at spacing h with issue 24's ripple 0.002 cos(2 pi x /
+    0.25) cos(2 pi y / 0.25), or with self-affine roughness (rms slope 0.05, cut off at 4 samples)."""
+    from petroll.model.roughness import self_affine_heights
+
+    k = (np.arange(n) - (n - 1) / 2) * h
+    x, y = k[:, None], k[None, :]
+    if kind == "wavy":
+        texture = 0.002 * np.cos(2 * np.pi * x / 0.25) * np.cos(2 * np.pi * y / 0.25)
+    else:
+        texture = self_affine_heights({"hurst": 0.8, "rms_slope": 0.05, "cutoff": 4 * h, "seed": 3}, (n, n),
+                                      (h, h))
+    return (x**2 + y**2) / 200 + texture
+
+
+@pytest.mark.parametrize("tao_type", ["pk", "tron"])
+@pytest.mark.parametrize("kind", ["wavy", "rough"])
+def test_load_control_solves_what_penetration_control_solves(comm, shared_dir, kind, tao_type):
+    """A textured sphere (R = 100, E = 1 over 3 x 3, 128^2 cells) pressed 0.01 under penetration control;
+    under load control at the force that run found: the same penetration and pressure to the solver's
+    tolerance (tol 1e-8: the penetration within 1e-7 of itself, the pressure within 1e-6 of its peak),
+    with pk's force held in the QP and with tron's secant iteration on the penetration."""
+    n = 128
+    h = 3.0 / n
+    name = save(comm, shared_dir / f"{kind}.npy", textured_sphere(kind, n + 24, h))
+    raw = {"grid": {"nx": n, "ny": n, "x": [-1.5, 1.5], "y": [-1.5, 1.5]},
+           "material": {"model": "elastic", "E": 1.0, "nu": 0.5},
+           "body": {"shape": "heightmap", "file": name, "cell": h},
+           "motion": {"penetration": 0.01}, "solver": {"tol": 1e-8, "tao_type": tao_type}}
+    penetration = Simulation(parse_scene(raw, base_dir=shared_dir), comm)
+    fixed = next(penetration.steps())
+    islands = 0
+    if kind == "wavy":  # the ripple splits the contact into islands (issue 24's case: 124 at 512^2)
+        from scipy import ndimage
+
+        whole = np.concatenate(comm.allgather(penetration.pressure))
+        islands = ndimage.label(whole > 0)[1]
+        assert islands > 20
+    raw["motion"] = {"load": fixed.force}
+    loaded = Simulation(parse_scene(raw, base_dir=shared_dir), comm)
+    held = next(loaded.steps())
+    assert held.force == pytest.approx(fixed.force, rel=1e-7)
+    assert held.delta == pytest.approx(fixed.delta, rel=1e-7)
+    peak = comm.allreduce(float(penetration.pressure.max()), op=MPI.MAX)
+    assert comm.allreduce(float(np.abs(loaded.pressure - penetration.pressure).max()), op=MPI.MAX) <= 1e-6 * peak

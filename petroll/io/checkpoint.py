@@ -58,7 +58,8 @@ from petroll.errors import MISSING, PetrollError, SceneError, reason
 from petroll.solver.partition import RowPartition
 from petroll.solver.history import HereditaryHistory, RelaxationHistory
 from petroll.io.hdf5 import RowFile, chunk_rows
-from petroll.io.results import PACKED, early, sync_directory
+from petroll.io.journal import sync_directory
+from petroll.io.results import PACKED
 
 FORMAT = "petroll-checkpoint"
 FORMAT_VERSION = 2
@@ -67,7 +68,12 @@ saved fields (/fields/pressure), which now live in results.h5 only; it is still 
 
 SAFE_KEYS = {"time": {"end", "distance", "steady", "max_steps"},
              "output": {"dir", "every", "checkpoint_every", "keep"}}
-"""Scene keys that a restart may change (everything else must equal the checkpoint's scene)."""
+"""Scene keys that a restart may change (everything else must equal the checkpoint's scene; [output]
+fields may not: results.h5 holds the saved fields it was made for)."""
+
+SAFE_TEXT = ("a restart may change only [time] end, distance, steady, max_steps and [output] dir, every, "
+             "checkpoint_every, keep")
+"""SAFE_KEYS, as the refusals say it."""
 
 _NAME = re.compile(r"^step-(\d+)\.h5$")
 _ATTRS = ("format", "format_version", "petroll_version", "ranks", "step", "t", "next_dt", "nx", "ny",
@@ -181,12 +187,13 @@ def run_directory(checkpoint: str | pathlib.Path) -> pathlib.Path:
 
 # -- writing ----------------------------------------------------------------------------------------------
 def write_checkpoint(directory: str | pathlib.Path, sim, t: float, next_dt: float | None,
-                     field_steps: list[int], keep: int = 2) -> pathlib.Path:
+                     field_steps: list[int], keep: int = 2, run_id: str = "") -> pathlib.Path:
     """Write the state of ``sim`` after its last step (time ``t``; ``next_dt`` the step that follows, None
-    if none) with the steps of the fields saved so far (``field_steps``: they are in results.h5), then remove
-    all but the newest ``keep`` checkpoints of earlier steps. Collective over ``sim.comm``: every rank
-    writes its own rows of each field (parallel HDF5, or through rank 0 in blocks); returns the path.
-    CheckpointError if the file cannot be written (every earlier checkpoint stays as it was).
+    if none) with the steps of the fields saved so far (``field_steps``: they are in results.h5) and the
+    run's identifier ``run_id`` (as in its results.h5), then remove all but the newest ``keep`` checkpoints
+    of earlier steps. Collective over ``sim.comm``: every rank gives its own rows of each field, rank 0
+    writes them (petroll.io.hdf5.RowFile); returns the path. CheckpointError if the file cannot be written
+    (every earlier checkpoint stays as it was).
     """
     from petroll.solver.simulation import StepRecord
 
@@ -216,7 +223,7 @@ def write_checkpoint(directory: str | pathlib.Path, sim, t: float, next_dt: floa
         "ranks": comm.size, "step": step, "t": float(t),
         "next_dt": math.nan if next_dt is None else float(next_dt),
         "nx": g.nx, "ny": g.ny, "history": "prony" if prony else "hereditary",
-        "integrator": scene.solver.integrator, "scene": scene.text,
+        "integrator": scene.solver.integrator, "scene": scene.text, "run_id": run_id,
         "scene_source": scene.source, "base_dir": str(pathlib.Path(scene.base_dir).resolve()),
         "fingerprint": comm.bcast(fingerprint(scene) if comm.rank == 0 else None, root=0),
         "created": comm.bcast(datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
@@ -261,9 +268,9 @@ def _field_digest(name: str, shape, shares: list[bytes], count: int) -> str:
 
 
 class _Sink:
-    """The temporary file a checkpoint is written to by every rank (:class:`petroll.io.hdf5.RowFile`),
-    and the first error met. Every rank calls every method in the same order; the ranks agree on errors
-    after each dataset, and after one no rank writes more."""
+    """The temporary file a checkpoint is written to (:class:`petroll.io.hdf5.RowFile`: rank 0 writes,
+    the other ranks send their rows), and the first error met. Every rank calls every method in the same
+    order; the ranks agree on errors after each dataset, and after one no rank writes more."""
 
     def __init__(self, path: pathlib.Path, comm: MPI.Comm, rows: RowPartition, ny: int):
         self.path, self.comm, self.rows, self.ny = path, comm, rows, ny
@@ -278,17 +285,19 @@ class _Sink:
                 action(*args)
             except Exception as exc:  # noqa: BLE001 - reported on every rank by finish()
                 self.error = exc
+            if self.error is None and self.file is not None and self.file.failure is not None:
+                self.error = self.file.failure  # a disk write failed (rank 0): no more writing
         if self.comm.allreduce(self.error is not None, op=MPI.LOR) and self.error is None:
             self.error = CheckpointError("failed on another rank")
 
     def _open(self) -> None:
         if self.comm.rank == 0:
-            self.path.parent.mkdir(parents=True, exist_ok=True)
-        self.comm.Barrier()
+            with contextlib.suppress(OSError):  # if it fails, so does the opening, on every rank
+                self.path.parent.mkdir(parents=True, exist_ok=True)
         self.file = RowFile(self.tmp, "w", self.comm)
 
     def array(self, name: str, data: np.ndarray) -> None:
-        """A small dataset: rank 0's ``data`` (written by every rank under parallel HDF5)."""
+        """A small dataset: rank 0's ``data``."""
         data = self.comm.bcast(np.asarray(data) if self.comm.rank == 0 else None, root=0)
         self._guard(self._array, name, data)
 
@@ -308,7 +317,7 @@ class _Sink:
         if self.file.writer:
             chunks = (1, min(nx, chunk_rows(ny)), ny) if stacked else (min(nx, chunk_rows(ny)), ny)
             packed = dict(PACKED, chunks=chunks) if np.prod(shape) else {}
-            self.file.file.create_dataset(name, shape=shape, dtype=np.float64, dcpl=early(), **packed)
+            self.file.file.create_dataset(name, shape=shape, dtype=np.float64, **packed)
         parts = [np.ascontiguousarray(p, dtype=np.float64) for p in parts]
         for i, part in enumerate(parts):
             self.file.put(name, (i,) if stacked else (), r0, part)
@@ -340,26 +349,30 @@ class _Sink:
 
     def _close(self, attrs: dict) -> None:
         digests = self.comm.bcast(self.digests if self.comm.rank == 0 else None, root=0)
+        failure = None
         if self.file.writer:
-            f = self.file.file
-            for name, digest in digests.items():
-                f[name].attrs["sha256"] = digest
-            for key, value in attrs.items():
-                f.attrs[key] = value
-            f.attrs["sha256"] = _root_digest(attrs, digests)
-            f.flush()
-        self.file.close()
-        self.file = None
+            try:
+                f = self.file.file
+                for name, digest in digests.items():
+                    f[name].attrs["sha256"] = digest
+                for key, value in attrs.items():
+                    f.attrs[key] = value
+                f.attrs["sha256"] = _root_digest(attrs, digests)
+            except Exception as exc:  # noqa: BLE001 - this rank's; the ranks agree in _guard
+                failure = exc
+        file, self.file = self.file, None
+        file.close(commit=failure is None)  # fsynced; an OSError on every rank if that failed
+        if failure is not None:
+            raise failure
         if self.comm.rank == 0:
-            with open(self.tmp, "rb") as fh:
-                os.fsync(fh.fileno())
             os.replace(self.tmp, self.path)
             sync_directory(self.path.parent)
 
     def _discard(self) -> None:
         if self.file is not None:
-            with contextlib.suppress(Exception):
-                self.file.close()
+            file, self.file = self.file, None
+            with contextlib.suppress(OSError):
+                file.close(commit=False)
         if self.comm.rank == 0:
             with contextlib.suppress(OSError):
                 self.tmp.unlink()
@@ -377,6 +390,24 @@ def _plain(value):
     if isinstance(value, np.generic):
         return value.item()
     return value
+
+
+def remove_foreign_checkpoints(directory: str | pathlib.Path, run_id: str) -> list[pathlib.Path]:
+    """Remove the checkpoints in ``directory`` of other runs than ``run_id`` (unreadable ones too): once
+    this run's results.h5 is in their directory, theirs is gone and they can no longer continue anything.
+    One process (rank 0). Returns them."""
+    removed = []
+    for path in list_checkpoints(directory):
+        try:
+            with h5py.File(path, "r") as f:
+                theirs = _plain(f.attrs.get("run_id", ""))
+        except Exception:  # noqa: BLE001 - not a readable checkpoint
+            theirs = None
+        if theirs != run_id:
+            with contextlib.suppress(OSError):
+                path.unlink()
+                removed.append(path)
+    return removed
 
 
 def _prune(path: pathlib.Path, keep: int) -> None:
@@ -439,6 +470,45 @@ class Checkpoint:
     @property
     def scene_text(self) -> str:
         return str(self.attrs["scene"])
+
+    @property
+    def run_id(self) -> str:
+        """The identifier of the run that wrote it ("" in checkpoints written before run ids)."""
+        return str(self.attrs.get("run_id", ""))
+
+    def matches(self, f: h5py.File, where: pathlib.Path) -> str | None:
+        """Why the results file ``where`` (open with h5py as ``f``) is not the one this checkpoint continues,
+        None if it is: the same run id (where both have one), scene (but for the keys a restart may
+        change), grid and series, value for value, up to the checkpoint's step."""
+        from petroll.solver.simulation import StepRecord
+
+        theirs, mine = str(f.attrs.get("run_id", "")), self.run_id
+        fix = (f"; a checkpoint continues only the results of its own run: restart from a checkpoint of "
+               f"that run, or run the scene again")
+        if theirs and mine and theirs != mine:
+            return f"{self.path}: belongs to another run than {where} (run id {mine[:12]}, the file's {theirs[:12]}){fix}"
+        try:
+            old = tomllib.loads(str(f.attrs["scene"]))
+        except tomllib.TOMLDecodeError:
+            return f"{where}: its scene text is not TOML{fix}"
+        for key, then, now in _changes(old, tomllib.loads(self.scene_text)):
+            return f"{self.path}: belongs to another scene than {where} ({key} = {now!r}, the file's {then!r}){fix}"
+        shape = (len(f["fields/x"]), len(f["fields/y"]))
+        if shape != (int(self.attrs["nx"]), int(self.attrs["ny"])):
+            return (f"{self.path}: holds a {self.attrs['nx']} x {self.attrs['ny']} grid, {where} a "
+                    f"{shape[0]} x {shape[1]} one{fix}")
+        n = len(self.series["step"])
+        for name in StepRecord.__annotations__:
+            if name == "solve_time" or name not in f["series"]:
+                continue
+            theirs_, mine_ = np.asarray(f["series"][name][:n]), np.asarray(self.series[name])
+            if len(theirs_) < n:
+                break  # too short: told with the steps it holds (_resumable)
+            if not np.array_equal(theirs_, mine_, equal_nan=True):
+                k = int(np.flatnonzero(~((theirs_ == mine_) | (np.isnan(theirs_) & np.isnan(mine_))))[0])
+                return (f"{self.path}: its steps differ from those of {where} ({name} at step {k}: "
+                        f"{mine_[k]!r}, the file's {theirs_[k]!r}){fix}")
+        return None
 
     # -- the state back into a simulation ---------------------------------------------------------------
     def restore(self, sim) -> tuple[float, list[int]]:
@@ -660,12 +730,10 @@ def restart_scene(checkpoint: Checkpoint, new_scene: str | pathlib.Path | None =
         if scene.solver.integrator != checkpoint.attrs["integrator"]:
             raise SceneError(scene.source, "[solver] integrator", scene.solver.integrator,
                              f"differs from the integrator of checkpoint {checkpoint.path} "
-                             f"({checkpoint.attrs['integrator']!r}); a restart may change only [time] end, "
-                             f"distance, steady, max_steps and [output] keys")
+                             f"({checkpoint.attrs['integrator']!r}); {SAFE_TEXT}")
         for key, old, new in _changes(raw, scene.raw):
             raise SceneError(scene.source, key, new, f"differs from the scene of checkpoint "
-                             f"{checkpoint.path} ({old!r}); a restart may change only [time] end, distance, "
-                             f"steady, max_steps and [output] keys")
+                             f"{checkpoint.path} ({old!r}); {SAFE_TEXT}")
     if fingerprint(scene) != checkpoint.attrs["fingerprint"]:
         raise CheckpointError(f"{checkpoint.path}: the material or body of the scene ({scene.source}) "
                               f"differs from the one the checkpoint was computed with: a file named by "

@@ -1,20 +1,29 @@
 """HDF5 files holding fields split by rows over MPI ranks, written and read without gathering a field.
 
-With parallel HDF5 (h5py built with MPI, as Debian's h5py is under ``mpirun``) every rank opens the file
-(driver "mpio") and writes or reads its own rows of each field collectively. Without it (e.g. PyPI's
-serial h5py) rank 0 alone opens the file and moves the other ranks' rows through it in blocks of at most
-``BLOCK_BYTES``, so that no rank ever holds a whole field. Which path a run takes is
-:func:`parallel_hdf5`; :func:`notice` says it once when the rank-0 path is taken under MPI.
+Writing: rank 0 alone opens the file, through a :class:`petroll.io.journal.Session` (a failed disk write
+never reaches HDF5, and an existing file is changed only by a journaled commit), and the other ranks'
+rows reach it in blocks of at most ``BLOCK_BYTES``, so that no rank ever holds a whole field. Every
+failure is rank 0's, found in Python, and told to every rank when the file is closed: no rank can be left
+waiting inside a collective HDF5 call.
+
+Reading: with parallel HDF5 (h5py built with MPI, as Debian's h5py is under ``mpirun``) every rank opens
+the file (driver "mpio") and reads its own rows independently; without it (e.g. PyPI's serial h5py) rank
+0 reads and sends the rows in blocks. Which path is :func:`parallel_hdf5`; :func:`notice` says it once
+when the rank-0 path is taken under MPI.
 """
 
 from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
+import errno
 import sys
 
 import h5py
 import numpy as np
+
+from petroll.errors import reason
+from petroll.io.journal import Session
 
 if TYPE_CHECKING:
     from mpi4py import MPI
@@ -35,7 +44,7 @@ def notice(comm: MPI.Comm) -> None:
     if comm.size > 1 and not parallel_hdf5(comm) and not _noticed:
         _noticed.append(True)
         if comm.rank == 0:
-            print("petroll: notice: h5py has no MPI support; HDF5 files are written through rank 0",
+            print("petroll: notice: h5py has no MPI support; HDF5 files are read through rank 0",
                   file=sys.stderr)
 
 
@@ -45,47 +54,83 @@ def chunk_rows(ny: int, itemsize: int = 8) -> int:
 
 
 class RowFile:
-    """An HDF5 file opened by every rank of ``comm`` (``parallel``) or by rank 0 only (``file`` None
-    elsewhere). ``put``/``get`` move one rank's contiguous rows of a dataset; every rank calls them in the
-    same order with its own rows. ``parallel`` None: :func:`parallel_hdf5` decides."""
+    """An HDF5 file opened by every rank of ``comm`` (``parallel``: reading with parallel HDF5) or by rank
+    0 only (``file`` None elsewhere). ``put``/``get`` move one rank's contiguous rows of a dataset; every
+    rank calls them in the same order with its own rows.
+
+    ``mode`` "r" reads (``parallel`` None: :func:`parallel_hdf5` decides); "w" writes a new file and "r+"
+    continues one, both on rank 0 through a journaled :class:`petroll.io.journal.Session`. :meth:`close`
+    (collective) then commits: it raises the OSError that stopped the writing on every rank, the file being
+    as it was before it was opened ("r+") or empty ("w").
+    """
 
     def __init__(self, path, mode: str, comm: MPI.Comm, parallel: bool | None = None):
         self.comm = comm
-        self.parallel = parallel_hdf5(comm) if parallel is None else parallel
+        self.writing = writing = mode != "r"
+        self.parallel = not writing and (parallel_hdf5(comm) if parallel is None else parallel)
+        self.session, self.file = None, None
         notice(comm)
         if self.parallel:
             self.file = h5py.File(path, mode, driver="mpio", comm=comm)
-        elif comm.rank == 0:
-            self.file = h5py.File(path, mode, rdcc_nbytes=4 * BLOCK_BYTES)
-        else:
-            self.file = None
+            return
+        failure = None
+        if comm.rank == 0:
+            try:
+                if writing:
+                    self.session = Session(path, fresh=mode == "w")
+                    self.file = self.session.h5(mode, rdcc_nbytes=4 * BLOCK_BYTES)
+                else:
+                    self.file = h5py.File(path, mode, rdcc_nbytes=4 * BLOCK_BYTES)
+            except Exception as exc:  # noqa: BLE001 - h5py's errors are OSError, RuntimeError, ...: told to all
+                if self.session is not None:
+                    self.session.abandon()
+                failure = (getattr(exc, "errno", None) or errno.EIO, reason(exc))
+        failure = comm.bcast(failure, root=0) if comm.size > 1 else failure
+        if failure is not None:
+            raise OSError(*failure)
 
     @property
     def writer(self) -> bool:
-        """This rank writes the small datasets and is the one that must create and set them (collectively
-        under parallel HDF5: every rank then creates and sets them alike)."""
+        """This rank writes the small datasets and is the one that must create and set them."""
         return self.parallel or self.comm.rank == 0
 
-    def close(self) -> None:
+    @property
+    def failure(self) -> OSError | None:
+        """The disk write that failed so far (rank 0 of a writing file; None elsewhere)."""
+        return self.session.error if self.session is not None else None
+
+    def close(self, commit: bool = True) -> None:
+        """Close the file; a written one is committed (or, ``commit`` False, abandoned). Collective for a
+        written file: an OSError raised on every rank if the writing failed."""
+        session, self.session = self.session, None
+        failure = None
         if self.file is not None:
-            self.file.close()
-            self.file = None
+            try:
+                self.file.close()
+            finally:
+                self.file = None
+        if session is not None:
+            try:
+                session.commit() if commit else session.abandon()
+            except OSError as exc:
+                failure = (exc.errno or errno.EIO, reason(exc))
+        if self.writing:
+            failure = self.comm.bcast(failure, root=0)
+        if failure is not None:
+            raise OSError(*failure)
 
     def __enter__(self):
         return self
 
-    def __exit__(self, *exc) -> None:
-        self.close()
+    def __exit__(self, kind, *exc) -> None:
+        self.close(commit=kind is None)
 
     # -- rows of a dataset ------------------------------------------------------------------------------
     def put(self, name: str, index: tuple, start: int, local: np.ndarray) -> None:
         """dataset[index + (start:start + len(local),)] = local, each rank its own rows. Collective."""
         local = np.ascontiguousarray(local)
-        if self.parallel:
-            self._transfer(name, index, start, local, write=True)
-            return
         for s, rows in self._blocks(start, local):
-            if self.comm.rank == 0:
+            if self.comm.rank == 0 and self.failure is None:  # after a failure: receive, write no more
                 self.file[name][index + (slice(s, s + len(rows)),)] = rows
 
     def get(self, name: str, index: tuple, start: int, count: int, dtype=np.float64) -> np.ndarray:
@@ -135,27 +180,3 @@ class RowFile:
                     block = np.empty((m, *shape[1:]), dtype=dtype)
                     comm.Recv(block, source=r, tag=8)
                     yield a + s, block
-
-    def _transfer(self, name: str, index: tuple, start: int, buf: np.ndarray, write: bool) -> None:
-        """Collective write (or read) of this rank's hyperslab (h5py's high-level calls skip empty
-        selections, which would leave the other ranks waiting: the low-level call is made on every rank)."""
-        from h5py import h5fd, h5p, h5s
-
-        dset = self.file[name]
-        fspace = dset.id.get_space()
-        rank_shape = dset.shape
-        offset = tuple(int(i) for i in index) + (start,) + (0,) * (len(rank_shape) - len(index) - 1)
-        count = (1,) * len(index) + buf.shape
-        mspace = h5s.create_simple(tuple(max(1, n) for n in buf.shape))
-        if buf.size:
-            fspace.select_hyperslab(offset, count)
-        else:
-            fspace.select_none()
-            mspace.select_none()
-        dxpl = h5p.create(h5p.DATASET_XFER)
-        dxpl.set_dxpl_mpio(h5fd.MPIO_COLLECTIVE)
-        data = buf if buf.size else np.zeros(tuple(max(1, n) for n in buf.shape), dtype=buf.dtype)
-        if write:
-            dset.id.write(mspace, fspace, data, dxpl=dxpl)
-        else:
-            dset.id.read(mspace, fspace, data, dxpl=dxpl)

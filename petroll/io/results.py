@@ -37,6 +37,7 @@ import numpy as np
 from petroll import __version__
 from petroll.errors import PetrollError, reason
 from petroll.io.hdf5 import RowFile, chunk_rows
+from petroll.io.journal import copy_committed, reading, sync_directory
 
 FORMAT_VERSION = 1
 
@@ -155,24 +156,31 @@ class Results:
     solved_steady: bool = False  # the steady state solved directly ([time] mode = "steady"; attribute steady)
     scene_file: str = ""  # the path the scene was read from ("" in files of petroll 0.1.0)
     version: str = ""  # the petroll version that wrote the file
+    run_id: str = ""  # the run's identifier, shared with its checkpoints ("" in files written before them)
+    error_estimate: dict | None = None  # group error_estimate: {quantity: {attribute: value}, "": group attrs}
 
     @classmethod
     def open(cls, path: str | pathlib.Path) -> "Results":
         """Read a results file's series and coordinates (any rank may call it), up to ``steps_written``."""
         path = pathlib.Path(path)
-        with h5py.File(path, "r") as f:
+        with reading(path) as f:
             n = int(f.attrs.get("steps_written", len(f["series/t"])))
             k = int(f.attrs.get("fields_written", len(f["fields/step"])))
             series = {name: f["series"][name][:n] for name in f["series"]}
             fields = f["fields"]
+            estimate = None
+            if "error_estimate" in f:
+                group = f["error_estimate"]
+                estimate = {name: dict(group[name].attrs) for name in group} | {"": dict(group.attrs)}
             return cls(path, series, fields["step"][:k], fields["x"][()], fields["y"][()], str(f.attrs["scene"]),
                        bool(f.attrs.get("complete", True)), bool(f.attrs.get("line_contact", False)),
                        tuple(name for name in FIELD_UNITS if name in fields), bool(f.attrs.get("steady", False)),
-                       str(f.attrs.get("scene_file", "")), str(f.attrs.get("petroll_version", "")))
+                       str(f.attrs.get("scene_file", "")), str(f.attrs.get("petroll_version", "")),
+                       str(f.attrs.get("run_id", "")), estimate)
 
     def field(self, name: str) -> np.ndarray:
         """The saved fields ``name`` (a key of FIELD_UNITS), (n_saved, nx, ny), read from the file."""
-        with h5py.File(self.path, "r") as f:
+        with reading(self.path) as f:
             return f["fields"][name][: len(self.field_steps)]
 
     @functools.cached_property
@@ -206,11 +214,12 @@ class ResultsFile:
 
     def __init__(self, path: str | pathlib.Path, scene_text: str, x: np.ndarray, y: np.ndarray, comm,
                  fields: tuple[str, ...] = ("pressure",), line: bool = False, steady: bool = False,
-                 source: str = ""):
+                 source: str = "", run_id: str = ""):
         from petroll.solver.partition import RowPartition
 
         self.path, self.scene_text, self.comm = pathlib.Path(path), scene_text, comm
         self.source = source  # the scene file's path (attribute scene_file)
+        self.run_id = run_id  # the run's identifier (attribute run_id), shared with its checkpoints
         self.x, self.y, self.fields = np.asarray(x, dtype=float), np.asarray(y, dtype=float), tuple(fields)
         self.rows = RowPartition(len(self.x), comm.size)
         self.steady = bool(steady)
@@ -232,19 +241,20 @@ class ResultsFile:
             if f.writer:
                 h = f.file
                 h.attrs.update(scene=self.scene_text, scene_file=self.source, petroll_version=__version__,
-                               format_version=FORMAT_VERSION, line_contact=self.line, steady=self.steady)
+                               format_version=FORMAT_VERSION, line_contact=self.line, steady=self.steady,
+                               run_id=self.run_id)
                 units = LINE_SERIES_UNITS if self.line else SERIES_UNITS
                 group = h.create_group("series")
                 for name in self.names:
-                    group.create_dataset(name, shape=(0,), maxshape=(None,), chunks=(1024,),
-                                         dtype=series_dtype(name), dcpl=early()).attrs["units"] = units.get(name, "-")
+                    group.create_dataset(name, shape=(0,), maxshape=(None,), chunks=(SERIES_CHUNK,),
+                                         dtype=series_dtype(name)).attrs["units"] = units.get(name, "-")
                 fields = h.create_group("fields")
                 chunks = (1, min(nx, chunk_rows(ny)), ny)
                 for name in self.fields:
                     fields.create_dataset(name, shape=(0, nx, ny), maxshape=(None, nx, ny), chunks=chunks,
-                                          dtype=np.float64, dcpl=early(), **PACKED).attrs["units"] = FIELD_UNITS[name]
-                fields.create_dataset("step", shape=(0,), maxshape=(None,), chunks=(1024,), dtype=np.int64,
-                                      dcpl=early())
+                                          dtype=np.float64, **PACKED).attrs["units"] = FIELD_UNITS[name]
+                fields.create_dataset("step", shape=(0,), maxshape=(None,), chunks=(SERIES_CHUNK,),
+                                      dtype=np.int64)
                 fields.create_dataset("x", data=self.x).attrs["units"] = "m"
                 fields.create_dataset("y", data=self.y).attrs["units"] = "m"
                 h.create_group("mesh").create_dataset(
@@ -261,14 +271,16 @@ class ResultsFile:
         self._guarded(lambda: self._replace(tmp), tmp)
         self.steps, self.field_steps, self.started = 0, [], True
 
-    def resume(self, source: str | pathlib.Path, steps: int, field_steps: list[int]) -> None:
+    def resume(self, source: str | pathlib.Path, steps: int, field_steps: list[int], check=None) -> None:
         """Continue ``source`` (the results.h5 of the run a checkpoint came from): its first ``steps`` series
         values and the fields of ``field_steps`` are kept, what it holds beyond them is dropped. A source
-        elsewhere than this file is copied here first (atomically)."""
+        elsewhere than this file is copied here first (atomically). ``check(f, source)`` (rank 0, the source
+        open with h5py as ``f``) says why it is not the checkpoint's run's (None: it is). Nothing is written before the
+        source passes: OutputError on every rank otherwise."""
         source = pathlib.Path(source)
         message = None
         if self.comm.rank == 0:
-            message = _resumable(source, steps, field_steps)
+            message = _resumable(source, steps, field_steps, check)
         message = self.comm.bcast(message, root=0)
         if message is not None:
             raise OutputError(message)
@@ -285,6 +297,7 @@ class ResultsFile:
                 for name in (*self.fields, "step"):
                     h["fields"][name].resize(len(field_steps), axis=0)
                 _field_views(h, self.fields, len(field_steps))
+                h.attrs["run_id"] = self.run_id
                 self._mark(h, steps, len(field_steps), complete=False)
 
         self._guarded(lambda: self._write(self.path, "r+", cut))
@@ -341,12 +354,29 @@ class ResultsFile:
             times = {int(r.step): float(r.t) for r in records}
             text = xdmf_text(self.path.name, len(self.x), len(self.y), self.field_steps,
                              [times[s] for s in self.field_steps], self.fields)
-            self._guarded(lambda: atomic_write(self.path.with_suffix(".xdmf"),
-                                               lambda tmp: tmp.write_text(text, encoding="utf-8")), local=True)
+            xdmf = self.path.with_suffix(".xdmf")
+            self._guarded(lambda: atomic_write(xdmf, lambda tmp: tmp.write_text(text, encoding="utf-8")),
+                          local=True, what=xdmf)
         if describe:
             self._agree()
 
     # -- helpers ----------------------------------------------------------------------------------------
+    def write_error_estimate(self, quantities: dict[str, dict], attrs: dict) -> None:
+        """The group ``error_estimate`` (replaced if present): ``attrs`` on the group, one subgroup per
+        quantity with its attributes (value, extrapolated, error, order, ...; docs/results.md). Written
+        through the journaled session like an append; collective (OutputError on every rank)."""
+        def work(f: RowFile):
+            if f.writer:
+                h = f.file
+                if "error_estimate" in h:
+                    del h["error_estimate"]
+                group = h.create_group("error_estimate")
+                group.attrs.update(attrs)
+                for name, values in quantities.items():
+                    group.create_group(name).attrs.update(values)
+
+        self._guarded(lambda: self._write(self.path, "r+", work))
+
     @staticmethod
     def _mark(h: h5py.File, steps: int, fields: int, complete: bool) -> None:
         """The attributes saying how far the file is valid: ``steps`` series values, ``fields`` fields."""
@@ -357,13 +387,11 @@ class ResultsFile:
         return self.comm.bcast(os.getpid() if self.comm.rank == 0 else None, root=0)
 
     def _write(self, path: pathlib.Path, mode: str, work) -> None:
+        """``work(f)`` on the file opened for writing (a RowFile, collective), committed (fsynced) after."""
         if self.comm.rank == 0:
             path.parent.mkdir(parents=True, exist_ok=True)
         with RowFile(path, mode, self.comm) as f:
             work(f)
-        if self.comm.rank == 0:
-            with open(path, "rb") as fh:
-                os.fsync(fh.fileno())
 
     def _replace(self, tmp: pathlib.Path) -> None:
         if self.comm.rank == 0:
@@ -372,23 +400,21 @@ class ResultsFile:
 
     @staticmethod
     def _copy(source: pathlib.Path, tmp: pathlib.Path) -> None:
-        import shutil
-
         tmp.parent.mkdir(parents=True, exist_ok=True)
-        shutil.copyfile(source, tmp)
-        with open(tmp, "rb") as fh:
-            os.fsync(fh.fileno())
+        copy_committed(source, tmp)
 
     _error = None
 
-    def _guarded(self, action, tmp: pathlib.Path | None = None, local: bool = False) -> None:
+    def _guarded(self, action, tmp: pathlib.Path | None = None, local: bool = False,
+                 what: pathlib.Path | None = None) -> None:
         """Run ``action`` (collective unless ``local``: rank 0 only); an error on any rank becomes an
-        OutputError on every rank (a temporary file is removed)."""
+        OutputError on every rank naming ``what`` (default results.h5; a temporary file is removed)."""
         try:
             if not local or self.comm.rank == 0:
                 action()
         except (OSError, RuntimeError, KeyError, ValueError) as exc:
-            self._error = f"{self.path}: cannot write the results ({reason(exc)})"
+            why = exc.strerror if isinstance(exc, OSError) and exc.strerror else reason(exc)  # the file: named
+            self._error = f"{what or self.path}: cannot write the results ({why})"
         if not local:
             self._agree(tmp)
 
@@ -407,15 +433,9 @@ INTEGER_SERIES = ("step", "iterations", "applications")
 PACKED = dict(compression="gzip", compression_opts=1, shuffle=True)
 """How fields are stored: gzip (in every HDF5 build) after byte shuffling, fast level."""
 
-
-def early():
-    """Creation properties allocating a dataset's chunks when it is created or extended: what parallel HDF5
-    needs of a file extended by several ranks, whichever path (parallel or rank 0) created it."""
-    from h5py import h5d, h5p
-
-    dcpl = h5p.create(h5p.DATASET_CREATE)
-    dcpl.set_alloc_time(h5d.ALLOC_TIME_EARLY)
-    return dcpl
+SERIES_CHUNK = 128
+"""Values per chunk of a series (and of fields/step): an append rewrites the last, partly filled chunk of
+each, so its size is what an append rewrites (and journals) per series: 1 KiB."""
 
 
 def series_dtype(name: str):
@@ -429,22 +449,36 @@ def _series_names() -> list[str]:
     return list(StepRecord.__annotations__)
 
 
-def _resumable(source: pathlib.Path, steps: int, field_steps: list[int]) -> str | None:
+def _resumable(source: pathlib.Path, steps: int, field_steps: list[int], check=None) -> str | None:
     """Why ``source`` cannot be continued at ``steps`` steps with ``field_steps`` saved (None: it can)."""
     fix = "; restart from an earlier checkpoint, or run the scene again from its start"
     try:
-        with h5py.File(source, "r") as f:
+        with reading(source) as f:
             if "steps_written" not in f.attrs or f["series/t"].maxshape != (None,):
                 return f"{source}: written by an older petroll (not appendable); run the scene again"
             n, k = int(f.attrs["steps_written"]), int(f.attrs["fields_written"])
             have = [int(s) for s in f["fields/step"][:k]]
+            other = check(f, source) if check is not None else None
     except (OSError, KeyError) as exc:
         return f"{source}: cannot continue the results of the checkpoint's run ({reason(exc)}){fix}"
+    if other is not None:
+        return other
     if n < steps or have[: len(field_steps)] != [int(s) for s in field_steps]:
         return (f"{source}: holds {n} steps and fields of steps {have[:6]}{'...' if len(have) > 6 else ''}; "
                 f"the checkpoint needs {steps} steps and fields of steps "
                 f"{list(field_steps)[:6]}{'...' if len(field_steps) > 6 else ''}{fix}")
     return None
+
+
+def results_identity(path: str | pathlib.Path) -> dict | None:
+    """Of a results file: its ``scene`` text, ``run_id`` ("" if it has none) and whether it is ``complete``;
+    None if it cannot be read as one."""
+    try:
+        with reading(path) as f:
+            return {"scene": str(f.attrs["scene"]), "run_id": str(f.attrs.get("run_id", "")),
+                    "complete": bool(f.attrs.get("complete", True))}
+    except (OSError, KeyError):
+        return None
 
 
 def atomic_write(path: pathlib.Path, write) -> None:
@@ -461,20 +495,6 @@ def atomic_write(path: pathlib.Path, write) -> None:
     finally:
         if tmp.exists():
             tmp.unlink()
-
-
-def sync_directory(directory: pathlib.Path) -> None:
-    """fsync a directory, so that a rename in it survives a crash of the machine (where the OS allows it)."""
-    try:
-        fd = os.open(directory, os.O_RDONLY)
-    except OSError:
-        return
-    try:
-        os.fsync(fd)
-    except OSError:
-        pass
-    finally:
-        os.close(fd)
 
 
 def cell_corners(x: np.ndarray, y: np.ndarray, i0: int = 0, i1: int | None = None) -> np.ndarray:

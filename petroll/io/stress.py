@@ -22,6 +22,7 @@ import h5py
 import numpy as np
 
 from petroll.errors import PetrollError, reason
+from petroll.io.journal import reading
 from petroll.io.results import OutputError, atomic_write
 from petroll.solver.partition import RowPartition, gather_field
 
@@ -37,7 +38,7 @@ def read_saved_pressure(path: pathlib.Path, step: int | None, comm) -> dict:
     (the body's path, m), ``line`` (a line-contact run: ny = 1). Collective in effect (every rank reads its rows). Raises PetrollError naming the
     file or the step (with the saved steps) when it cannot."""
     try:
-        with h5py.File(path, "r") as f:
+        with reading(path) as f:
             r0, r1 = RowPartition(len(f["fields/x"]), comm.size).range(comm.rank)
             steps = f["fields/step"][: int(f.attrs.get("fields_written", len(f["fields/step"])))]
             if len(steps) == 0:

@@ -59,8 +59,8 @@ def largest_penetration(scene) -> tuple[float, bool]:
     a^2/R with a = sqrt(4 P R Jinf/pi) the relaxed Hertz half-width, the approach at which a parabola's
     Z <= delta/2 spans the same width (the penetration itself depends on a datum there)."""
     if scene.penetration is not None:
-        return float(scene.penetration.peak()), True
-    load = float(scene.load.peak())
+        return float(scene.penetration.largest()), True
+    load = float(scene.load.largest())
     radius = float(scene.body.radius_hint)
     if not (load > 0 and radius > 0 and math.isfinite(radius)):
         return 0.0, False

@@ -11,6 +11,7 @@ at the reference temperature T_ref (:func:`shifted`). Temperatures are absolute,
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -221,8 +222,9 @@ class Layer:
 GAS_CONSTANT = 8.314462618
 """Molar gas constant R, J/(mol K) (CODATA 2018, exact)."""
 
-SHIFT_FORMS = ('{law = "wlf", C1 = ..., C2 = ... (K), T_ref = ... (K)} or {law = "arrhenius", Ea = ... (J/mol), '
-               'T_ref = ... (K)}, all numbers > 0')
+SHIFT_FORMS = ('{law = "wlf", C1 = ..., C2 = ... (K), T_ref = ... (K)} or {law = "arrhenius", Ea = ... '
+               '(J/mol), T_ref = ... (K)}, all numbers > 0, or {law = "table", T = [...] (K, > 0, '
+               'increasing), log10_aT = [...] (as many finite numbers)}')
 """What a shift law may be written as (scene key [material] shift)."""
 
 
@@ -265,7 +267,41 @@ class Arrhenius:
         return {"law": "arrhenius", "Ea": self.Ea, "T_ref": self.T_ref}
 
 
-def shift_factor(law: WLF | Arrhenius, T: float) -> float:
+@dataclass(frozen=True)
+class TableShift:
+    """Tabulated: log10 a_T given at the temperatures T (K, increasing), interpolated between them by a
+    monotone piecewise cubic (PCHIP: through every point, no overshoot, a continuous slope); refused
+    outside T[0] ... T[-1]. The material's other keys hold at T_ref, where log10 a_T = 0."""
+
+    T: tuple[float, ...]
+    log10_aT: tuple[float, ...]
+
+    @functools.cached_property
+    def _interpolant(self):
+        from scipy.interpolate import PchipInterpolator
+
+        return PchipInterpolator(self.T, self.log10_aT, extrapolate=False)
+
+    def log10(self, T: float) -> float:
+        """log10 a_T at the temperature T (K); ValueError outside the table's temperatures."""
+        if not self.T[0] <= T <= self.T[-1]:
+            raise ValueError(f"must be within the table's temperatures {self.T[0]:g} ... {self.T[-1]:g} K")
+        return float(self._interpolant(T))
+
+    @property
+    def T_ref(self) -> float:
+        """The temperature (K) where log10 a_T = 0; ValueError unless there is exactly one."""
+        roots = np.unique(self._interpolant.solve(0.0, extrapolate=False))
+        if len(roots) != 1:
+            raise ValueError(f"the table's log10_aT crosses 0 at {len(roots)} temperatures: a reference "
+                             "temperature needs exactly one")
+        return float(roots[0])
+
+    def table(self) -> dict:
+        return {"law": "table", "T": list(self.T), "log10_aT": list(self.log10_aT)}
+
+
+def shift_factor(law: WLF | Arrhenius | TableShift, T: float) -> float:
     """a_T(T) = 10^law.log10(T): the factor on every material time at T (K) relative to T_ref (> 1 colder).
 
     ValueError (with what is allowed) where the law is undefined or a_T over- or underflows."""
@@ -279,9 +315,12 @@ def shift_factor(law: WLF | Arrhenius, T: float) -> float:
 def make_shift(table: dict) -> WLF | Arrhenius:
     """A shift law from its table (``[material] shift``, :data:`SHIFT_FORMS`); ValueError naming what is
     allowed otherwise."""
-    laws = {"wlf": (WLF, ("C1", "C2", "T_ref")), "arrhenius": (Arrhenius, ("Ea", "T_ref"))}
+    laws = {"wlf": (WLF, ("C1", "C2", "T_ref")), "arrhenius": (Arrhenius, ("Ea", "T_ref")),
+            "table": (TableShift, ("T", "log10_aT"))}
     if not isinstance(table, dict) or table.get("law") not in laws:
         raise ValueError(f"must be {SHIFT_FORMS}")
+    if table["law"] == "table" and set(table) == {"law", "T", "log10_aT"}:
+        return _table_shift(table["T"], table["log10_aT"])
     build, names = laws[table["law"]]
     if set(table) != {"law", *names}:
         raise ValueError(f"the {table['law']} law takes exactly the keys law, {', '.join(names)}; allowed: "
@@ -291,6 +330,22 @@ def make_shift(table: dict) -> WLF | Arrhenius:
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 < value < math.inf:
             raise ValueError(f"{name} = {value!r} must be a finite number > 0; allowed: {SHIFT_FORMS}")
     return build(*(float(v) for v in values))
+
+
+def _table_shift(T, log10_aT) -> TableShift:
+    def numbers(values) -> list[float] | None:
+        ok = isinstance(values, (list, tuple)) and all(
+            not isinstance(v, bool) and isinstance(v, (int, float)) and math.isfinite(v) for v in values)
+        return [float(v) for v in values] if ok else None
+
+    T, values = numbers(T), numbers(log10_aT)
+    if T is None or len(T) < 2 or T[0] <= 0 or any(b <= a for a, b in zip(T, T[1:])):
+        raise ValueError(f"T must be a list of at least 2 increasing temperatures > 0 (K); allowed: "
+                         f"{SHIFT_FORMS}")
+    if values is None or len(values) != len(T):
+        raise ValueError(f"log10_aT must be a list of {len(T)} finite numbers (one per T); allowed: "
+                         f"{SHIFT_FORMS}")
+    return TableShift(tuple(T), tuple(values))
 
 
 def shifted(material: Prony | Tabulated, factor: float) -> Prony | Tabulated:

@@ -64,6 +64,10 @@ class Constant:
         """The largest magnitude the program takes."""
         return float(np.linalg.norm(self.value))
 
+    def largest(self) -> float:
+        """The largest value a scalar program takes (signed; penetration, load)."""
+        return float(np.max(self.value))
+
 
 @dataclass(frozen=True)
 class Ramp:
@@ -84,6 +88,9 @@ class Ramp:
     def peak(self) -> float:
         return float(max(np.linalg.norm(self.start), np.linalg.norm(self.end)))
 
+    def largest(self) -> float:
+        return float(max(np.max(self.start), np.max(self.end)))
+
 
 @dataclass(frozen=True)
 class Sinusoidal:
@@ -103,6 +110,9 @@ class Sinusoidal:
 
     def peak(self) -> float:
         return float(np.linalg.norm(np.abs(self.mean) + np.abs(self.amplitude)))
+
+    def largest(self) -> float:
+        return float(np.max(self.mean + np.abs(self.amplitude)))
 
 
 @dataclass(frozen=True)
@@ -128,6 +138,9 @@ class Tabulated:
 
     def peak(self) -> float:
         return float(np.max(np.linalg.norm(self.values.reshape(len(self.times), -1), axis=1)))
+
+    def largest(self) -> float:
+        return float(np.max(self.values))
 
 
 def _interp_rows(t: float, times: np.ndarray, values: np.ndarray) -> np.ndarray:

@@ -72,6 +72,39 @@ def _count(value: Any) -> int:
     return int(value)
 
 
+MAGNITUDES = (1e-30, 1e30)
+"""The smallest and largest non-zero magnitude of a number with a unit (a length, time, modulus, force,
+...), whatever the units: the kernels and integrators form squares and products of a few of them, which
+then stay far inside double precision (1e-308 ... 1e308). Scenes outside are refused: rescale the units."""
+
+BODY_LENGTHS = ("radius", "radius_x", "radius_y", "width", "edge_radius", "cell")
+"""[body] keys that are lengths (m), held to MAGNITUDES like the schema's keys with units."""
+
+CELL_DIGITS = 1e-9
+"""A cell narrower than this fraction of the grid's largest coordinate is refused: its centre (and the
+body's position on it) would keep fewer than 7 of double precision's digits."""
+
+
+def out_of_scale(value: Any) -> float | None:
+    """The first non-zero number in ``value`` (a number, or lists and inline tables of them; a program's
+    ``phase`` and strings left out) whose magnitude lies outside MAGNITUDES; None if there is none."""
+    if isinstance(value, bool) or isinstance(value, str):
+        return None
+    if isinstance(value, (int, float)):
+        return float(value) if value and not MAGNITUDES[0] <= abs(value) <= MAGNITUDES[1] else None
+    items = value.items() if isinstance(value, dict) else enumerate(value) if isinstance(value, list) else ()
+    for key, item in items:
+        if key != "phase" and (bad := out_of_scale(item)) is not None:
+            return bad
+    return None
+
+
+def _scale_message(bad: float, unit: str) -> str:
+    shown = f" {unit}" if unit not in ("-", "") else ""
+    return (f"{bad:g}{shown} is outside what petroll computes with: non-zero magnitudes from "
+            f"{MAGNITUDES[0]:g} to {MAGNITUDES[1]:g}; rescale the units (e.g. mm, MPa, ms)")
+
+
 MAX_CELLS_AXIS, MAX_CELLS = 2**24, 2**31 - 1
 """Grid size limits: PETSc's 32-bit indices number at most 2^31 - 1 cells; 2^24 per axis keeps the
 coordinate arrays small (a grid that long is never needed)."""
@@ -103,6 +136,12 @@ def _point(value: Any) -> tuple[float, float]:
         return _number(value[0]), _number(value[1])
     except _Invalid:
         raise _Invalid("must be a pair [x, y] of finite numbers") from None
+
+
+def _flag(value: Any) -> bool:
+    if not isinstance(value, bool):
+        raise _Invalid("must be true or false")
+    return value
 
 
 def _poisson(value: Any) -> float:
@@ -266,6 +305,8 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "x": Key("[min, max]", "extent of the grid along X in the material frame", _interval, unit="m"),
         "y": Key("[min, max]", "extent of the grid along Y in the material frame (omitted: line contact)",
                  _interval, default=None, unit="m"),
+        "allow_coarse": Key("boolean", "run even with fewer than 2 cells per estimated contact half-width "
+                            "(refused otherwise; below 8 a run warns: docs/accuracy.md)", _flag, default=False),
     },
     "material": {
         "model": Key("string", 'constitutive model: "elastic", "sls", "prony" or "tabulated"',
@@ -301,7 +342,10 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "shift": Key("inline table", 'time-temperature shift law a_T (with temperature): {law = "wlf", C1, '
                      'C2 (K), T_ref (K)}: log10 a_T = -C1 (T - T_ref)/(C2 + T - T_ref), or {law = '
                      '"arrhenius", Ea (J/mol), T_ref (K)}: ln a_T = (Ea/R)(1/T - 1/T_ref), R = 8.314462618 '
-                     'J/(mol K)', _shift, default=None, fields=(("C2", "K"), ("T_ref", "K"), ("Ea", "J/mol"))),
+                     'J/(mol K), or {law = "table", T = [...] (K, increasing), log10_aT = [...]}: log10 a_T '
+                     "interpolated between the listed temperatures (PCHIP: monotone piecewise cubic), "
+                     "refused outside them (what petroll material fit --shift auto writes)", _shift,
+                     default=None, fields=(("C2", "K"), ("T_ref", "K"), ("Ea", "J/mol"), ("T", "K"))),
         "layer": Key("inline table", "the material is a layer of this thickness on a rigid base, its bottom "
                      'bonded to it or sliding freely on it: {thickness = h (m), base = "bonded" or '
                      '"frictionless"} (all models; needs nu; absent: a half-space; docs/layer.md)', _layer,
@@ -425,6 +469,7 @@ class Scene:
     fields: tuple[str, ...] = ("pressure",)  # saved at the saved steps ([output] fields)
     shift_factor: float = 1.0  # a_T at [material] temperature: material's times / their values at T_ref
     layer: materials.Layer | None = None  # [material] layer: a layer on a rigid base (None: a half-space)
+    allow_coarse: bool = False  # [grid] allow_coarse: run below petroll.model.preflight.LEAST_CELLS
 
     def replace(self, changes: str | dict[str, Any], value: Any = None) -> "Scene":
         """A copy with keys changed, validated again: ``scene.replace("motion.penetration", 3e-5)`` or,
@@ -502,8 +547,12 @@ def parse_scene(raw: dict, source: str = "<python>", base_dir: str | pathlib.Pat
             raise SceneError(source, "[grid] nx / ny", [g["nx"], g["ny"]], f"at most {MAX_CELLS} cells in "
                              "all (nx ny; PETSc's 32-bit indices)")
         grid = Grid(g["nx"], g["ny"], *g["x"], *g["y"])
+    _check_cells(grid, raw["grid"], source)
     material = _material(values["material"], raw.get("material", {}), base_dir, source)
     material, shift_factor = _temperature(values["material"], raw.get("material", {}), material, source)
+    for key in BODY_LENGTHS:
+        if key in raw.get("body", {}) and (bad := out_of_scale(raw["body"][key])) is not None:
+            raise SceneError(source, f"[body] {key}", raw["body"][key], _scale_message(bad, "m"))
     body = make_body(raw.get("body", {}), base_dir, source, line=line, grid=grid)
     m = values["motion"]
     if line:
@@ -531,9 +580,12 @@ def parse_scene(raw: dict, source: str = "<python>", base_dir: str | pathlib.Pat
                   checkpoint_every=values["output"]["checkpoint_every"], keep=values["output"]["keep"],
                   fields=_fields(values["output"]["fields"]),
                   shift_factor=shift_factor,
-                  layer=_material_layer(values["material"], raw.get("material", {}), source))
+                  layer=_material_layer(values["material"], raw.get("material", {}), source),
+                  allow_coarse=g["allow_coarse"])
     if time.mode == "steady":
         _check_steady(scene)
+    else:
+        _check_steps(scene)
     _check_contact_inside(scene)
     from petroll.model.limits import check_scene  # slopes beyond the linear theory: refused or warned
 
@@ -602,6 +654,8 @@ def _read_section(raw: dict, name: str, source: str) -> dict:
         except _Invalid as exc:
             unit = f" ({spec.unit})" if spec.unit != "-" else ""
             raise SceneError(source, f"[{name}] {key}", table[key], f"{exc}{unit}") from None
+        if spec.unit != "-" and (bad := out_of_scale(table[key])) is not None:
+            raise SceneError(source, f"[{name}] {key}", table[key], _scale_message(bad, spec.unit))
     if name != "body":  # [body] takes its shape's keys too: make_body checks them
         for key in table:
             if key not in keys:
@@ -696,10 +750,10 @@ def _temperature(values: dict, table: dict, material, source: str):
         raise SceneError(source, "[material] temperature", table["temperature"], str(exc)) from None
     material = materials.shifted(material, factor)
     times = material.tau if isinstance(material, materials.Prony) else material.t[1:]
-    if times and not (min(times) > 0 and max(times) < math.inf):
+    if times and out_of_scale(list(times)) is not None:
         raise SceneError(source, "[material] temperature", table["temperature"], f"gives a_T = {factor:.4g}, "
-                         "which takes the material's times beyond what a float holds; a temperature nearer "
-                         "T_ref is needed")
+                         f"which takes the material's times outside {MAGNITUDES[0]:g} ... {MAGNITUDES[1]:g} "
+                         "s; a temperature nearer T_ref is needed")
     return material, factor
 
 
@@ -751,6 +805,38 @@ def _check_time(time: Time, table: dict, source: str) -> None:
         raise SceneError(source, "[time] dt", time.dt, f"too small: end / dt = {time.end / time.dt:.3g} "
                          f"steps, more than [time] max_steps = {time.max_steps}; raise max_steps or the "
                          "time step")
+
+
+def _check_cells(grid: Grid, table: dict, source: str) -> None:
+    """Refuse cells too narrow for the grid's coordinates to keep their digits (CELL_DIGITS)."""
+    for axis, side, lo, hi in (("x", grid.dx, grid.x0, grid.x1), ("y", grid.dy, grid.y0, grid.y1)):
+        if axis == "y" and grid.line:
+            continue
+        if side < CELL_DIGITS * max(abs(lo), abs(hi)):
+            raise SceneError(source, f"[grid] {axis}", table[axis], f"cells {side:.3g} m wide at coordinates "
+                             f"up to {max(abs(lo), abs(hi)):.3g} m: a cell must be at least {CELL_DIGITS:g} "
+                             "of the largest coordinate, or positions on it lose their digits; move the "
+                             "grid's origin nearer to it")
+
+
+def _check_steps(scene: Scene) -> None:
+    """Refuse a run to [time] distance that would take more than [time] max_steps steps at least, as a run
+    to [time] end is (each step covers at most the peak speed times dt, or a cell / steps_per_cell), and
+    one that never rolls its distance (a body at rest)."""
+    tm, source = scene.time, scene.source
+    if tm.distance is None or (tm.dt is None and tm.steps_per_cell is None):
+        return
+    peak = float(scene.velocity.peak())
+    if peak == 0:
+        raise SceneError(source, "[time] distance", tm.distance, "a body at rest never rolls it: give [motion] "
+                         "velocity, or [time] end")
+    per_step = peak * tm.dt if tm.dt is not None else scene.grid.cell / tm.steps_per_cell
+    steps = tm.distance / per_step
+    if steps > tm.max_steps + 1:
+        key, value = ("[time] dt", tm.dt) if tm.dt is not None else ("[time] steps_per_cell", tm.steps_per_cell)
+        how = ("distance / (peak speed x dt)" if tm.dt is not None else "distance / cell x steps_per_cell")
+        raise SceneError(source, key, value, f"too many steps: {how} = {steps:.3g} steps at least, more than "
+                         f"[time] max_steps = {tm.max_steps}; raise max_steps or the time step")
 
 
 def _check_steady(scene: Scene) -> None:

@@ -32,6 +32,9 @@ from petroll.errors import SceneError, reason
 
 __all__ = ["FORMATS", "UNITS", "Topography", "read_npy", "read_topography"]
 
+NPY_MAGIC = b"\x93NUMPY"
+"""The first bytes of every .npy file."""
+
 UNITS: dict[str, float] = {"m": 1.0, "mm": 1e-3, "um": 1e-6, "nm": 1e-9}
 """Length units of a file's numbers, in m."""
 
@@ -93,11 +96,21 @@ def _checked(heights: np.ndarray, path: pathlib.Path, source: str, key: str) -> 
 
 
 def read_npy(path: str | os.PathLike, source: str, what: str, key: str = "[body] file") -> np.ndarray:
-    """The array of a .npy file, or SceneError on ``key`` (``what``: the array it must hold)."""
+    """The array of a .npy file, or SceneError on ``key`` (``what``: the array it must hold, of real
+    numbers)."""
     try:
-        array = np.load(path, allow_pickle=False)
+        with open(path, "rb") as fh:
+            magic = fh.read(len(NPY_MAGIC))
+        array = np.load(path, allow_pickle=False) if magic == NPY_MAGIC else None
     except Exception as exc:  # noqa: BLE001 - any read failure is the user's file
         raise SceneError(source, key, str(path), f"cannot read a .npy file: {reason(exc)}") from None
+    if array is None:
+        raise SceneError(source, key, str(path), "is not a .npy file (those begin with the bytes \\x93NUMPY; "
+                         f"a text file of numbers is read as format = \"matrix\" where allowed); it must hold "
+                         f"{what}")
+    if isinstance(array, np.ndarray) and np.iscomplexobj(array):
+        raise SceneError(source, key, str(path), f"holds complex numbers ({array.dtype}); it must hold {what}, "
+                         "real numbers (np.real(...) if the real part is meant)")
     if not isinstance(array, np.ndarray) or not np.issubdtype(array.dtype, np.number):
         raise SceneError(source, key, str(path), f"must be a .npy file holding {what}")
     return array

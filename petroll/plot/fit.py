@@ -1,4 +1,5 @@
-"""The figure of a Prony fit to DMA data (``petroll material fit``, :mod:`petroll.model.dma`)."""
+"""The figures of ``petroll material fit`` (:mod:`petroll.model.dma`): the master curve with the fit,
+coloured by measurement set, and the shift factors found from the data."""
 
 from __future__ import annotations
 
@@ -11,22 +12,34 @@ from petroll.plot.common import constrained_figure
 
 
 def plot_fit(data, fit, path: str | pathlib.Path) -> pathlib.Path:
-    """One PNG (written atomically) of a Prony fit to DMA data (:mod:`petroll.model.dma`): E', E'' and
-    tan delta against the (reduced) frequency, the data as points (one colour per temperature), the fit
-    as a line."""
-    figure = constrained_figure(12, 4)
+    """Write :func:`fit_figure` as one PNG (atomically)."""
+    figure = fit_figure(data, fit)
+    path = pathlib.Path(path)
+    atomic_write(path, lambda tmp: figure.savefig(tmp, dpi=110, format="png"))
+    return path
+
+
+def fit_figure(data, fit):
+    """The figure of a Prony fit to DMA data: E', E'' and tan delta against the (reduced) frequency, each
+    measurement set's points in the colour of its temperature (a colour bar), the fit as a line."""
+    from matplotlib import colormaps
+    from matplotlib.cm import ScalarMappable
+    from matplotlib.colors import Normalize
+
+    figure = constrained_figure(13, 4)
     axes = figure.subplots(1, 3)
     f = np.geomspace(*fit.frequency_range, 400)
     storage, loss = fit.dynamic(f)
-    from matplotlib import colormaps
-
-    temperatures = [None] if data.temperature is None else sorted(set(data.temperature.tolist()))
-    for i, T in enumerate(temperatures):
-        rows = np.ones(len(data.reduced), bool) if T is None else data.temperature == T
-        colour = "tab:blue" if T is None else colormaps["viridis"](i / max(1, len(temperatures) - 1))
-        label = "data" if T is None else f"data at {T:g} K"
+    temperatures = [s.temperature for s in data.sets if s.temperature is not None]
+    colours = None
+    if temperatures:
+        lo, hi = min(temperatures), max(temperatures)
+        colours = ScalarMappable(Normalize(lo, hi if hi > lo else lo + 1.0), colormaps["viridis"])
+    for s in data.sets:
+        colour = "tab:blue" if colours is None else colours.to_rgba(s.temperature)
         for ax, y in zip(axes, (data.storage, data.loss, data.loss / data.storage)):
-            ax.plot(data.reduced[rows], y[rows], "o", markersize=3.5, color=colour, label=label, alpha=0.8)
+            ax.plot(data.reduced[s.rows], y[s.rows], "o", markersize=3, color=colour, alpha=0.8,
+                    label="data" if colours is None else None)
     for ax, y, name in zip(axes, (storage, loss, loss / storage), ("E' (Pa)", "E'' (Pa)", "tan delta (-)")):
         ax.plot(f, y, "-", color="black", linewidth=1.2, label=f"fit: {len(fit.moduli)} Maxwell terms")
         ax.set_xscale("log")
@@ -35,9 +48,50 @@ def plot_fit(data, fit, path: str | pathlib.Path) -> pathlib.Path:
         ax.set_ylabel(name)
         ax.grid(alpha=0.3, which="both")
     axes[0].legend(fontsize=8)
-    at = f" at T_ref = {data.shift.T_ref:g} K" if data.shift is not None else ""
+    if colours is not None:
+        figure.colorbar(colours, ax=axes, label=f"set temperature (K): {len(data.sets)} sets", pad=0.01)
+    at = f" at T_ref = {data.T_ref:g} K" if data.shift is not None else ""
     figure.suptitle(f"{pathlib.Path(data.source).name}: Prony fit{at}; relative error rms "
                     f"{100 * fit.rms_error:.3g} %, max {100 * fit.max_error:.3g} %")
+    return figure
+
+
+def plot_shifts(data, path: str | pathlib.Path) -> pathlib.Path:
+    """Write :func:`shift_figure` as one PNG (atomically)."""
+    figure = shift_figure(data)
     path = pathlib.Path(path)
     atomic_write(path, lambda tmp: figure.savefig(tmp, dpi=110, format="png"))
     return path
+
+
+def shift_figure(data):
+    """The shift factors found from the data (``data.found``, petroll.model.tts): log10 a_T of each set
+    against its temperature with the table law through them and the WLF and Arrhenius laws fitted to
+    them (left), and each law's difference from the factors (right)."""
+    found = data.found
+    figure = constrained_figure(11, 4.2)
+    left, right = figure.subplots(1, 2)
+    T = np.linspace(found.temperatures[0], found.temperatures[-1], 300)
+    left.plot(found.temperatures, found.log10_aT, "o", color="black", markersize=4,
+              label=f"found: {len(found.temperatures)} sets")
+    left.plot(T, [found.law.log10(t) for t in T], "-", color="black", linewidth=1, label="table law (PCHIP)")
+    for name, fit, style in (("WLF", found.wlf, "--"), ("Arrhenius", found.arrhenius, ":")):
+        if fit.law is None:
+            continue
+        label = f"{name} fitted: rms {fit.rms:.2g}, max {fit.max:.2g} decade"
+        left.plot(T, [fit.law.log10(t) for t in T], style, linewidth=1.5, label=label)
+        right.plot(found.temperatures, [fit.law.log10(t) for t in found.temperatures] - found.log10_aT,
+                   style + "o", markersize=3, label=name)
+    left.axvline(found.T_ref, color="grey", linewidth=0.8)
+    left.set_xlabel("temperature (K)")
+    left.set_ylabel("log10 a_T")
+    left.set_title(f"shift factors found from the data, T_ref = {found.T_ref:g} K", fontsize=10)
+    right.axhline(0, color="black", linewidth=0.8)
+    right.set_xlabel("temperature (K)")
+    right.set_ylabel("law - factors (decades)")
+    right.set_title("residuals of the fitted laws", fontsize=10)
+    for ax in (left, right):
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8)
+    figure.suptitle(f"{pathlib.Path(data.source).name}: time-temperature shift")
+    return figure

@@ -5,3 +5,11 @@ petroll's Polonsky-Keer type), the history integrators, the warm start, the wake
 Rules: PETSc and MPI objects live here; writes no files; imports ``petroll.model`` and ``petroll.errors``
 only, never ``petroll.io``, ``petroll.studies`` or the faces.
 """
+
+import os as _os
+
+if not any(key in _os.environ for key in ("OMPI_COMM_WORLD_SIZE", "PMIX_RANK", "PMI_RANK")):
+    # a process that no launcher started (one rank): Open MPI then starts it as a singleton without the
+    # helper daemon MPI_Init otherwise forks for it (petroll never spawns processes): a faster start
+    # (docs/benchmarks.md, peers). Set before MPI starts, i.e. before mpi4py or petsc4py is initialised.
+    _os.environ.setdefault("OMPI_MCA_ess_singleton_isolated", "1")

@@ -144,6 +144,7 @@ class ContactSolver:
             return StepSolution(np.zeros(self.local_shape), base, 0.0, 0, 0, 0.0, (0, 0, 0, 0))
         if delta_guess is None or delta_guess <= base:
             delta_guess = base + hertz_penetration(self.grid, compliance, load, radius_hint)
+        delta_guess = self._off_the_edge(height, base, delta_guess)
         if self.tao_type == "pk":
             if not reach > base:
                 raise BeyondReach(f"the load {load:g} N needs a penetration beyond {reach:g} m")
@@ -187,6 +188,18 @@ class ContactSolver:
             delta = candidate
         raise SolverError(f"load control did not reach the load {load:g} N within 60 penetrations "
                           f"(last force {step.force:g} N); check the scene's load and body")
+
+    def _off_the_edge(self, height: np.ndarray, base: float, delta: float) -> float:
+        """The penetration guess ``delta`` (m), halved towards the lowest height ``base`` until the cells it
+        interferes with stay off the grid's edge: a guess from the body's radius hint overshoots where the
+        surface is not the sphere it hints at (a textured or rough map), and only the contact found must
+        fit on the grid."""
+        for _ in range(60):
+            box = self._box(delta - height > 0)
+            if box is None or not self._at_edge(box):
+                break
+            delta = base + 0.5 * (delta - base)
+        return delta
 
     def hertz_pressure(self, height: np.ndarray, compliance: float, load: float, radius: float,
                         delta: float) -> np.ndarray:

@@ -31,8 +31,9 @@ from mpi4py import MPI
 
 from petroll.model.grid import Grid
 from petroll.model.materials import Layer
+from petroll.solver.fft_work import fft_cost, tally
 from petroll.solver.kernels import Kernel, grid_kernel
-from petroll.solver.partition import RowPartition
+from petroll.solver.partition import RowPartition, columns_to_rows, rows_to_columns
 
 
 def dense_influence(coefficients: np.ndarray) -> np.ndarray:
@@ -75,6 +76,7 @@ class Convolution:
             self.lx = scipy.fft.next_fast_len(2 * nx - 1)
             self.ly = scipy.fft.next_fast_len(2 * ny - 1, real=True)
         self.kx, self.ky = (self.lx, self.ly) if inverse else (nx, ny)  # the kernel's offsets are below these
+        self.cost = fft_cost(self.lx * self.ly, self.lx * self.ly)  # of one application (fft_work)
         self.rows = RowPartition(nx, comm.size)
         self.freqs = RowPartition(self.ly // 2 + 1, comm.size)  # Y-frequencies, split after transposing
         self.r0, self.r1 = self.rows.range(comm.rank)
@@ -114,23 +116,24 @@ class Convolution:
             values = np.zeros((k1 - k0, self.ly))
             values[np.ix_(rows, cols)] = block
             half = scipy.fft.rfft(values, axis=1, workers=self.workers)
-            columns = _rows_to_columns(half, padded_rows, self.freqs, self.comm)
+            columns = rows_to_columns(half, padded_rows, self.freqs, self.comm)
             spectra.append(scipy.fft.fft(columns, axis=0, overwrite_x=True, workers=self.workers))
         return np.stack(spectra).reshape(lead + spectra[0].shape)
 
     def forward(self, x: np.ndarray) -> np.ndarray:
         """The padded DFT of a field's local rows ``x`` (local rows, ny): this rank's Y-frequencies."""
         half = scipy.fft.rfft(x, n=self.ly, axis=1, workers=self.workers)
-        columns = _rows_to_columns(half, self.rows, self.freqs, self.comm)
+        columns = rows_to_columns(half, self.rows, self.freqs, self.comm)
         return scipy.fft.fft(columns, n=self.lx, axis=0, overwrite_x=True, workers=self.workers)
 
     def backward(self, spectrum: np.ndarray) -> np.ndarray:
         """This rank's rows (local rows, ny) of the field whose padded DFT is ``spectrum`` (:meth:`forward`)."""
         columns = scipy.fft.ifft(spectrum, axis=0, workers=self.workers)[: self.nx]
-        half = _columns_to_rows(columns, self.rows, self.freqs, self.comm)
+        half = columns_to_rows(columns, self.rows, self.freqs, self.comm)
         return scipy.fft.irfft(half, n=self.ly, axis=1, workers=self.workers)[:, : self.ny]
 
     def __call__(self, x: np.ndarray) -> np.ndarray:
+        tally(self.cost)
         spectrum = self.forward(x)
         spectrum *= self.spectrum
         return self.backward(spectrum)
@@ -151,38 +154,6 @@ def _wrapped_offsets(n: int) -> np.ndarray:
     """Cell offsets in wrap-around order of an n-point DFT: 0, 1, ..., then negative ones up to -1."""
     k = np.arange(n)
     return np.where(k <= (n - 1) // 2, k, k - n)
-
-
-def _rows_to_columns(a: np.ndarray, rows: RowPartition, cols: RowPartition, comm: MPI.Comm) -> np.ndarray:
-    """Local rows (all columns) -> all rows of the local columns (an all-to-all transpose)."""
-    if comm.size == 1:
-        return a
-    me = comm.rank
-    c = cols.starts
-    send = np.concatenate([a[:, c[s] : c[s + 1]].ravel() for s in range(comm.size)])
-    my_cols = cols.counts[me]
-    recvcounts = rows.counts * my_cols
-    recv = np.empty(int(recvcounts.sum()), dtype=a.dtype)
-    comm.Alltoallv([send, a.shape[0] * cols.counts], [recv, recvcounts])
-    return recv.reshape(rows.n, my_cols)
-
-
-def _columns_to_rows(a: np.ndarray, rows: RowPartition, cols: RowPartition, comm: MPI.Comm) -> np.ndarray:
-    """All rows of the local columns -> local rows (all columns): the inverse of :func:`_rows_to_columns`."""
-    if comm.size == 1:
-        return a
-    me = comm.rank
-    my_rows = rows.counts[me]
-    send = np.ascontiguousarray(a)
-    recv = np.empty(my_rows * cols.n, dtype=a.dtype)
-    comm.Alltoallv([send, rows.counts * a.shape[1]], [recv, my_rows * cols.counts])
-    out = np.empty((my_rows, cols.n), dtype=a.dtype)
-    c, offset = cols.starts, 0
-    for s in range(comm.size):
-        width = c[s + 1] - c[s]
-        out[:, c[s] : c[s + 1]] = recv[offset : offset + my_rows * width].reshape(my_rows, width)
-        offset += my_rows * width
-    return out
 
 
 class InfluenceOperator:

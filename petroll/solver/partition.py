@@ -83,6 +83,38 @@ def shift_field(local: np.ndarray, di: int, dj: int, rows: RowPartition, comm) -
     return out
 
 
+def rows_to_columns(a: np.ndarray, rows: RowPartition, cols: RowPartition, comm) -> np.ndarray:
+    """Local rows (all columns) -> all rows of the local columns (an all-to-all transpose)."""
+    if comm.size == 1:
+        return a
+    me = comm.rank
+    c = cols.starts
+    send = np.concatenate([a[:, c[s] : c[s + 1]].ravel() for s in range(comm.size)])
+    my_cols = cols.counts[me]
+    recvcounts = rows.counts * my_cols
+    recv = np.empty(int(recvcounts.sum()), dtype=a.dtype)
+    comm.Alltoallv([send, a.shape[0] * cols.counts], [recv, recvcounts])
+    return recv.reshape(rows.n, my_cols)
+
+
+def columns_to_rows(a: np.ndarray, rows: RowPartition, cols: RowPartition, comm) -> np.ndarray:
+    """All rows of the local columns -> local rows (all columns): the inverse of :func:`rows_to_columns`."""
+    if comm.size == 1:
+        return a
+    me = comm.rank
+    my_rows = rows.counts[me]
+    send = np.ascontiguousarray(a)
+    recv = np.empty(my_rows * cols.n, dtype=a.dtype)
+    comm.Alltoallv([send, rows.counts * a.shape[1]], [recv, my_rows * cols.counts])
+    out = np.empty((my_rows, cols.n), dtype=a.dtype)
+    c, offset = cols.starts, 0
+    for s in range(comm.size):
+        width = c[s + 1] - c[s]
+        out[:, c[s] : c[s + 1]] = recv[offset : offset + my_rows * width].reshape(my_rows, width)
+        offset += my_rows * width
+    return out
+
+
 def gather_field(local: np.ndarray, nx: int, comm) -> np.ndarray | None:
     """The whole (nx, ny) field on rank 0 (None elsewhere), from each rank's rows. For output only."""
     counts = comm.gather(local.size, root=0)

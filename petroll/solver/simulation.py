@@ -19,19 +19,13 @@ import numpy as np
 from mpi4py import MPI
 
 from petroll.solver.contact import BeyondReach, ContactSolver
-from petroll.errors import SceneError, SolverError
+from petroll.errors import SceneError
 from petroll.solver.history import make_history
-from petroll.solver.influence import influence_operator
-from petroll.solver.steady import Anderson, FarWake, SteadyMemory
-from petroll.model.materials import Prony
+from petroll.solver.steady import SteadySolve
+from petroll.model.clock import step_length
 from petroll.model.scene import Scene
 from petroll.solver.wake import Wake
 from petroll.solver.warm import WarmStart
-
-
-WAKE_CELLS = 2**22
-"""The longest wake (cells behind the grid) a steady solve keeps: 30 V tau up to V tau/a ~ 1e4 at a/dx = 10;
-beyond, a wake of relative weight ~ (a / V tau) E1(WAKE_CELLS dx / V tau) is dropped."""
 
 
 @dataclass
@@ -84,6 +78,7 @@ class Simulation:
         self.t, self.dt_next = 0.0, None
         self.steady_start = None  # a first guess for solve_steady: (whole-grid pressure in Pa, penetration in m)
         self.fixed_point_iterations = 0  # the last solve_steady's QPs (each with its extended-grid convolution)
+        self.window = None  # the newest step's QP window, cells [i0, i1) x [j0, j1)
         self._newest = None  # the newest step's (profile, v, J_eff, delta): what surface() needs (a steady
         # solve: (profile, w, None, delta))
 
@@ -108,6 +103,9 @@ class Simulation:
         lengths = iter(dts) if dts is not None else None
         resumed, dt = bool(self.records), 0.0
         while True:
+            if not resumed and len(self.records) > self.scene.time.max_steps:
+                raise SceneError(self.scene.source, "[time] max_steps", self.scene.time.max_steps,
+                                 "the run needs more steps: raise max_steps or the time step")
             record = self.records[-1] if resumed else self.step(t, dt)
             if lengths is not None:
                 dt = next(lengths, None)
@@ -115,9 +113,6 @@ class Simulation:
                 dt = self.next_dt(t, record.distance)
                 if dt is not None and self.steady():
                     dt = None
-            if not resumed and record.step > self.scene.time.max_steps:
-                raise SceneError(self.scene.source, "[time] max_steps", self.scene.time.max_steps,
-                                 "the run needs more steps: raise max_steps or the time step")
             self.t, self.dt_next = t, dt
             yield record
             resumed = False
@@ -127,29 +122,8 @@ class Simulation:
 
     # -- the clock --------------------------------------------------------------------------------------
     def next_dt(self, t: float, distance: float) -> float | None:
-        """Length of the step after time t (None: the run is over)."""
-        tm = self.scene.time
-        if tm.dt is None and tm.steps_per_cell is None:
-            return None
-        if tm.end is not None and t >= tm.end * (1 - 1e-12):
-            return None
-        if tm.distance is not None and distance >= tm.distance * (1 - 1e-12):
-            return None
-        speed = float(np.hypot(*self.scene.velocity(t)))
-        if tm.dt is not None:
-            dt = tm.dt
-        else:
-            scale = self.scene.velocity.peak()
-            if scale == 0:
-                raise SceneError(self.scene.source, "[time] steps_per_cell", tm.steps_per_cell,
-                                 "needs a moving body: give [time] dt for a body at rest")
-            cell = self.scene.grid.cell
-            dt = cell / (tm.steps_per_cell * max(speed, 0.1 * scale))
-        if tm.end is not None:
-            dt = min(dt, tm.end - t)
-        elif speed > 0:
-            dt = min(dt, (tm.distance - distance) / speed * (1 + 1e-9))
-        return dt
+        """Length of the step after time t (None: the run is over): petroll.model.clock.step_length."""
+        return step_length(self.scene, t, distance)
 
     # -- one step ---------------------------------------------------------------------------------------
     def step(self, t: float, dt: float) -> StepRecord:
@@ -171,7 +145,7 @@ class Simulation:
         solution.iterations = solver.work[0] - work[0]  # all QPs of the step, a redone attempt's too
         solution.applications = solver.work[1] - work[1]
         self.history.advance(solution.pressure, dt)
-        self.pressure = solution.pressure
+        self.pressure, self.window = solution.pressure, solution.window
         self._newest = (profile, v, compliance, solution.delta)
         self.warm.record(solution.pressure, sx, sy)
         elapsed = clock.perf_counter() - start
@@ -187,145 +161,31 @@ class Simulation:
 
     def solve_steady(self, tol: float = 1e-10, max_iterations: int = 500,
                      start: tuple[np.ndarray, float] | None = None, steady: float | None = None) -> StepRecord:
-        """The constant-velocity steady state solved directly in the body frame (petroll.solver.steady),
+        """The constant-velocity steady state solved directly in the body frame
+        (:class:`petroll.solver.steady.SteadySolve`, which says what ``tol`` and ``steady`` stop),
         recorded as step 0 at t = 0 with the body at [body] position. Velocity, penetration or load are
         taken at t = 0 and must be constant (the scene checks this for [time] mode = "steady"); the motion
         must be along X or Y. The memory is the scene's integrator at its time step: dt from [time] dt or
         steps_per_cell (default 1 step per cell), so that with one step per cell crossed this is exactly
-        the state the transient run converges to. ``tol``: relative change of the memory field (scaled by
-        the QP compliance x p_max) at which the fixed point stops; the QPs are solved to 1 % of the memory's
-        last change until then (at least [solver] tol), the last ones to max([solver] tol, tol / 100).
-        ``steady``: stop also once force and resisting force change by at most ``steady`` x force
-        from one fixed-point iteration to the next (the [time] steady test of a transient run, applied to
-        the iterations; petroll bench steady), once the QPs are solved to steady / 3 or tighter (looser
-        QPs can agree by chance). ``start``: a first guess (the whole grid's pressure, Pa, and its
-        penetration, m), e.g. a neighbouring steady state (continuation; default ``self.steady_start``;
-        else, under penetration control in 3-D, Hertz's pressure for the QP compliance as the first QP's
-        warm start). The fixed point's step is Newton-like (petroll.solver.steady); its iterations are
-        kept in ``self.fixed_point_iterations``. The wake behind the grid up
-        to 30 V tau is included (cell by cell up to 2 grid lengths, in blocks beyond: FarWake; line contact:
-        up to 4 grid lengths). Collective: the memory is computed whole on every rank."""
-        scene, solver, comm, g = self.scene, self.solver, self.comm, self.scene.grid
-        material = scene.material
-        if not isinstance(material, Prony):
-            raise SceneError(scene.source, "[material] model", "tabulated",
-                             'the direct steady solve needs a Prony series: use [time] mode = "transient"')
+        the state the transient run converges to. ``start``: a first guess (the grid's pressure, Pa, and
+        its penetration, m), e.g. a neighbouring steady state (continuation; default
+        ``self.steady_start``). The fixed point's iterations are kept in ``self.fixed_point_iterations``.
+        Collective; every rank holds only its rows and lines."""
         began = clock.perf_counter()
-        velocity = np.asarray(scene.velocity(0.0), dtype=float)
-        speed = float(np.hypot(*velocity))
-        axis = 0 if abs(velocity[1]) == 0 else 1
-        if speed == 0 or abs(velocity[1 - axis]) > 0:
-            raise SceneError(scene.source, "[motion] velocity", list(velocity),
-                             "the steady solve needs a non-zero velocity along X or Y")
-        sign = 1 if velocity[axis] > 0 else -1
-        cell = g.dx if axis == 0 else g.dy
-        dt = scene.time.dt or g.cell / ((scene.time.steps_per_cell or 1.0) * speed)
-        self.direction = velocity / speed
-        sx, sy = scene.position
-        profile = scene.body.height(self.x - sx, self.y - sy)
-        # the QPs' compliance: J at the time the material takes to cross a Hertz half-width (relaxed when
-        # rolling slowly, instantaneous when fast); the rest of the operator is the memory, lagged
-        if scene.penetration is not None:
-            half_width = math.sqrt(scene.body.radius_hint * float(scene.penetration(0.0)))
-        else:
-            half_width = (0.75 * float(scene.load(0.0)) * scene.body.radius_hint * material.Jinf) ** (1 / 3)
-        compliance = float(material(half_width / speed))
-        # the wake behind the grid (no pressure, memory decaying over V tau) pushes on the contact too, up
-        # to 30 V tau: the memory and its displacement are computed on the grid extended behind by
-        # ``behind`` cells, the rest (3-D) lumped in blocks (FarWake)
-        r0, r1 = solver.r0, solver.r1
-        n_along = (g.nx, g.ny)[axis]
-        needed = min(math.ceil(30 * speed * material.longest_time / cell), WAKE_CELLS)
-        behind = min(needed, 4 * n_along if g.line else max(2 * n_along, 64))
-        far = needed - behind if not g.line and scene.layer is None else 0  # a layer's kernel fades within reach
-        shape = [g.nx, g.ny]
-        shape[axis] += behind
-        pad = [(0, 0), (0, 0)]
-        pad[axis] = (behind, 0) if sign > 0 else (0, behind)
-        inside = [slice(None), slice(None)]
-        inside[axis] = slice(pad[axis][0], pad[axis][0] + n_along)
-        extended = influence_operator(g, layer=scene.layer).window(*shape)
-        memory = SteadyMemory(material, scene.solver.integrator, speed, dt, cell, axis, sign,
-                              n_along + behind + far + 1)
-        wake = None
-        if far > 0:
-            wake = FarWake(memory.kernel, n_along, (g.ny, g.nx)[axis], behind, far, cell,
-                           g.dy if axis == 0 else g.dx, axis, sign)
-
-        def lagged(field):  # (W - compliance) field on the extended grid
-            return memory(field) - compliance * field
-
-        def displacement(field, p):  # A field + the far wake of p on this rank's rows (field extended)
-            u = extended(field)[tuple(inside)]
-            return (u if wake is None else u + wake(p))[r0:r1]
-
-        def newton_step(residual, contact):  # Jc W_II^-1 on the contact cells I, the identity elsewhere
-            return np.where(contact, compliance * memory.solve_restricted(residual, contact), residual)
-
-        # the fixed point is over the pressure x the memory is lagged from, m = lagged(x); its residual
-        # g(x) - x (g: the QP's pressure) is mapped by newton_step, then Anderson-mixed
-        p = np.zeros((g.nx, g.ny))
-        mixer, work = Anderson(), list(solver.work)
-        solution, warm, delta = None, None, None
-        start = start if start is not None else self.steady_start
-        if start is not None:
-            p = np.asarray(start[0], dtype=float).reshape(g.nx, g.ny)
-            warm, delta = p[r0:r1], start[1]
-        elif scene.penetration is not None and not g.line:  # a cold start: Hertz's pressure at the penetration
-            lowest = comm.allreduce(float(np.min(profile, initial=np.inf)), op=MPI.MIN)
-            radius, penetration = scene.body.radius_hint, float(scene.penetration(0.0))
-            load = 4 * math.sqrt(radius) * max(penetration - lowest, 0.0) ** 1.5 / (3 * compliance)
-            warm = solver.hertz_pressure(profile, compliance, load, radius, penetration)
-        x = p
-        m = lagged(np.pad(x, pad))
-        scene_tol, change, scale, previous = solver.tol, math.inf, 1.0, None
-        final = max(scene_tol, min(0.01 * tol, 1e-3))  # the last QPs' tolerance
-        try:  # a failed QP leaves the solver's tolerance as it was
-            for self.fixed_point_iterations in range(1, max_iterations + 1):
-                height = profile + displacement(m, x)
-                warm = warm if solution is None else solution.pressure
-                # inexact QPs while the memory is far from converged: 1 % of its last change, at least final
-                solver.tol = max(final, min(1e-3, 0.01 * change / scale))
-                if scene.penetration is not None:
-                    solution = solver.solve_penetration(height, compliance, float(scene.penetration(0.0)), warm)
-                else:
-                    solution = solver.solve_load(height, compliance, float(scene.load(0.0)),
-                                                 scene.body.radius_hint, delta, warm)
-                delta = solution.delta
-                p = np.vstack(comm.allgather(solution.pressure))
-                padded = np.pad(p, pad)
-                target = lagged(padded)
-                scale = compliance * float(p.max(initial=0.0))
-                change = float(np.abs(target - m).max(initial=0.0))
-                if change <= tol * scale and solver.tol == final:
-                    break
-                forces = self._forces(solution.pressure, sx, sy, velocity / speed)
-                if steady is not None and previous is not None and solver.tol <= steady / 3 and all(
-                        abs(now - then) <= steady * forces[0] for now, then in zip(forces, previous)):
-                    break
-                previous = forces
-                x = mixer.next(x, x + newton_step(p - x, p > 0))
-                m = lagged(np.pad(x, pad))
-            else:
-                raise SolverError(f"the steady solve did not converge within {max_iterations} iterations")
-        finally:
-            solver.tol = scene_tol
-        solution.iterations = solver.work[0] - work[0]
-        solution.applications = solver.work[1] - work[1]
-        self.pressure = solution.pressure
-        w = displacement(memory(padded), p)
-        self._newest = (profile, w, None, delta)
+        solve = SteadySolve(self.scene, self.solver, tol, steady)
+        work = list(self.solver.work)
+        solution, w = solve.solve(start if start is not None else self.steady_start, max_iterations)
+        self.fixed_point_iterations = solve.iterations
+        solution.iterations = self.solver.work[0] - work[0]
+        solution.applications = self.solver.work[1] - work[1]
+        self.direction = solve.direction
+        self.pressure, self.window = solution.pressure, solution.window
+        self._newest = (solve.profile, w, None, solution.delta)
+        sx, sy = self.scene.position
+        velocity = solve.speed * solve.direction
         record = self._diagnose(0, 0.0, sx, sy, solution, velocity, 0.0, clock.perf_counter() - began)
         self.records.append(record)
         return record
-
-    def _forces(self, p: np.ndarray, sx: float, sy: float, d: np.ndarray) -> tuple[float, float]:
-        """(normal force, resisting force along d) of the pressure p (this rank's rows) of a body at (sx,
-        sy), N (collective)."""
-        slope_x, slope_y = self.scene.body.slope(self.x - sx, self.y - sy)
-        sums = np.array([p.sum(), (p * (slope_x * d[0] + slope_y * d[1])).sum()]) * self.scene.grid.cell_area
-        self.comm.Allreduce(MPI.IN_PLACE, sums, op=MPI.SUM)
-        return float(sums[0]), float(sums[1])
 
     def surface(self) -> tuple[np.ndarray, np.ndarray]:
         """The newest solved step's surface displacement w (m, positive into the half-space) and gap

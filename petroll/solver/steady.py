@@ -1,28 +1,20 @@
-"""Steady rolling at constant velocity solved directly in the body frame (no transient).
+"""Steady rolling at constant velocity solved directly in the body frame (no transient): a fixed point over
+elastic contact problems (:class:`SteadySolve`), its memory along the motion in petroll.solver.memory.
 
-A body moving at constant speed V along the direction d (+X, -X, +Y or -Y): in its frame the material
-streams backwards, and a material point now at body-frame cell j was at j + V s d a time s ago (the
-material arrives from ahead). The transient run's time integrator ([solver] integrator, step dt) turns a
-point's pressure history into its displacement in pressure space W (w = A W, formulation §4): a linear,
-time-invariant, causal filter of that history, whose response to a unit pressure pulse is h[s] (s steps
-later; :func:`pulse_response`, computed by the integrator itself). In steady state the history of the point
-at j is the body-frame field ahead of it, so
+In the body frame the displacement is w = A W(p), W the memory of the scene's time integrator along the
+motion (petroll.solver.memory; with one step per cell crossed, exactly the state the transient run
+converges to). The fixed point splits W(p) = Jc p + (W - Jc) p, Jc the compliance at the time the material
+takes to cross the contact: each iteration solves the elastic QP of compliance Jc with the known height
+Z + A (W - Jc) x (plus the far wake of x), x the iterate the memory is lagged from; the QP's pressure g(x)
+is the fixed point's map. Its Jacobian on the contact cells I is -(Jc A_II)^-1 A_I (W - Jc), so
+I - g' = (Jc A_II)^-1 (A W)_II ~ W_II / Jc when (A W)_II is approximated by A_II W_II (the wake's own push,
+A from outside I, left out). The residual g(x) - x is therefore mapped by Jc W_II^-1 on I (no convolution
+with A) and kept elsewhere: a Newton-like step, Anderson-mixed.
 
-    W_j = sum_s h[s] p(j + s c),     c = V dt / (cell along d),
-
-with p interpolated linearly between cell centres along d: a correlation with a per-cell kernel H
-(:func:`memory_kernel`). With c = 1 (the body crosses one cell per step: [time] steps_per_cell = 1 on square
-cells) there is no interpolation and this is exactly the steady state of the transient run with that step
-and integrator: the long transient converges to it. Smaller c refines the time integration of the same
-body-frame field (c -> 0: the exact hereditary law for p linear between cell centres).
-
-Simulation.solve_steady finds p by a fixed point over elastic contact problems: compliance Jc (J at the
-time to cross the contact) and the known height Z + A (W(x) - Jc x), x the iterate the memory is lagged
-from. The QP's pressure g(x) is the fixed point's map; its Jacobian on the contact cells I is
--(Jc A_II)^-1 A_I (W - Jc), so I - g' = (Jc A_II)^-1 (A W)_II ~ W_II / Jc when (A W)_II is approximated by
-A_II W_II (the wake's own push, A from outside I, left out). The residual g(x) - x is therefore mapped by
-Jc W_II^-1 on I (:meth:`SteadyMemory.solve_restricted`, no convolution with A) and kept elsewhere: a
-Newton-like step, Anderson-mixed.
+Distributed: every rank holds only its rows of the grid and of the wake-extended grid (the latter's
+convolution is petroll's distributed FFT) and its lines along the motion (petroll.solver.memory.Lines);
+no rank holds a whole field. Every decision (the QPs' tolerance, the stop, the mixing coefficients) is
+computed once, from reduced values, and broadcast from rank 0, so that all ranks take the same path.
 """
 
 from __future__ import annotations
@@ -30,188 +22,250 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import scipy.fft
-import scipy.linalg
+from mpi4py import MPI
 
-from petroll.solver.history import make_history
+from petroll.errors import SceneError, SolverError
+from petroll.model.materials import Prony
+from petroll.solver.memory import FarWake, Lines, Memory, memory_kernel, memory_steps, pulse_response
 
+WAKE_CELLS = 2**22
+"""The longest wake (cells behind the grid) a steady solve keeps: 30 V tau up to V tau/a ~ 1e4 at a/dx = 10;
+beyond, a wake of relative weight ~ (a / V tau) E1(WAKE_CELLS dx / V tau) is dropped."""
 
-def pulse_response(material, integrator: str, dt: float, steps: int) -> np.ndarray:
-    """W (1/Pa) of one material point at steps 0 ... steps - 1 after it carried a unit pressure over step
-    0 only (zero before and after), as ``integrator`` computes it with steps of dt (s): h[0] = J_eff.
-    The history is guarded: a step at which the integrator cannot hold a penetration is refused
-    (SolverError), as in a transient run.
-
-    The integrator is a linear state machine: after the pulse (state S_1) a step at p = 0 maps the state
-    S to M S and outputs W = c S. M and c are measured by one step of the integrator itself from every
-    basis state at once (a field of d cells); then h[1 + j K + r] = (c M^r) (M^K)^j S_1 for r < K ~
-    sqrt(steps): about 2 sqrt(steps) products of d x d matrices instead of ``steps`` integrator steps."""
-    history = make_history(material, integrator, (1, 1))
-    h = np.zeros(steps)
-    h[0] = history.compliance(dt)
-    history.advance(np.ones((1, 1)), dt)
-    rest = steps - 1
-    if rest <= 0 or history.preceding(dt) is None:
-        return h
-    after = np.array([f[0, 0] for f in history.state()])  # S_1, just after the pulse
-    d = len(after)
-    history.load_state([row.reshape(1, d).copy() for row in np.eye(d)])  # cell j holds the state e_j
-    c = history.preceding(dt)[0].copy()
-    history.advance(np.zeros((1, d)), dt)
-    M = np.array([f[0] for f in history.state()])  # column j = M e_j
-    K = math.isqrt(rest - 1) + 1
-    outputs, power = np.empty((K, d)), np.eye(d)  # rows c M^r; M^r
-    for r in range(K):
-        outputs[r] = c @ power
-        power = power @ M
-    J = -(-rest // K)
-    states = np.empty((d, J))  # (M^K)^j S_1
-    states[:, 0] = after
-    for b in range(1, J):
-        states[:, b] = power @ states[:, b - 1]
-    h[1:] = (outputs @ states).T.ravel()[:rest]
-    return h
+MEMORY_STEPS = 2**24
+"""The most integrator steps a steady solve's memory spans (its pulse response: 8 bytes a step, a few
+times over while it is made); more only with a time step far below the material's relaxation times."""
 
 
-def memory_kernel(h: np.ndarray, c: float, cells: int) -> np.ndarray:
-    """H[m], m = 0 ... cells - 1: W_j = sum_m H[m] p_{j+m} (module docstring) from the pulse response h
-    of steps that cross c cells each (p linear between cell centres; c = 1: H = h)."""
-    if c == 1:
-        return np.concatenate([h, np.zeros(max(cells - len(h), 0))])[:cells]
-    position = np.arange(len(h)) * c
-    i = np.floor(position + 1e-12).astype(int)
-    f = np.clip(position - i, 0.0, 1.0)
-    inside = i < cells
-    i, f, h = i[inside], f[inside], h[inside]
-    return (np.bincount(i, (1 - f) * h, cells + 1) + np.bincount(i + 1, f * h, cells + 1))[:cells]
+class SteadySolve:
+    """The steady state of ``scene`` at its constant velocity, by the fixed point of the module docstring,
+    with the contact ``solver`` (its grid rows, TAO objects and operator); collective over its comm.
 
+    ``tol``: relative change of the memory field (scaled by Jc p_max) at which the fixed point stops; the
+    QPs are solved to 1e-4 of the memory's last change until then (at most 1e-3, at least [solver] tol),
+    the last ones to max([solver] tol, tol / 100); the memory is kept until the material has relaxed to
+    tol / 100. (QPs solved to 1 % of the change stall the fixed point on fine grids: runs/sphere.toml on
+    2048 x 1024 cells took 172 iterations at tol 1e-8 instead of 19; docs/benchmarks.md.)
+    ``steady``: stop also once force and resisting force change by at most ``steady`` x force from one
+    iteration to the next, once the QPs are solved to steady / 3 or tighter (looser QPs can agree by
+    chance). The wake behind the grid is kept up to 30 V tau (or as far as the memory reaches): cell by
+    cell on the grid extended behind by up to 2 grid lengths (line contact: 4), in blocks beyond
+    (FarWake; 3-D half-spaces only)."""
 
-class SteadyMemory:
-    """W(p) of the module docstring on a body-frame field, motion along ``axis`` (0: X, 1: Y) with ``sign``
-    +1 towards increasing index; ``kernel`` (H) holds ``cells`` values. ``__call__`` takes and returns
-    fields extended behind by cells where p = 0 (the near wake), along the motion at most ``cells`` long."""
+    def __init__(self, scene, solver, tol: float, steady: float | None = None):
+        self.scene, self.solver, self.comm, self.tol, self.steady = scene, solver, solver.comm, tol, steady
+        g, material = scene.grid, scene.material
+        if not isinstance(material, Prony):
+            raise SceneError(scene.source, "[material] model", "tabulated",
+                             'the direct steady solve needs a Prony series: use [time] mode = "transient"')
+        velocity = np.asarray(scene.velocity(0.0), dtype=float)
+        self.speed = speed = float(np.hypot(*velocity))
+        axis = 0 if abs(velocity[1]) == 0 else 1
+        if speed == 0 or abs(velocity[1 - axis]) > 0:
+            raise SceneError(scene.source, "[motion] velocity", list(velocity),
+                             "the steady solve needs a non-zero velocity along X or Y")
+        self.direction = velocity / speed
+        sign = 1 if velocity[axis] > 0 else -1
+        cell = g.dx if axis == 0 else g.dy
+        dt = scene.time.dt or g.cell / ((scene.time.steps_per_cell or 1.0) * speed)
+        self.x, self.y = g.x[solver.r0 : solver.r1, None], g.y[None, :]
+        sx, sy = scene.position
+        self.profile = scene.body.height(self.x - sx, self.y - sy)
+        self.slopes = scene.body.slope(self.x - sx, self.y - sy)
+        self.compliance = self._crossing_compliance()
+        self._memory(dt, cell, axis, sign)
+        self.extended = solver.influence.window(*self.lines.extended)
+        self.iterations = 0
 
-    def __init__(self, material, integrator: str, speed: float, dt: float, cell: float, axis: int,
-                 sign: int, cells: int):
-        c = speed * dt / cell
-        steps = math.ceil(cells / c) + 1
-        self.kernel = memory_kernel(pulse_response(material, integrator, dt, steps), c, cells)
-        self.axis, self.sign = axis, sign
-        self._spectra = {}  # the kernel's spectrum per field length along the motion
-        self._toeplitz = {}  # W and W^-1, dense lower-triangular, per field length (solve_restricted)
+    def _memory(self, dt: float, cell: float, axis: int, sign: int) -> None:
+        """The memory along the motion (its kernel, lines, far wake). It lasts until the material has relaxed
+        below 1 % of tol (c = V dt / cell: cells crossed per step), at most 30 V tau behind the grid: cell
+        by cell on the extended grid, in blocks beyond."""
+        scene, material, g = self.scene, self.scene.material, self.scene.grid
+        c = self.speed * dt / cell
+        decay = memory_steps(material, scene.solver.integrator, dt, 0.01 * self.tol)
+        needed = math.ceil(min(30 * self.speed * material.longest_time / cell, decay * c, WAKE_CELLS))
+        n_along = (g.nx, g.ny)[axis]
+        behind = min(needed, 4 * n_along if g.line else max(2 * n_along, 64))
+        far = needed - behind if not g.line and scene.layer is None else 0  # a layer's fades within reach
+        cells = n_along + behind + far + 1
+        steps = min(decay, math.ceil(cells / c) + 1)
+        if steps > MEMORY_STEPS:
+            key = "[time] dt" if scene.time.dt else "[time] steps_per_cell"
+            raise SceneError(scene.source, key, scene.time.dt or scene.time.steps_per_cell,
+                             f"the steady memory would span {steps:.3g} steps of {dt:.3g} s (the material's "
+                             f"relaxation, {material.longest_time:g} s, to {0.01 * self.tol:g}); at most "
+                             f"{MEMORY_STEPS} are kept: use a larger [time] dt or fewer steps_per_cell")
+        kernel = memory_kernel(pulse_response(material, scene.solver.integrator, dt, steps), c, cells)
+        self.lines = Lines(self.solver.rows, g.ny, axis, sign, behind, self.comm)
+        self.memory = Memory(kernel, n_along, behind, self.lines.n_across, self.solver.influence.workers)
+        self.far_wake = None
+        if far > 0:
+            self.far_wake = FarWake(kernel, self.lines, behind, far, cell, g.dy if axis == 0 else g.dx)
 
-    def __call__(self, p: np.ndarray) -> np.ndarray:
-        q = np.moveaxis(p, self.axis, 0)
-        if self.sign > 0:  # reversed so that "ahead" is towards lower index: a causal convolution
-            q = q[::-1]
-        n = q.shape[0]
-        length = scipy.fft.next_fast_len(2 * n - 1, real=True)
-        if n not in self._spectra:
-            self._spectra[n] = scipy.fft.rfft(self.kernel[:n], length)[:, None]
-        w = scipy.fft.irfft(scipy.fft.rfft(q, length, axis=0) * self._spectra[n], length, axis=0)[:n]
-        if self.sign > 0:
-            w = w[::-1]
-        return np.moveaxis(w, 0, self.axis)
+    def _crossing_compliance(self) -> float:
+        """Jc: J at the time the material takes to cross a Hertz half-width (relaxed when rolling slowly,
+        instantaneous when fast); the rest of the operator is the memory, lagged."""
+        scene = self.scene
+        radius, material = scene.body.radius_hint, scene.material
+        if scene.penetration is not None:
+            half_width = math.sqrt(radius * float(scene.penetration(0.0)))
+        else:
+            half_width = (0.75 * float(scene.load(0.0)) * radius * material.Jinf) ** (1 / 3)
+        return float(material(half_width / self.speed))
 
-    def solve_restricted(self, f: np.ndarray, on: np.ndarray) -> np.ndarray:
-        """y with W_II y_I = f_I on the cells I where ``on`` (W's principal submatrix on them) and y = f
-        elsewhere; fields at most ``cells`` long along the motion (I's cells alone matter). Along each line
-        of cells along the motion W_II is lower-triangular (diagonal H[0] > 0); where a line's cells of I
-        are contiguous it is the leading block of the Toeplitz matrix W, whose inverse is the leading block
-        of W^-1 (one matrix product for all such lines); other lines are solved by substitution."""
-        q, mask = (np.moveaxis(a, self.axis, 0) for a in (f, on))
-        if self.sign > 0:
-            q, mask = q[::-1], mask[::-1]
-        n = q.shape[0]
-        if n not in self._toeplitz:
-            offsets = np.subtract.outer(np.arange(n), np.arange(n))
-            toeplitz = np.where(offsets >= 0, self.kernel[np.clip(offsets, 0, n - 1)], 0.0)
-            self._toeplitz[n] = (toeplitz, scipy.linalg.solve_triangular(toeplitz, np.eye(n), lower=True))
-        toeplitz, inverse = self._toeplitz[n]
-        y = q.copy()
-        count = mask.sum(axis=0)
-        first = np.argmax(mask, axis=0)
-        last = n - 1 - np.argmax(mask[::-1], axis=0)
-        contiguous = (count > 0) & (last - first + 1 == count)
-        lines = np.flatnonzero(contiguous)
-        if len(lines):
-            length = int(count[lines].max())
-            rows = np.arange(length)[:, None] + first[lines][None, :]
-            inside = np.arange(length)[:, None] < count[lines][None, :]
-            rows = np.where(inside, rows, 0)
-            packed = np.where(inside, q[rows, lines[None, :]], 0.0)  # each line's cells of I from row 0
-            solved = inverse[:length, :length] @ packed
-            y[rows[inside], np.broadcast_to(lines, rows.shape)[inside]] = solved[inside]
-        for line in np.flatnonzero((count > 0) & ~contiguous):
-            cells = np.flatnonzero(mask[:, line])
-            y[cells, line] = scipy.linalg.solve_triangular(toeplitz[np.ix_(cells, cells)], q[cells, line],
-                                                           lower=True, check_finite=False)
-        if self.sign > 0:
-            y = y[::-1]
-        return np.moveaxis(y, 0, self.axis)
+    # -- the fixed point ---------------------------------------------------------------------------------
+    def solve(self, start: tuple[np.ndarray, float] | None = None, max_iterations: int = 500):
+        """The steady state: the last QP's StepSolution (pressure on this rank's grid rows) and the surface
+        displacement w = A W(p) (m, this rank's rows). ``start``: a first guess (the grid's pressure, Pa,
+        whole or this rank's rows, and its penetration, m); else, under penetration control in 3-D,
+        Hertz's pressure for Jc as the first QP's warm start. SolverError after ``max_iterations``
+        iterations; the solver's tolerance is left as it was in every case."""
+        solver, lines = self.solver, self.lines
+        x, warm, delta = self._first_guess(start)
+        mixer = Anderson(self.comm)
+        memory = self.lagged(x)
+        tolerance, final = solver.tol, max(solver.tol, min(0.01 * self.tol, 1e-3))  # the last QPs' tolerance
+        change, scale, previous, solution = math.inf, 1.0, None, None
+        try:
+            for self.iterations in range(1, max_iterations + 1):
+                # inexact QPs while the memory is far from converged: 1e-4 of its last change, at least final
+                solver.tol = max(final, min(1e-3, 1e-4 * change / scale))
+                solution = self.contact(self.profile + self.displacement(memory, x), warm, delta)
+                warm, delta = solution.pressure, solution.delta
+                p = lines.from_grid(solution.pressure)
+                change, scale = self._reduce_max(np.abs(self.lagged(p) - memory), self.compliance * p)
+                forces = self.forces(solution.pressure)
+                if self._agreed(change <= self.tol * scale and solver.tol == final
+                                or self._steady(forces, previous, solver.tol)):
+                    break
+                previous = forces
+                x = mixer.next(x, x + self.newton_step(p - x, p > 0))
+                memory = self.lagged(x)
+            else:
+                raise SolverError(f"the steady solve did not converge within {max_iterations} iterations")
+        finally:
+            solver.tol = tolerance
+        return solution, self.displacement(self.memory.extended(p), p)
 
+    def _first_guess(self, start):
+        """(x on the lines, the first QP's warm start on the grid rows or None, the penetration or None)."""
+        solver, scene, comm = self.solver, self.scene, self.comm
+        g = scene.grid
+        if start is not None:
+            pressure = np.asarray(start[0], dtype=float)
+            rows = pressure.reshape(-1, g.ny)
+            rows = rows[solver.r0 : solver.r1] if len(rows) == g.nx else rows
+            return self.lines.from_grid(rows), rows, start[1]
+        zero = self.lines.from_grid(np.zeros(solver.local_shape))
+        if scene.penetration is None or g.line:
+            return zero, None, None
+        lowest = comm.allreduce(float(np.min(self.profile, initial=np.inf)), op=MPI.MIN)
+        radius, penetration = scene.body.radius_hint, float(scene.penetration(0.0))
+        load = 4 * math.sqrt(radius) * max(penetration - lowest, 0.0) ** 1.5 / (3 * self.compliance)
+        return zero, solver.hertz_pressure(self.profile, self.compliance, load, radius, penetration), None
 
-class FarWake:
-    """The displacement on the grid of the wake far behind it: cells ``near`` < t <= ``near + far`` behind
-    the grid's rear row (t in cells along the motion), where p = 0 and W_{-t} = sum_k H[k + t] p_k varies
-    only over V tau. They are lumped into blocks growing geometrically (by ``ratio``), each carrying its
-    mean W (exact, from the cumulative sums of H) as line sources along the motion, one per column of cells
-    across (blocks are at least ``near`` cells from the grid, where W is smooth). 3-D grids only.
-    ``along``, ``across``: cell sides (m) along and across the motion; ``n_across`` cells across;
-    ``axis``, ``sign`` as :class:`SteadyMemory`."""
+    def lagged(self, x: np.ndarray) -> np.ndarray:
+        """(W - Jc) x on the extended lines, x on the grid's lines (zero behind the grid)."""
+        out = self.memory.extended(x)
+        out[:, self.lines.behind :] -= self.compliance * x
+        return out
 
-    def __init__(self, kernel: np.ndarray, n_along: int, n_across: int, near: int, far: int, along: float,
-                 across: float, axis: int, sign: int, ratio: float = 1.05):
-        edges = [near + 1]
-        while edges[-1] <= near + far:
-            edges.append(min(max(edges[-1] + 1, round(edges[-1] * ratio)), near + far + 1))
-        e = np.array(edges)
-        cumulative = np.concatenate([[0.0], np.cumsum(kernel)])
-        k = np.arange(n_along)[None, :]
-        width = np.diff(e)[:, None]
-        self.mean = (cumulative[k + e[1:, None]] - cumulative[k + e[:-1, None]]) / width  # (blocks, n_along)
-        self.length = 2 * n_across
-        # a block's strip of cells across as a line source along the motion (exact along it; across, its
-        # width dy is lumped at its centre line: the blocks are >= near cells away): per unit compliance
-        # (dy / pi) ln((x2 + r2) / (x1 + r1)), x1, x2 the block's ends ahead of the target, r = sqrt(x^2 + y^2)
-        x1 = (np.arange(n_along)[:, None, None] + e[None, :-1, None] - 0.5) * along
-        x2 = x1 + width[None, :, :] * along
-        y = np.arange(n_across)[None, None, :] * across
-        half = across / np.pi * np.log((x2 + np.hypot(x2, y)) / (x1 + np.hypot(x1, y)))
-        r = np.concatenate([half, half[:, :, :1] * 0, half[:, :, :0:-1]], axis=2)  # even across: wrap-around
-        self.spectrum = np.fft.rfft(r, axis=2)  # (n_along, blocks, frequencies)
-        self.axis, self.sign, self.n_across = axis, sign, n_across
+    def displacement(self, memory: np.ndarray, x: np.ndarray) -> np.ndarray:
+        """A ``memory`` (on the extended lines) plus the far wake of x (on the grid's lines): the height it
+        adds on this rank's grid rows (m)."""
+        lines = self.lines
+        u = lines.inside(self.extended(lines.to_extended(memory)))
+        return u if self.far_wake is None else u + self.far_wake(x)
 
-    def __call__(self, p: np.ndarray) -> np.ndarray:
-        """The far wake's displacement (m per unit compliance x Pa) on the grid, from its pressure p."""
-        q = np.moveaxis(p, self.axis, 0)
-        if self.sign < 0:  # so that the rear row is row 0
-            q = q[::-1]
-        blocks = np.fft.rfft(self.mean @ q, n=self.length, axis=1)
-        u = np.fft.irfft(np.einsum("kbf,bf->kf", self.spectrum, blocks), n=self.length, axis=1)[:, : self.n_across]
-        if self.sign < 0:
-            u = u[::-1]
-        return np.moveaxis(u, 0, self.axis)
+    def contact(self, height: np.ndarray, warm: np.ndarray | None, delta: float | None):
+        """The elastic QP of compliance Jc on the known ``height`` (this rank's rows), at the scene's
+        penetration or load (``delta``: the last penetration found, a guess for load control)."""
+        scene, solver = self.scene, self.solver
+        if scene.penetration is not None:
+            return solver.solve_penetration(height, self.compliance, float(scene.penetration(0.0)), warm)
+        return solver.solve_load(height, self.compliance, float(scene.load(0.0)), scene.body.radius_hint,
+                                 delta, warm)
+
+    def newton_step(self, residual: np.ndarray, contact: np.ndarray) -> np.ndarray:
+        """Jc W_II^-1 on the contact cells I, the identity elsewhere (fields on the grid's lines)."""
+        return np.where(contact, self.compliance * self.memory.solve_restricted(residual, contact), residual)
+
+    def forces(self, pressure: np.ndarray) -> tuple[float, float]:
+        """(normal force, resisting force along the motion), N, of the pressure on this rank's grid rows
+        (summed over the ranks)."""
+        slope = self.slopes[0] * self.direction[0] + self.slopes[1] * self.direction[1]
+        sums = np.array([pressure.sum(), (pressure * slope).sum()]) * self.scene.grid.cell_area
+        self.comm.Allreduce(MPI.IN_PLACE, sums, op=MPI.SUM)
+        return float(sums[0]), float(sums[1])
+
+    def _steady(self, forces, previous, qp_tol: float) -> bool:
+        """The ``steady`` stop: forces changed by at most steady x force, with QPs solved to steady / 3."""
+        return (self.steady is not None and previous is not None and qp_tol <= self.steady / 3
+                and all(abs(now - then) <= self.steady * forces[0] for now, then in zip(forces, previous)))
+
+    def _reduce_max(self, *fields) -> list[float]:
+        """The largest value of each field over all ranks."""
+        values = np.array([float(f.max(initial=0.0)) for f in fields])
+        self.comm.Allreduce(MPI.IN_PLACE, values, op=MPI.MAX)
+        return list(values)
+
+    def _agreed(self, decision: bool) -> bool:
+        """Rank 0's decision, on every rank."""
+        return bool(self.comm.bcast(bool(decision), root=0))
 
 
 class Anderson:
-    """Anderson mixing of a fixed point x = g(x) keeping ``depth`` differences (type II)."""
+    """Anderson mixing of a fixed point x = g(x) keeping ``depth`` differences (type II), on vectors split
+    over ``comm`` (each rank passes its part). The mixing coefficients solve min |f - dF gamma| (f = g(x) -
+    x, dF its last differences) by least squares, the minimum-norm gamma where differences are degenerate
+    (two equal residuals: a zero column, gamma 0 for it): each rank reduces its rows of [dF f] to a
+    triangle (QR), rank 0 solves the stacked triangles (TSQR) and broadcasts gamma. The differences are
+    kept only where some x or g(x) so far was non-zero (a contact's cells, not the grid's)."""
 
-    def __init__(self, depth: int = 6):
-        self.depth, self.last, self.df, self.dg = depth, None, [], []
+    def __init__(self, comm: MPI.Comm = MPI.COMM_SELF, depth: int = 6):
+        self.comm, self.depth = comm, depth
+        self.support = np.zeros(0, dtype=np.intp)  # flat indices where some x or g(x) was non-zero
+        self.last, self.df, self.dg = None, [], []  # on the support
 
     def next(self, x: np.ndarray, gx: np.ndarray) -> np.ndarray:
-        f = (gx - x).ravel()
+        self._grow(np.flatnonzero((x != 0) | (gx != 0)))
+        f = gx.ravel()[self.support] - x.ravel()[self.support]
+        g = gx.ravel()[self.support]
         if self.last is not None:
             self.df.append(f - self.last[0])
-            self.dg.append(gx.ravel() - self.last[1])
+            self.dg.append(g - self.last[1])
             if len(self.df) > self.depth:
                 self.df.pop(0)
                 self.dg.pop(0)
-        self.last = (f, gx.ravel())
+        self.last = (f, g)
         if not self.df:
             return gx
-        # min |f - df gamma| by least squares: the minimum-norm gamma where differences are degenerate (two
-        # equal residuals: a zero column, gamma 0 for it)
-        gamma = np.linalg.lstsq(np.array(self.df).T, f, rcond=None)[0]
-        return gx - (gamma @ np.array(self.dg)).reshape(gx.shape)
+        columns = np.column_stack([*self.df, f])
+        triangle = np.linalg.qr(columns, mode="r") if len(columns) else columns
+        stacked = self.comm.gather(triangle, root=0)
+        gamma = None
+        if self.comm.rank == 0:
+            rows = np.vstack(stacked)
+            r = np.linalg.qr(rows, mode="r") if len(rows) else rows
+            gamma = np.linalg.lstsq(r[:, :-1], r[:, -1], rcond=None)[0]
+        gamma = self.comm.bcast(gamma, root=0)
+        out = np.array(gx, dtype=float, order="C")
+        out.reshape(-1)[self.support] -= sum(c * d for c, d in zip(gamma, self.dg))
+        return out
+
+    def _grow(self, cells: np.ndarray) -> None:
+        """Add ``cells`` (flat indices) to the support; the kept vectors are 0 on the new cells."""
+        grown = np.union1d(self.support, cells)
+        if len(grown) == len(self.support):
+            return
+        where = np.searchsorted(grown, self.support)
+
+        def spread(v: np.ndarray) -> np.ndarray:
+            out = np.zeros(len(grown))
+            out[where] = v
+            return out
+
+        self.df, self.dg = [spread(v) for v in self.df], [spread(v) for v in self.dg]
+        self.last = None if self.last is None else (spread(self.last[0]), spread(self.last[1]))
+        self.support = grown

@@ -2,12 +2,13 @@
 grows, and what writing results.h5 costs per saved step as the run grows.
 
 memory: the rolling sphere of runs/sphere.toml on square grids of ``side`` x ``side`` cells (32 cells per
-contact radius, the grid extent growing with the side), rolled ``steps`` cells with every field saved and
-a checkpoint at the end, run as ``mpirun -n K`` children (more ranks than cores is fine: memory is what is
-measured). Each rank reports its peak resident memory (``ru_maxrss``) and its resident memory before the
-scene is built (the interpreter, numpy, PETSc and MPI: the fixed cost of a rank); the table gives rank 0's
-peak, the mean and the largest over ranks, rank 0 / mean, the peak above that fixed cost summed over ranks
-(the run's own memory) and the wall time per step. Writes memory.csv and memory.png.
+contact radius, the grid extent growing with the side), rolled ``steps`` cells with every field saved and a
+checkpoint at the end (``--steady``: its steady state solved directly, [time] mode = "steady"), run as
+``mpirun -n K`` children (more ranks than cores is fine: memory is what is measured). Each rank reports its
+peak resident memory (``ru_maxrss``) and its resident memory before the scene is built (the interpreter,
+numpy, PETSc and MPI: the fixed cost of a rank); the table gives rank 0's peak, the mean and the largest over
+ranks, rank 0 / mean, the peak above that fixed cost summed over ranks (the run's own memory) and the wall
+time per step. Writes memory.csv and memory.png (``--steady``: memory_steady.csv and .png).
 
 append: a :class:`petroll.io.results.ResultsFile` grown by ``steps`` appends of one field each (a
 ``side`` x ``side`` field, its rows on each rank); the time of every append (collective, max over ranks)
@@ -38,19 +39,22 @@ RANKS = (1, 2, 4)
 CELLS_PER_RADIUS = 32
 
 
-def memory_scene(side: int, steps: int):
+def memory_scene(side: int, steps: int, steady: bool = False):
     """runs/sphere.toml on a side x side grid of square cells (CELLS_PER_RADIUS per Hertz radius), rolled
-    ``steps`` cells (one step per cell), every field saved, a checkpoint at the end."""
+    ``steps`` cells (one step per cell), every field saved, a checkpoint at the end; ``steady``: its steady
+    state solved directly instead ([time] mode = "steady", the fields saved)."""
     from petroll.model.scene import load_scene, shipped_scene
 
     scene = load_scene(shipped_scene("sphere.toml"))
     radius = (scene.body.radius_hint * float(scene.penetration(0.0))) ** 0.5
     dx = radius / CELLS_PER_RADIUS
     length = side * dx
-    return scene.replace({"grid.nx": side, "grid.ny": side, "grid.x": [-length / 4, 3 * length / 4],
-                          "grid.y": [-length / 2, length / 2], "time.steady": None,
-                          "time.distance": steps * dx, "output.every": 1, "output.checkpoint_every": steps,
-                          "output.keep": 1})
+    grid = {"grid.nx": side, "grid.ny": side, "grid.x": [-length / 4, 3 * length / 4],
+            "grid.y": [-length / 2, length / 2], "time.steady": None}
+    if steady:
+        return scene.replace({**grid, "time.mode": "steady", "time.distance": None, "output.every": None})
+    return scene.replace({**grid, "time.distance": steps * dx, "output.every": 1,
+                          "output.checkpoint_every": steps, "output.keep": 1})
 
 
 def rss_mib() -> float:
@@ -64,12 +68,12 @@ def peak_mib() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 
 
-def measure(side: int, steps: int, out: pathlib.Path, comm: MPI.Comm) -> dict:
+def measure(side: int, steps: int, out: pathlib.Path, comm: MPI.Comm, steady: bool = False) -> dict:
     """Run the memory scene on ``comm`` into ``out``; every rank's fixed and peak memory, time per step."""
     from petroll.driver import run
 
     fixed = rss_mib()
-    scene = memory_scene(side, steps)
+    scene = memory_scene(side, steps, steady)
     comm.Barrier()
     start = time.perf_counter()
     results = run(scene, comm, out)
@@ -81,16 +85,17 @@ def measure(side: int, steps: int, out: pathlib.Path, comm: MPI.Comm) -> dict:
 
 
 def memory(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, sides: tuple[int, ...] = SIDES,
-           ranks: tuple[int, ...] = RANKS, steps: int = 4) -> list[dict]:
+           ranks: tuple[int, ...] = RANKS, steps: int = 4, steady: bool = False) -> list[dict]:
     """Peak memory per rank for every grid side and rank count (``mpirun -n K`` children of this single
-    process). Returns the rows; writes memory.csv and memory.png."""
+    process); ``steady``: the steady state solved directly (one step). Returns the rows; writes
+    memory.csv and memory.png (steady: memory_steady.csv and .png)."""
     if comm.size != 1:
         raise PetrollError(f"petroll bench memory starts its own mpirun children: run it as one process, not "
                            f"under mpirun -n {comm.size}")
     rows = []
     for side in sides:
         for k in ranks:
-            m = _mpirun(k, ["memory", str(side), str(steps)])
+            m = _mpirun(k, ["memory", str(side), str(steps), "steady" if steady else "transient"])
             peaks, fixed = np.array(m["peak_mib"]), np.array(m["fixed_mib"])
             rows.append(dict(side=side, cells=m["cells"], ranks=k, steps=m["steps"], step_s=m["step_s"],
                              rank0_mib=peaks[0], mean_mib=peaks.mean(), max_mib=peaks.max(),
@@ -106,8 +111,8 @@ def memory(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, sides: tuple[int,
                   mean_mib=f"{r['mean_mib']:.0f}", max_mib=f"{r['max_mib']:.0f}",
                   rank0_over_mean=f"{r['rank0_over_mean']:.3f}", fixed_mib=f"{r['fixed_mib']:.0f}",
                   run_mib=f"{r['run_mib']:.0f}", per_rank_vs_1=f"{r['per_rank_vs_1']:.3f}",
-                  force=f"{r['force']:.10g}") for r in rows], out / "memory.csv")
-    _plot_memory(rows, out / "memory.png")
+                  force=f"{r['force']:.10g}") for r in rows], out / f"memory{'_steady' if steady else ''}.csv")
+    _plot_memory(rows, out / f"memory{'_steady' if steady else ''}.png")
     return rows
 
 
@@ -207,10 +212,11 @@ def _mpirun(k: int, args: list[str]) -> dict:
     return json.loads(done.stdout.strip().splitlines()[-1])
 
 
-if __name__ == "__main__":  # the child of ``bench memory``: memory SIDE STEPS DIR, one JSON line on rank 0
+if __name__ == "__main__":  # the child of ``bench memory``: memory SIDE STEPS MODE DIR, one JSON line on rank 0
     import petsc4py
 
     petsc4py.init([])
-    measured = measure(int(sys.argv[2]), int(sys.argv[3]), pathlib.Path(sys.argv[4]), MPI.COMM_WORLD)
+    measured = measure(int(sys.argv[2]), int(sys.argv[3]), pathlib.Path(sys.argv[5]), MPI.COMM_WORLD,
+                       steady=sys.argv[4] == "steady")
     if MPI.COMM_WORLD.rank == 0:
         print(json.dumps(measured))

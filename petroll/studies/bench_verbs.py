@@ -13,7 +13,8 @@ from mpi4py import MPI
 
 from petroll.errors import PetrollError
 
-VERBS = ("tao", "warm", "skips", "peers", "precision", "growth", "mpi", "memory", "append", "layer", "steady")
+VERBS = ("tao", "warm", "skips", "peers", "precision", "growth", "mpi", "memory", "append", "layer", "steady",
+         "steady-growth", "estimate", "accuracy")
 
 QUICK = {
     "tao": dict(repeats=1, cells_per_radius=(6,), load_cells=48, rolling_distance=0.1e-3),
@@ -28,18 +29,23 @@ QUICK = {
     "append": dict(side=16, steps=30, block=10),
     "layer": dict(repeats=1, cases=(("conveyor-idler.toml", 1e-3, ((6.0, "bonded"),)),)),
     "steady": dict(speeds=(1.0,), track=8),
+    "steady-growth": dict(grids=((64, 32),), repeats=1),
+    "estimate": dict(factors=(1,), repeats=1),
+    "accuracy": dict(scenes=("roller-2d.toml",), factors=(0.5,), reference=2.0),
 }
 """Keyword arguments of each verb's function under ``--quick``."""
 
 
 def run(which: str, out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, quick: bool = False,
-        ranks: tuple[int, ...] | None = None, sides: tuple[int, ...] | None = None):
-    """Run benchmark ``which`` (one of :data:`VERBS`) writing into ``out``; ``ranks`` (mpi, memory) and
-    ``sides`` (memory) as on the command line. Returns the benchmark's rows."""
+        ranks: tuple[int, ...] | None = None, sides: tuple[int, ...] | None = None, steady: bool = False):
+    """Run benchmark ``which`` (one of :data:`VERBS`) writing into ``out``; ``ranks`` (mpi, memory),
+    ``sides`` and ``steady`` (memory) as on the command line. Returns the benchmark's rows."""
     if ranks is not None and which not in ("mpi", "memory"):
         raise PetrollError(f"petroll bench {which}: --ranks applies to petroll bench mpi and memory only")
     if sides is not None and which != "memory":
         raise PetrollError(f"petroll bench {which}: --sides applies to petroll bench memory only")
+    if steady and which != "memory":
+        raise PetrollError(f"petroll bench {which}: --steady applies to petroll bench memory only")
     options = dict(QUICK[which]) if quick else {}
     if ranks is not None:
         options["ranks"] = ranks
@@ -47,15 +53,25 @@ def run(which: str, out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, quick: b
         options["ranks"] = (1,)
     if sides is not None:
         options["sides"] = sides
+    if steady:
+        options["steady"] = True
     return _function(which)(out, comm, **options)
 
 
 def _function(which: str):
     """The function of verb ``which`` (imported on use: each pulls in its own modules)."""
-    if which in ("tao", "warm", "peers"):
+    if which in ("tao", "warm"):
         from petroll.studies import bench
 
-        return {"tao": bench.tao_types, "warm": bench.warm_starts, "peers": bench.peers}[which]
+        return {"tao": bench.tao_types, "warm": bench.warm_starts}[which]
+    if which == "peers":
+        from petroll.studies.peers.bench import peers
+
+        return peers
+    if which in ("estimate", "accuracy"):
+        from petroll.studies import accuracy
+
+        return {"estimate": accuracy.bench_cost, "accuracy": accuracy.bench}[which]
     if which in ("precision", "growth", "skips", "mpi"):
         from petroll.studies import bench_rolling
 
@@ -69,6 +85,6 @@ def _function(which: str):
         from petroll.studies.layer import bench as layer_bench
 
         return layer_bench
-    from petroll.studies.bench_steady import steady
+    from petroll.studies import bench_steady
 
-    return steady
+    return {"steady": bench_steady.steady, "steady-growth": bench_steady.growth}[which]

@@ -58,7 +58,7 @@ from petroll import __version__
 from petroll.model import motion as motions
 from petroll.errors import PetrollError, SceneError, reason
 from petroll.model.materials import Prony, Tabulated, loss_peak_time
-from petroll.io.results import Results, atomic_write
+from petroll.io.results import Results, atomic_write, results_identity
 from petroll.model.scene import DEFAULT_STEADY, SCHEMA, Scene
 
 """[time] steady given to every point of a sweep whose scene has a [time] table without one."""
@@ -106,6 +106,10 @@ COLUMNS: dict[str, tuple[str, str]] = {
     "delta_J0": ("m", "Hertz penetration with J0 at the last force (sphere): the fast limit under load "
                  "control"),
     "delta_Jinf": ("m", "Hertz penetration with Jinf at the last force (sphere): the slow limit"),
+    **{f"{name}_error": (unit, f"estimated discretisation error of {name} at the last step (only with "
+                               "--estimate-error; NaN where the grids are not in the asymptotic range)")
+       for name, unit in (("force", "N"), ("delta", "m"), ("mu_r", "-"), ("p_max", "Pa"), ("area", "m^2"),
+                          ("lead", "m"), ("trail", "m"))},
 }
 """The table's columns: name -> (unit, meaning). One row per point, in the order of the values."""
 
@@ -303,7 +307,8 @@ class SweepTable:
 
 def sweep(scene: Scene, vary: Vary | str, out: str | pathlib.Path | None = None,
           comm: MPI.Comm = MPI.COMM_WORLD, progress: bool = False, stop=None,
-          log: Callable[[str], None] | None = None, plot: bool = True, transient: bool = False) -> SweepTable:
+          log: Callable[[str], None] | None = None, plot: bool = True, transient: bool = False,
+          estimate_error: bool = False) -> SweepTable:
     """Run ``scene`` at every value of ``vary`` (a :class:`Vary` or its ``KEY=SPEC`` text), each point to
     steady state, and write the table (sweep.csv, sweep.h5) and the plot (sweep.png) in ``out`` (default:
     the scene's output directory + ``-sweep``). Points already finished there are read, not run again.
@@ -313,6 +318,9 @@ def sweep(scene: Scene, vary: Vary | str, out: str | pathlib.Path | None = None,
     :class:`SweepInterrupted` after the running point's checkpoint; ``log(line)``: called on rank 0 after
     each point. Every point's scene is built and validated before the first run. ``transient``: run every
     point from rest, even where its steady state can be solved directly (module docstring).
+    ``estimate_error``: each point run also estimates its discretisation error (petroll.driver.run's
+    estimate_error): the table gains the columns ``<quantity>_error`` (NaN for a point kept from an earlier
+    call without one).
     """
     from petroll.io.checkpoint import RunInterrupted
     from petroll.model.limits import PetrollWarning
@@ -341,7 +349,7 @@ def sweep(scene: Scene, vary: Vary | str, out: str | pathlib.Path | None = None,
         results = _finished(directory, point, comm)
         if results is None:
             try:
-                results = _run_point(point, directory, comm, progress, stop, start)
+                results = _run_point(point, directory, comm, progress, stop, start, estimate_error)
             except RunInterrupted as exc:
                 raise SweepInterrupted(exc.signum, index, total, label) from None
             computed.append(index)
@@ -349,7 +357,7 @@ def sweep(scene: Scene, vary: Vary | str, out: str | pathlib.Path | None = None,
         following = scenes[index + 1].grid if index + 1 < total else None
         same_grid = following is not None and (following.nx, following.ny) == (point.grid.nx, point.grid.ny)
         start = (results.pressure[-1], float(results.series["delta"][-1])) if direct and same_grid else None
-        row = table_row(point, results, value)
+        row = table_row(point, results, value, estimate_error)
         rows.append(row)
         if point.time.steady is not None and not row["steady"]:
             warnings.warn(PetrollWarning(
@@ -365,7 +373,7 @@ def sweep(scene: Scene, vary: Vary | str, out: str | pathlib.Path | None = None,
                 f"{row['force']:.5g} N, {int(row['steps'])} steps, "
                 f"{state}"
                 + (f", V tau/a {row['v_tau_a']:.3g}" if math.isfinite(row["v_tau_a"]) else ""))
-    columns = {name: np.array([row[name] for row in rows], dtype=float) for name in COLUMNS}
+    columns = {name: np.array([row[name] for row in rows], dtype=float) for name in COLUMNS if name in rows[0]}
     table = SweepTable(vary.key, unit, columns, scene.text, [f"points/{n}" for n in names], out, computed)
     _on_rank0(comm, lambda: write_table(table))
     if plot:
@@ -378,18 +386,15 @@ def _finished(directory: pathlib.Path, scene: Scene, comm: MPI.Comm) -> Results 
     path = directory / "results.h5"
     done = False
     if comm.rank == 0 and path.is_file():
-        try:
-            with h5py.File(path, "r") as f:
-                done = bool(f.attrs.get("complete", False)) and str(f.attrs["scene"]) == scene.text
-        except (OSError, KeyError):
-            done = False  # unreadable: run it again
+        held = results_identity(path)  # None: unreadable, run it again
+        done = held is not None and held["complete"] and held["scene"] == scene.text
     if not comm.bcast(done, root=0):
         return None
     return Results.open(path)
 
 
 def _run_point(scene: Scene, directory: pathlib.Path, comm: MPI.Comm, progress: bool, stop,
-               start=None) -> Results:
+               start=None, estimate_error: bool = False) -> Results:
     """Run one point, continuing from its newest checkpoint if that holds this scene; ``start``: the
     first guess of a steady solve (petroll.driver.run's steady_start)."""
     from petroll.io.checkpoint import CheckpointError, list_checkpoints, read_checkpoint, restart_scene
@@ -401,14 +406,17 @@ def _run_point(scene: Scene, directory: pathlib.Path, comm: MPI.Comm, progress: 
         try:
             check = read_checkpoint(found[-1], comm)
             if check.scene_text == scene.text:
-                return run(restart_scene(check), comm, directory, progress=progress, restart=check, stop=stop)
+                return run(restart_scene(check), comm, directory, progress=progress, restart=check, stop=stop,
+                           overwrite=True, estimate_error=estimate_error)
         except CheckpointError:
             pass  # a damaged checkpoint (raised on every rank): run the point from its start
-    return run(scene, comm, directory, progress=progress, stop=stop, steady_start=start)
+    return run(scene, comm, directory, progress=progress, stop=stop, steady_start=start, overwrite=True,
+               estimate_error=estimate_error)
 
 
-def table_row(scene: Scene, results: Results, value: float) -> dict[str, float]:
-    """One row of the table (COLUMNS) for a point's scene and results."""
+def table_row(scene: Scene, results: Results, value: float, estimate_error: bool = False) -> dict[str, float]:
+    """One row of the table (COLUMNS) for a point's scene and results (``estimate_error``: with the
+    ``<quantity>_error`` columns, from results.h5's error_estimate group)."""
     from petroll.model.bodies import CylinderSection, Sphere
     from petroll.solver.contact import hertz_penetration
 
@@ -457,12 +465,17 @@ def table_row(scene: Scene, results: Results, value: float) -> dict[str, float]:
                 row[f"force_{name}"] = 4 * math.sqrt(radius) * st.delta**1.5 / (3 * J)
             if st.force > 0:
                 row[f"delta_{name}"] = (3 * J * st.force / (4 * math.sqrt(radius))) ** (2 / 3)
+    if estimate_error:
+        found = results.error_estimate or {}
+        for name in COLUMNS:
+            if name.endswith("_error"):
+                row[name] = float(found.get(name[: -len("_error")], {}).get("error", math.nan))
     return row
 
 
 def write_table(table: SweepTable) -> None:
     """Write sweep.csv and sweep.h5 (each atomically). Call on one rank."""
-    names = list(COLUMNS)
+    names = [n for n in COLUMNS if n in table.columns]
     line = LINE_UNITS if table.line else {}  # a line-contact sweep: per unit length
     units = [table.unit if n == "value" else line.get(n, COLUMNS[n][0]) for n in names]
     header = ",".join(f"{table.key if n == 'value' else n} ({u})" for n, u in zip(names, units))
@@ -518,7 +531,7 @@ def _on_rank0(comm: MPI.Comm, action: Callable[[], None]) -> None:
 
 
 def command(scene_path: str, vary_text: Sequence[str], out: str | None, quiet: bool, comm: MPI.Comm,
-            transient: bool = False) -> int:
+            transient: bool = False, estimate_error: bool = False) -> int:
     """``petroll sweep``: every rank; prints one line per point and a summary on rank 0."""
     import sys
     import time
@@ -537,7 +550,7 @@ def command(scene_path: str, vary_text: Sequence[str], out: str | None, quiet: b
     try:
         with stop.handling():
             table = sweep(scene, vary, out, comm, progress=not quiet and sys.stderr.isatty(), stop=stop,
-                          log=say, transient=transient)
+                          log=say, transient=transient, estimate_error=estimate_error)
     except SweepInterrupted as exc:
         if comm.rank == 0:
             print(f"petroll: {scene.source}: sweep {exc}", file=sys.stderr, flush=True)

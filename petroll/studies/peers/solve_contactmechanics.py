@@ -1,69 +1,40 @@
-"""Peer script for ``petroll bench peers``: the elastic Hertz step solved by ContactMechanics.
-
-Run by the benchmark with the Python of ``.venv-peers`` (which also holds Tamaas; benchmark-only, it needs
-numpy 2, which must not enter petroll's own environment). Imports no petroll. Like every peer script
-(solve_petroll.py): a fresh process (its whole run is the cold time the benchmark measures) solves once
-from p = 0 and saves the pressure, then solves again from p = 0 in the same process, timed here (warm).
-Prints one JSON line.
-
-    python solve_contactmechanics.py CELLS TOL R E NU DELTA WIDTH_IN_A PRESSURE.npy
-
-Problem and conventions as in solve_petroll.py: N x N cells of side dx = WIDTH * a / N centred on the
-sphere, heights at the cell centres, load control at the Hertz force. ``FreeFFTElasticHalfSpace`` takes
-the contact modulus E* = E / (1 - nu^2) and the physical size of the N x N surface, and pads to 2N x 2N
-itself (non-periodic, Hockney); its Green's function is that of a uniform pressure on each cell, as
-petroll's and Tamaas's. ``constrained_conjugate_gradients`` (Polonsky & Keer) works in forces per cell (N,
-negative = compressive); ``external_force`` (N) gives load control, its result ``jac`` is the compressive
-force per cell, divided here by dx^2 to get Pa.
-
-Tolerance: ContactMechanics has absolute criteria, set from the relative ``TOL``: penetration and
-displacement change (``pentol``) TOL * delta in m, as petroll's gap residual (relative to the largest
-interference, delta); tensile force outside contact (``forcetol``) TOL * p0 * dx^2 in N; relative change
-of the rigid body's position between iterations (``thermotol``) TOL.
-"""
-
-import importlib.metadata
-import json
-import math
-import sys
-import time
+"""Peer script for ``petroll bench peers``: ContactMechanics (``constrained_conjugate_gradients``, Polonsky
+& Keer, on a ``FreeFFTElasticHalfSpace``: non-periodic, padded to 2N x 2N, a uniform pressure per cell),
+load control (``external_force``), run with the Python of .venv-peers. Imports no petroll. Command line
+and problem file: common.py; START ``zero``: no initial displacements or forces (it spreads the load
+uniformly at its first step). Its criteria are absolute, set from the relative TOL with the problem's
+scales: penetration and displacement change (``pentol``) TOL x delta (m), tensile force outside contact
+(``forcetol``) TOL x pressure x cell^2 (N), relative change of the rigid body's position (``thermotol``)
+TOL; its compressive forces per cell (N) are divided by cell^2 to give Pa. The count is its iterations."""
 
 import numpy as np
 from ContactMechanics import FreeFFTElasticHalfSpace
 from ContactMechanics.Optimization import constrained_conjugate_gradients
 from SurfaceTopography import Topography
 
+from common import main
 
-def main() -> None:
-    n, tol, R, E, nu, delta, width = (int(sys.argv[1]), *map(float, sys.argv[2:8]))
-    e_star = E / (1 - nu**2)
-    a = math.sqrt(R * delta)
-    side = width * a
-    dx = side / n
-    force = 4 / 3 * e_star * math.sqrt(R) * delta**1.5
-    p0 = 2 * e_star / math.pi * math.sqrt(delta / R)
-    x = (np.arange(n) + 0.5) * dx - side / 2
-    X, Y = np.meshgrid(x, x, indexing="ij")
-    # heights of the rigid surface, highest = first contact; the solver enforces u >= heights + offset
-    topography = Topography(-(R - np.sqrt(R**2 - X**2 - Y**2)), physical_sizes=(side, side))
-    substrate = FreeFFTElasticHalfSpace((n, n), e_star, (side, side))
 
-    def solve() -> np.ndarray:
-        result = constrained_conjugate_gradients(substrate, topography, external_force=force,
-                                                 pentol=tol * delta, forcetol=tol * p0 * dx**2, thermotol=tol,
-                                                 maxiter=100000)
+def prepare(problem, start):
+    if start != "zero":
+        raise SystemExit(f"contactmechanics: start {start!r}: only zero")
+    heights = problem["heights"]
+    n, cell = heights.shape[0], float(problem["cell"])
+    side = n * cell
+    topography = Topography(-np.ascontiguousarray(heights), physical_sizes=(side, side))
+    substrate = FreeFFTElasticHalfSpace((n, n), 1.0 / float(problem["compliance"]), (side, side))
+    load, delta, pressure = (float(problem[k]) for k in ("load", "delta", "pressure"))
+
+    def solve(tol):
+        result = constrained_conjugate_gradients(substrate, topography, external_force=load,
+                                                 pentol=tol * delta, forcetol=tol * pressure * cell**2,
+                                                 thermotol=tol, maxiter=100000)
         if not result.success:
-            sys.exit(f"ContactMechanics: {result.message}")
-        return np.asarray(result.jac) / dx**2  # compressive force per cell (N) -> pressure (Pa)
+            raise SystemExit(f"ContactMechanics: {result.message}")
+        return np.asarray(result.jac) / cell**2, int(result.nit)
 
-    p = solve()
-    np.save(sys.argv[8], p)
-    start = time.perf_counter()
-    solve()
-    seconds = time.perf_counter() - start
-    print(json.dumps({"cells": n, "warm_s": seconds, "force_error": float(p.sum() * dx**2 / force - 1),
-                      "version": importlib.metadata.version("ContactMechanics")}))
+    return solve
 
 
 if __name__ == "__main__":
-    main()
+    main(prepare)

@@ -1,0 +1,215 @@
+"""How accurate petroll's answers are, measured (docs/accuracy.md, docs/verification.md, docs/benchmarks.md).
+
+- :func:`verify`: a scene's error estimate (petroll.solver.estimate) against its true error, the
+  difference from a reference on a grid 4x finer (the time step 4x smaller where the steps follow the
+  cell), both at the fine run's last time;
+- :func:`convergence`: the last step's values on grids of 2, 4, 8 ... cells per contact half-width against
+  a reference with twice the finest's (``petroll bench accuracy``);
+- :func:`cost`: the estimate's wall time against the fine run's (``petroll bench estimate``: the target
+  is at most 25 %).
+
+The scenes: the shipped sphere (runs/sphere.toml) and roller (runs/roller-2d.toml), the sphere as a height
+map sampled on the cell centres, and the conveyor idler's belt cover (runs/conveyor-idler.toml, a layer).
+"""
+
+from __future__ import annotations
+
+import math
+import pathlib
+import time as clock
+from dataclasses import dataclass
+
+import numpy as np
+from mpi4py import MPI
+
+from petroll.model.scene import Scene, load_scene, parse_scene, shipped_scene
+from petroll.solver.estimate import ErrorEstimate, estimate_error
+from petroll.solver.simulation import Simulation, StepRecord
+
+
+def refined(scene: Scene, factor: float, end: float | None) -> Scene:
+    """``scene`` with ``factor`` times the cells along each axis over the same extent (rounded), run to time
+    ``end`` (s) without its steady stop (None: its own clock: one step or a steady solve)."""
+    g = scene.grid
+    changes: dict = {"grid.nx": max(1, round(g.nx * factor))}
+    if not g.line:
+        changes["grid.ny"] = max(1, round(g.ny * factor))
+    if end is not None and scene.time.mode != "steady":
+        changes.update({"time.steady": None, "time.distance": None, "time.end": end})
+    return scene.replace(changes)
+
+
+def last_record(scene: Scene, comm: MPI.Comm) -> tuple[StepRecord, float]:
+    """The last step's record of ``scene`` run to its end, and the run's wall time (s; max over ranks)."""
+    began = clock.perf_counter()
+    record = list(Simulation(scene, comm).steps())[-1]
+    return record, comm.allreduce(clock.perf_counter() - began, op=MPI.MAX)
+
+
+def _end(scene: Scene, record: StepRecord) -> float | None:
+    timed = scene.time.mode != "steady" and (scene.time.dt is not None or scene.time.steps_per_cell is not None)
+    return record.t if timed and record.t > 0 else None
+
+
+@dataclass(frozen=True)
+class Check:
+    """One quantity of :func:`verify`: the fine value, the estimated error, the true error |fine - ref|,
+    and the extrapolated value's distance from the reference (nan where the estimate gave none)."""
+
+    name: str
+    value: float
+    reference: float
+    estimated: float
+    true: float
+    extrapolated_off: float
+
+    @property
+    def ratio(self) -> float:
+        """estimated / true error."""
+        return self.estimated / self.true if self.true > 0 else math.inf
+
+    @property
+    def within_3(self) -> bool:
+        return math.isfinite(self.estimated) and self.true / 3 <= self.estimated <= 3 * self.true
+
+    @property
+    def closer(self) -> bool:
+        """The extrapolated value is nearer the reference than the fine one."""
+        return self.extrapolated_off < self.true
+
+
+def verify(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD) -> tuple[list[Check], ErrorEstimate]:
+    """Run ``scene``, estimate its error, and compare with a reference 4x finer at the same time."""
+    record, _ = last_record(scene, comm)
+    found = estimate_error(scene, record, comm)
+    reference, _ = last_record(refined(scene, 4, _end(scene, record)), comm)
+    checks = []
+    for name, q in found.quantities.items():
+        ref = float(getattr(reference, name))
+        checks.append(Check(name, q.value, ref, q.error, abs(q.value - ref), abs(q.extrapolated - ref)))
+    return checks, found
+
+
+def cost(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, repeats: int = 3) -> dict[str, float]:
+    """Wall times (s, warm, in this process, best of ``repeats``): the fine run, its estimate, their ratio."""
+    runs, estimates = [], []
+    for _ in range(repeats):
+        record, wall = last_record(scene, comm)
+        runs.append(wall)
+        estimates.append(estimate_error(scene, record, comm).wall_s)
+    fine, extra = min(runs), min(estimates)
+    return {"fine_s": fine, "estimate_s": extra, "ratio": extra / fine}
+
+
+def heightmap_sphere(directory: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD) -> Scene:
+    """runs/sphere.toml with its sphere as a height map sampled on the grid's cell centres (one cell per
+    step: the samples stay on the centres), written to ``directory``/sphere.npy."""
+    from petroll.model.bodies import Sphere
+
+    base = load_scene(shipped_scene("sphere.toml"))
+    g = base.grid
+    position = (float(g.x[26]), float(g.y[26]))
+    k = (np.arange(-60, 61)) * g.dx
+    if comm.rank == 0:
+        directory.mkdir(parents=True, exist_ok=True)
+        np.save(directory / "sphere.npy", Sphere(base.body.radius_hint).height(k[:, None], k[None, :]))
+    comm.Barrier()
+    raw = dict(base.raw, body={"shape": "heightmap", "file": "sphere.npy", "cell": g.dx,
+                               "position": list(position)})
+    return parse_scene(raw, source="sphere.toml as a height map", base_dir=directory)
+
+
+VERIFICATION = ("sphere.toml", "roller-2d.toml", "sphere.toml, height map", "conveyor-idler.toml (layer)")
+"""The labels of the verification scenes (:func:`verification_scenes`)."""
+
+
+def verification_scenes(directory: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD,
+                        only: tuple[str, ...] = VERIFICATION) -> dict[str, Scene]:
+    """The scenes of the verification table (those of ``only``): runs/sphere.toml, runs/roller-2d.toml, the
+    sphere as a height map (:func:`heightmap_sphere`) and the conveyor idler's belt cover (a layer,
+    runs/conveyor-idler.toml)."""
+    make = {"sphere.toml": lambda: load_scene(shipped_scene("sphere.toml")),
+            "roller-2d.toml": lambda: load_scene(shipped_scene("roller-2d.toml")),
+            "sphere.toml, height map": lambda: heightmap_sphere(directory, comm),
+            "conveyor-idler.toml (layer)": lambda: load_scene(shipped_scene("conveyor-idler.toml"))}
+    return {label: make[label]() for label in only}
+
+
+def bench(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, scenes: tuple[str, ...] = VERIFICATION,
+          factors: tuple[float, ...] = (0.25, 0.5, 1.0, 2.0), reference: float = 4.0) -> list[dict]:
+    """``petroll bench accuracy``: :func:`bench_verify` then :func:`bench_convergence` on ``scenes``
+    (labels of :data:`VERIFICATION`); returns both tables' rows."""
+    return bench_verify(out, comm, scenes) + bench_convergence(out, comm, factors, reference, scenes)
+
+
+def bench_verify(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD,
+                 scenes: tuple[str, ...] = VERIFICATION) -> list[dict]:
+    """``petroll bench accuracy``'s first table: each verification scene's estimate against its true error
+    (reference 4x finer); writes ``out/estimate_verification.csv``."""
+    from petroll.studies.tables import print_table, write_table
+
+    rows = []
+    for label, scene in verification_scenes(out / "bodies", comm, scenes).items():
+        checks, found = verify(scene, comm)
+        grids = " / ".join(f"{nx}x{ny}" if ny > 1 else f"{nx}" for nx, ny in found.grids)
+        for c in checks:
+            rows.append({"scene": label, "grids": grids, "quantity": c.name, "fine": f"{c.value:.6g}",
+                         "reference": f"{c.reference:.6g}", "estimated": f"{c.estimated:.2g}",
+                         "true": f"{c.true:.2g}", "ratio": f"{c.ratio:.2f}", "within_3": c.within_3,
+                         "extrapolated_closer": c.closer})
+    if comm.rank == 0:
+        write_table(rows, out / "estimate_verification.csv", show=False)
+        print_table(rows)
+    return rows
+
+
+def bench_convergence(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD,
+                      factors: tuple[float, ...] = (0.25, 0.5, 1.0, 2.0), reference: float = 4.0,
+                      scenes: tuple[str, ...] = VERIFICATION) -> list[dict]:
+    """``petroll bench accuracy``'s second table: the last step's relative errors against cells per contact
+    half-width (each verification scene at ``factors`` times its cells per axis, against ``reference``
+    times, all to the time of the shipped resolution's last step); writes ``out/convergence.csv``."""
+    from petroll.model.preflight import check
+    from petroll.studies.tables import print_table, write_table
+
+    rows = []
+    for label, scene in verification_scenes(out / "bodies", comm, scenes).items():
+        record, _ = last_record(scene, comm)
+        end = _end(scene, record)
+        truth, _ = last_record(refined(scene, reference, end), comm)
+        for factor in factors:
+            grid = refined(scene, factor, end)
+            got, _ = last_record(grid, comm)
+            row = {"scene": label, "cells": f"{min(check(grid).cells):.1f}"}
+            for name in ("force", "delta", "mu_r", "p_max", "area"):
+                ref = float(getattr(truth, name))
+                row[name] = f"{abs(getattr(got, name) / ref - 1):.1e}" if ref else "-"
+            rows.append(row)
+    if comm.rank == 0:
+        write_table(rows, out / "convergence.csv", show=False)
+        print_table(rows)
+    return rows
+
+
+def bench_cost(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, factors: tuple[int, ...] = (1, 2, 4),
+               repeats: int = 3) -> list[dict]:
+    """``petroll bench estimate``: the estimate's wall time against the fine run's (warm, in this process,
+    best of ``repeats``), runs/sphere.toml at ``factors`` times its cells per axis (the estimate's cost is
+    a fixed part per step plus a part per cell), and runs/roller-2d.toml; writes ``out/estimate_cost.csv``.
+    The target: at most 25 %."""
+    from petroll.studies.tables import print_table, write_table
+
+    rows = []
+    sphere = load_scene(shipped_scene("sphere.toml"))
+    cases = [("sphere.toml" if k == 1 else f"sphere.toml, {k}x cells", refined(sphere, k, None) if k > 1 else sphere)
+             for k in factors] + [("roller-2d.toml", load_scene(shipped_scene("roller-2d.toml")))]
+    for label, scene in cases:
+        found = cost(scene, comm, repeats)
+        g = scene.grid
+        rows.append({"scene": label, "grid": f"{g.nx}x{g.ny}", "fine_s": f"{found['fine_s']:.3f}",
+                     "estimate_s": f"{found['estimate_s']:.3f}", "ratio": f"{found['ratio']:.3f}",
+                     "target_met": found["ratio"] <= 0.25})
+    if comm.rank == 0:
+        write_table(rows, out / "estimate_cost.csv", show=False)
+        print_table(rows)
+    return rows
