@@ -347,7 +347,7 @@ def test_from_npy_rejects_unreadable_files(tmp_path):
     garbage = tmp_path / "garbage.npy"
     garbage.write_text("not a numpy file")
     err = raises_key("[body] file", HeightMap.from_npy, garbage, 0.1)
-    assert "cannot read" in str(err)
+    assert "is not a .npy file" in str(err)
     npz = tmp_path / "z.npz"
     np.savez(npz, a=np.zeros((3, 3)))
     raises_key("[body] file", HeightMap.from_npy, npz, 0.1)

@@ -45,13 +45,17 @@ def test_a_contact_reaching_the_edge_mid_run_keeps_every_step_solved(comm, share
 
 
 def test_a_run_beyond_max_steps_keeps_its_steps(comm, shared_dir):
-    """[time] max_steps = 30 on a run that needs 107: RunFailed naming the key after the 31 steps solved
-    (steps 0-30), all in results.h5, complete = false."""
-    with pytest.raises(RunFailed, match=r"step 31 .* \[time\] max_steps .* holds the 31 steps") as info:
-        petroll.run(sphere(**{"time.max_steps": 30}), comm, out=shared_dir / "capped")
-    assert info.value.steps == 31 and info.value.checkpoint is None
+    """runs/sphere-sinusoidal.toml (speed varying in time) rolled 0.5 mm needs 18 steps; [time] max_steps =
+    15 passes the check of the scene (distance / (peak speed x dt) = 13.9 steps at least) and stops the run
+    mid-way: RunFailed naming the key after the 16 steps solved (steps 0-15), all in results.h5, complete =
+    false."""
+    scene = load_scene(shipped_scene("sphere-sinusoidal.toml")).replace(
+        {"time.end": None, "time.distance": 0.5e-3, "time.max_steps": 15, "output.every": None})
+    with pytest.raises(RunFailed, match=r"step 16 .* \[time\] max_steps .* holds the 16 steps") as info:
+        petroll.run(scene, comm, out=shared_dir / "capped")
+    assert info.value.steps == 16 and info.value.checkpoint is None
     kept = petroll.Results.open(shared_dir / "capped" / "results.h5")
-    assert not kept.complete and len(kept.series["t"]) == 31
+    assert not kept.complete and len(kept.series["t"]) == 16
 
 
 def creeping_scene(**changes):

@@ -67,6 +67,11 @@ def digest(path: pathlib.Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
+def said(stderr: str) -> list[str]:
+    """The lines of ``stderr`` but the resolution warnings (these tests' grids are coarse on purpose)."""
+    return [line for line in stderr.splitlines() if not line.startswith("petroll: warning:")]
+
+
 def on_rank0(comm, value):
     return comm.bcast(value if comm.rank == 0 else None, root=0)
 
@@ -203,7 +208,7 @@ def test_a_full_disk_stops_the_run_in_one_line_and_the_restart_continues_it_bitw
     assert main(["run", str(shared_dir / "s.toml"), "--out", str(out), "--quiet"]) == 2
     monkeypatch.undo()
     if comm.rank == 0:
-        assert capsys.readouterr().err.splitlines() == [
+        assert said(capsys.readouterr().err) == [
             f"petroll: error: {out}/results.h5: cannot write the results (No space left on device); results.h5 "
             f"holds steps 0 to 5; free space (or fix the cause) and continue with: petroll restart "
             f"{out}/checkpoints/step-00000004.h5"]
@@ -252,7 +257,7 @@ def test_a_really_full_file_system_serially_and_under_mpirun(tmp_path, cli):
             (disk / "filler").write_bytes(bytes(2 * used - 3 * used // 4))  # fills after a checkpoint or two
             out = f"disk/run{ranks}"
             done = cli("run", "s.toml", "--out", out, "--quiet", cwd=tmp_path, ranks=ranks, timeout=180)
-            lines = [line for line in done.stderr.splitlines() if line.startswith("petroll")]
+            lines = [line for line in said(done.stderr) if line.startswith("petroll")]
             assert done.returncode == 2 and len(lines) == 1, done.stderr
             assert "No space left on device" in lines[0] and lines[0].startswith(f"petroll: error: {out}/")
             partial = Results.open(tmp_path / out / "results.h5")
@@ -295,7 +300,7 @@ def test_a_directory_in_use_is_refused_naming_its_holder_and_a_stale_lock_is_tak
     capsys.readouterr()
     assert main(["run", str(shared_dir / "s.toml"), "--out", str(out), "--quiet"]) == 2
     if comm.rank == 0:
-        assert capsys.readouterr().err.splitlines() == [f"petroll: error: {info.value}"]
+        assert said(capsys.readouterr().err) == [f"petroll: error: {info.value}"]
     assert snapshot(shared_dir) == before
     if comm.rank == 0:  # the holder dies without removing its lock file: the next run takes it over
         os.close(lock.fd)
@@ -322,8 +327,8 @@ def test_a_second_run_or_restart_on_a_directory_in_use_is_refused_and_the_first_
         first.send_signal(signal.SIGCONT)
     assert first.wait(timeout=120) == 0, first.communicate()
     for refused in (second, again):
-        assert refused.returncode == 2 and refused.stderr.count("\n") == 1, refused.stderr
-        assert refused.stderr.startswith("petroll: error: ")  # the restart names the directory in full
+        assert refused.returncode == 2 and len(said(refused.stderr)) == 1, refused.stderr
+        assert said(refused.stderr)[0].startswith("petroll: error: ")  # the restart names the directory in full
         assert f"shared: in use by PID {first.pid} on host " in refused.stderr
     assert "(petroll run long.toml)" in second.stderr
     assert_identical(Results.open(tmp_path / "shared" / "results.h5"), reference)
@@ -343,7 +348,7 @@ def test_the_results_of_another_scene_are_replaced_only_when_told(comm, shared_d
     before = snapshot(out)
     assert main(["run", str(shared_dir / "other.toml"), "--out", str(out), "--quiet"]) == 2
     if comm.rank == 0:
-        assert capsys.readouterr().err.splitlines() == [
+        assert said(capsys.readouterr().err) == [
             f"petroll: error: {out}: holds the complete results of another scene ({out}/results.h5); give "
             "--overwrite (Python: overwrite=True) to replace them, or another output directory"]
     assert snapshot(out) == before
@@ -392,7 +397,7 @@ def test_a_restart_refuses_the_results_of_another_run_and_touches_nothing(change
     path = shared_dir / "mine" / "checkpoints" / "step-00000008.h5"
     assert main(["restart", str(path), "--quiet"]) == 2
     if comm.rank == 0:
-        lines = capsys.readouterr().err.splitlines()
+        lines = said(capsys.readouterr().err)
         assert len(lines) == 1 and lines[0].startswith(f"petroll: error: {path}: belongs to another "), lines
         assert ("run than" if run_ids else expected) in lines[0], lines
     assert snapshot(shared_dir) == before
@@ -430,7 +435,7 @@ def test_a_foreign_checkpoint_among_a_runs_checkpoints_is_refused_and_the_run_re
     assert main(["restart", str(shared_dir / "mine"), "--quiet"]) == 2
     foreign = shared_dir / "mine" / "checkpoints" / "step-00000012.h5"
     if comm.rank == 0:
-        lines = capsys.readouterr().err.splitlines()
+        lines = said(capsys.readouterr().err)
         assert len(lines) == 1 and lines[0].startswith(f"petroll: error: {foreign}: belongs to another run "), lines
     assert snapshot(shared_dir / "mine") == before
     assert main(["restart", str(shared_dir / "mine" / "checkpoints" / "step-00000008.h5"), "--quiet"]) == 0
@@ -450,7 +455,7 @@ def test_a_restart_into_another_runs_directory_is_refused_unless_told(comm, shar
     capsys.readouterr()
     assert main(["restart", str(source), "--out", str(shared_dir / "A"), "--quiet"]) == 2
     if comm.rank == 0:
-        assert capsys.readouterr().err.splitlines() == [
+        assert said(capsys.readouterr().err) == [
             f"petroll: error: {shared_dir / 'A'}: holds the complete results of another run ({shared_dir / 'A'}"
             f"/results.h5), not of checkpoint {source}'s; give --overwrite (Python: overwrite=True) to replace "
             "them, or another --out"]
@@ -513,7 +518,7 @@ def test_sigterm_and_sigint_to_petroll_launch_mpirun_end_the_run_with_a_checkpoi
         proc.send_signal(signum)
         _, err = proc.communicate(timeout=300)
         assert proc.returncode == code, err
-        lines = [line for line in err.splitlines() if line.startswith("petroll")]
+        lines = [line for line in said(err) if line.startswith("petroll")]
         assert len(lines) == 1 and f": interrupted by {signum.name} after step " in lines[0], err
         assert not Results.open(tmp_path / out / "results.h5").complete
     done = cli("restart", out, "--quiet", cwd=tmp_path, ranks=2, timeout=600)
@@ -585,7 +590,7 @@ BAD_NUMBERS = {
     "dt small, distance": ("[time] dt", "too many steps: distance / (peak speed x dt) = 1e+09 steps at least, "
                                         "more than [time] max_steps = 100000"),
     "steps_per_cell huge": ("[time] steps_per_cell", "too many steps: distance / cell x steps_per_cell = "
-                                                     "4e+300 steps at least"),
+                                                     "2e+301 steps at least"),
     "at rest, distance": ("[time] distance", "a body at rest never rolls it"),
     "x huge": ("[grid] x", "-1e+300 m is outside what petroll computes with"),
     "x far out": ("[grid] x", "a cell must be at least 1e-09 of the largest coordinate"),
@@ -606,7 +611,7 @@ def test_numbers_beyond_double_precision_or_the_step_limit_are_refused_up_front(
     assert info.value.key == key and expected in str(info.value), str(info.value)
     (tmp_path / "bad.toml").write_text(dumps(raw))
     code, out, err = cli_main(["run", str(tmp_path / "bad.toml"), "--out", str(tmp_path / "out"), "--quiet"])
-    assert code == 2 and err.splitlines() == [f"petroll: error: {info.value}".replace(
+    assert code == 2 and said(err) == [f"petroll: error: {info.value}".replace(
         "test", str(tmp_path / "bad.toml"), 1)] and not (tmp_path / "out").exists(), err
 
 

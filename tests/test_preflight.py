@@ -124,8 +124,8 @@ def test_the_path_is_the_time_loops_clock(comm):
     np.testing.assert_allclose(walked.t, [r.t for r in records], rtol=1e-14, atol=0)
     np.testing.assert_allclose(walked.sx, [r.sx for r in records], rtol=1e-14, atol=0)
     np.testing.assert_allclose(walked.distance, [r.distance for r in records], rtol=1e-12, atol=1e-18)
-    capped = path(scene.replace("time.max_steps", 10))
-    assert not capped.complete and capped.steps == 11
+    capped = path(scene.replace("time.max_steps", 15))  # the scene's bound: 13.9 steps at least
+    assert not capped.complete and capped.steps == 16
 
 
 # -- the path and the body's touching (issue 24, item 3) --------------------------------------------------
