@@ -17,8 +17,10 @@
     petroll stress DIR [--step N] [--depth z1,z2,... | --depths auto] [--nu NU]   stresses below a saved
                             pressure field: DIR/stress.h5 and DIR/stress.png
     petroll bench tao|warm|skips|peers|precision|growth|mpi|memory|append|layer|steady|steady-growth|
-                            estimate|accuracy [--out DIR] [--quick]   benchmarks (docs/benchmarks.md);
-                            --quick: a seconds-long check that it runs; bench memory --steady: steady solves
+                            estimate|accuracy|periodic|sliding [--out DIR] [--quick]   benchmarks
+                            (docs/benchmarks.md); --quick: a seconds-long check that it runs; bench memory
+                            --steady: steady solves; bench sliding --ranks/--sides: the rough solve's memory
+                            per rank
     petroll material fit DMA.csv [--terms N | --per-decade K] [--nu NU] [--shift LAW|auto:T_REF]
                             [--tolerance K] [--einf E | --einf-from-data] [--out FILE.toml]
                             a Prony series fitted to DMA data: the [material] block (docs/materials.md)
@@ -348,21 +350,20 @@ def _main(args: argparse.Namespace, comm) -> int:
 
 
 def estimate_line(estimate: dict) -> str:
-    """The summary's line on results.h5's error_estimate group: each value +- its discretisation error."""
+    """The summary's lines on results.h5's error_estimate group: a heading naming the grids, then each
+    quantity's value +- its discretisation error, or why it has none."""
     group = estimate[""]
     if group.get("failed"):
         return f"petroll: no error estimate: {group['failed']}"
-    parts = []
-    for name in ("force", "delta", "mu_r", "p_max", "area", "lead", "trail"):
-        if name not in estimate:
-            continue
-        q = estimate[name]
-        if math.isnan(q["error"]):
-            parts.append(f"{name} {q['value']:.4e} (grids not in the asymptotic range: no estimate)")
-        else:
-            parts.append(f"{name} {q['value']:.4e} +- {q['error']:.2g}")
     grids = ", ".join(f"{nx} x {ny}" for nx, ny in group["grids"])
-    return f"petroll: error estimate: {', '.join(parts)} (discretisation; grids {grids})"
+    lines = [f"petroll: error estimate of the last step (grids {grids}):"]
+    for name in ("force", "delta", "mu_r", "p_max", "area", "lead", "trail"):
+        if name in estimate:
+            q = estimate[name]
+            lines.append(f"  {name} {q['value']:.4e} " + (
+                "(the grids are not in the asymptotic range: no estimate)" if math.isnan(q["error"]) else
+                f"+- {q['error']:.1e} (discretisation)"))
+    return "\n".join(lines)
 
 
 def _stress(args: argparse.Namespace, comm) -> int:

@@ -74,7 +74,7 @@ def _study_verbs(verbs) -> None:
                              "(docs/benchmarks.md)")
     bench.add_argument("which", choices=["tao", "warm", "skips", "peers", "precision", "growth", "mpi",
                                          "memory", "append", "layer", "steady", "steady-growth", "estimate",
-                                         "accuracy"],  # studies.bench_verbs.VERBS (tests/test_bench_quick.py)
+                                         "accuracy", "periodic", "sliding"],  # studies.bench_verbs.VERBS
                        help="tao: every TAO type on the Hertz step; warm: operator applications per rolling "
                        "step for each first guess; skips: each saving on and off; peers: petroll against "
                        "Tamaas and ContactMechanics on the Hertz step and a wavy sphere, from the same start; "
@@ -88,13 +88,16 @@ def _study_verbs(verbs) -> None:
                        "run to the same steady tolerance, V tau/a 1e-3 to 1e3; steady-growth: the direct "
                        "steady solve's time against the grid (512 x 256 to 2048 x 1024); estimate: the error "
                        "estimate's wall time against the run's; accuracy: the estimate against the true "
-                       "error, and errors against cells per contact half-width (docs/accuracy.md)")
+                       "error, and errors against cells per contact half-width (docs/accuracy.md); periodic: "
+                       "the periodic operator's cost against the non-periodic one, and periodic rough contact "
+                       "against Tamaas; sliding: steady sliding against its closed forms, a 1024^2 rough "
+                       "surface, a 512^2 friction master curve (docs/rough.md)")
     bench.add_argument("--out", default="results/bench", help="directory for the CSV (and PNG) files")
-    bench.add_argument("--ranks", type=_ranks, help="mpi and memory only: rank counts to run side by side "
-                       "as mpirun children, e.g. 1,2 (default: mpi: the current communicator only; memory: "
-                       "1,2,4)")
-    bench.add_argument("--sides", type=_ranks, help="memory only: grid sides (cells) to measure, e.g. "
-                       "1024,2048,4096 (the default)")
+    bench.add_argument("--ranks", type=_ranks, help="mpi, memory and sliding only: rank counts to run side by "
+                       "side as mpirun children, e.g. 1,2 (default: mpi: the current communicator only; memory: "
+                       "1,2,4; sliding: 1,2, its memory and time per rank instead of its default tables)")
+    bench.add_argument("--sides", type=_ranks, help="memory and sliding only: grid sides (cells) to measure, "
+                       "e.g. 1024,2048,4096 (memory's default; sliding: 2048,4096)")
     bench.add_argument("--steady", action="store_true", help="memory only: the steady state solved directly "
                        "([time] mode = \"steady\") instead of rolled steps")
     bench.add_argument("--quick", action="store_true", help="the smallest sizes and one repeat, in seconds: "

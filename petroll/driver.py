@@ -25,6 +25,7 @@ from petroll.io.results import OutputError, Results, ResultsFile, results_identi
 from petroll.io.rundir import DirectoryBusy, RunLock, clean_temporaries
 from petroll.model.preflight import check_run
 from petroll.model.scene import Scene
+from petroll.solver.rough import BINS
 from petroll.solver.simulation import Simulation, StepRecord
 
 
@@ -84,8 +85,9 @@ def _run(scene: Scene, comm: MPI.Comm, out: pathlib.Path, run_id: str, progress:
     sim.steady_start = steady_start
     g = scene.grid
     steady = scene.time.mode == "steady"
+    rough = None if g.line or not all(g.periodic) else BINS  # the group rough of a periodic grid
     results = ResultsFile(out / "results.h5", scene.text, g.x, g.y, comm, fields=scene.fields, line=g.line,
-                          steady=steady, source=str(scene.source), run_id=run_id)
+                          steady=steady, source=str(scene.source), run_id=run_id, rough=rough)
     if restart is not None:
         t, field_steps = restart.restore(sim)
         results.resume(run_directory(restart.path) / "results.h5", len(sim.records), field_steps,
@@ -142,7 +144,9 @@ def _append(results: ResultsFile, sim: Simulation, save: bool, complete: bool, d
     """Bring results.h5 up to the newest step; a failure (OutputError, every rank) says what the file
     holds and how the run continues (``newest``: this run's newest checkpoint)."""
     try:
-        results.append(sim.records, saved_fields(sim) if save else None, complete=complete, describe=describe)
+        rough = sim.rough_outputs() if save and results.rough is not None else None
+        results.append(sim.records, saved_fields(sim) if save else None, complete=complete, describe=describe,
+                       rough=rough)
     except OutputError as exc:
         n = results.steps
         kept = f"results.h5 holds steps 0 to {n - 1}" if n else "no results file was written"
@@ -316,6 +320,10 @@ def stress(run_dir: str | pathlib.Path, step: int | None = None, depths=None, nu
         raise PetrollError(f"{path}: no results file (is {run_dir} the output directory of a run?)")
     saved = read_saved_pressure(path, step, comm)
     raw = tomllib.loads(saved["scene"])
+    if raw["grid"].get("periodic", False):
+        raise PetrollError(f"{path}: [grid] periodic = {raw['grid']['periodic']!r}: the stresses below a "
+                           "periodic surface are not computed (petroll stress sums an isolated pressure "
+                           "field)")
     nu = _poisson_ratio(raw, nu)
     x, y, p = saved["x"], saved["y"], saved["pressure"]
     g, line = raw["grid"], saved["line"]

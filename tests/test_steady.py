@@ -520,3 +520,29 @@ def test_the_fft_tally_counts_every_application_and_correlation_once(comm):
     before = FFTWork.total
     memory.extended(lines.from_grid(np.ones(solver.local_shape)))
     assert FFTWork.total - before == pytest.approx(fft_cost(40 * memory.long, memory.long), rel=1e-6)
+
+
+def test_a_transient_runs_tally_is_every_padded_transform_pair_it_did(comm, monkeypatch):
+    """A rolling run's steps (history of the default integrator, preconditioned QPs): the tally equals the
+    cost of every forward transform of a convolution the run actually performed (Convolution.forward,
+    counted independently of the tally), and there are more of them than the QPs' Hessian applications
+    (the preconditioner's and each step's history convolution are counted too)."""
+    from petroll.solver.fft_work import FFTWork, fft_cost
+    from petroll.solver.influence import Convolution
+
+    done = []
+    forward = Convolution.forward
+
+    def counted(self, x):
+        done.append(fft_cost(self.lx * self.ly, self.lx * self.ly))
+        return forward(self, x)
+
+    monkeypatch.setattr(Convolution, "forward", counted)
+    monkeypatch.setattr(FFTWork, "total", 0.0)  # a tally grown by earlier tests would round the difference
+    speed = A / TAU
+    sc = scene(half=HALF, n=N, length=8 * DX, motion={"velocity": [speed, 0.0], "penetration": DELTA},
+               time={"distance": 6 * DX, "steps_per_cell": 1}, solver={"tol": 1e-8})
+    before = FFTWork.total
+    records = list(Simulation(sc, comm).steps())
+    assert FFTWork.total - before == pytest.approx(sum(done), rel=1e-12)
+    assert len(done) > sum(r.applications for r in records) + len(records) - 1

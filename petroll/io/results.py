@@ -8,6 +8,8 @@
     /xdmf/<field>/<k>     (nx, ny) virtual datasets (no data of their own): the k-th saved field, what
                           results.xdmf points at (every XDMF reader reads a whole dataset; hyperslabs of
                           /fields are not read alike by ParaView's two readers)
+    /rough/<name>         a grid periodic along every axis: at each saved field, the contact's fraction of
+                          the cell, the mean gap and the pressure's radially averaged spectrum (ROUGH_UNITS)
     attributes            scene (the scene's TOML text), scene_file (the path it was read from),
                           petroll_version, format_version, complete
                           (False while the run goes on), steps_written, fields_written, last_step,
@@ -158,6 +160,7 @@ class Results:
     version: str = ""  # the petroll version that wrote the file
     run_id: str = ""  # the run's identifier, shared with its checkpoints ("" in files written before them)
     error_estimate: dict | None = None  # group error_estimate: {quantity: {attribute: value}, "": group attrs}
+    rough: dict[str, np.ndarray] | None = None  # a periodic grid's group rough (ROUGH_UNITS), per saved field
 
     @classmethod
     def open(cls, path: str | pathlib.Path) -> "Results":
@@ -168,6 +171,7 @@ class Results:
             k = int(f.attrs.get("fields_written", len(f["fields/step"])))
             series = {name: f["series"][name][:n] for name in f["series"]}
             fields = f["fields"]
+            rough = {name: f["rough"][name][:k] for name in f["rough"]} if "rough" in f else None
             estimate = None
             if "error_estimate" in f:
                 group = f["error_estimate"]
@@ -176,7 +180,7 @@ class Results:
                        bool(f.attrs.get("complete", True)), bool(f.attrs.get("line_contact", False)),
                        tuple(name for name in FIELD_UNITS if name in fields), bool(f.attrs.get("steady", False)),
                        str(f.attrs.get("scene_file", "")), str(f.attrs.get("petroll_version", "")),
-                       str(f.attrs.get("run_id", "")), estimate)
+                       str(f.attrs.get("run_id", "")), estimate, rough)
 
     def field(self, name: str) -> np.ndarray:
         """The saved fields ``name`` (a key of FIELD_UNITS), (n_saved, nx, ny), read from the file."""
@@ -195,6 +199,10 @@ class Results:
         return steady_state(self.series, self.scene_text)
 
 
+ROUGH_UNITS = {"area_fraction": "-", "mean_gap": "m", "q": "rad/m", "spectrum": "Pa^2 m^2", "modes": "-"}
+"""The group rough of a run on a grid periodic along every axis (petroll.solver.rough.RoughOutputs), one
+row per saved field: area_fraction and mean_gap (n_saved,); q, spectrum and modes (n_saved, bins)."""
+
 FIELD_UNITS = {"pressure": "Pa", "displacement": "m", "gap": "m"}
 """The fields a run can save (name: unit), each as /fields/<name> (n_saved, nx, ny): the contact pressure,
 the surface displacement (into the half-space; line contact: relative to the datum) and the gap between
@@ -209,12 +217,13 @@ class ResultsFile:
     the fields, sets ``steps_written``/``fields_written`` last and closes it; a process killed while no
     append is under way leaves a file holding every step up to the last append. ``fields`` names the
     fields a run saves (keys of FIELD_UNITS); ``line``: a line-contact run; ``steady``: a direct steady
-    solve (attribute steady). Raises :class:`OutputError` (on every rank).
+    solve (attribute steady); ``rough``: the number of spectrum bins of a run on a periodic grid (group
+    rough; None: none). Raises :class:`OutputError` (on every rank).
     """
 
     def __init__(self, path: str | pathlib.Path, scene_text: str, x: np.ndarray, y: np.ndarray, comm,
                  fields: tuple[str, ...] = ("pressure",), line: bool = False, steady: bool = False,
-                 source: str = "", run_id: str = ""):
+                 source: str = "", run_id: str = "", rough: int | None = None):
         from petroll.solver.partition import RowPartition
 
         self.path, self.scene_text, self.comm = pathlib.Path(path), scene_text, comm
@@ -223,6 +232,7 @@ class ResultsFile:
         self.x, self.y, self.fields = np.asarray(x, dtype=float), np.asarray(y, dtype=float), tuple(fields)
         self.rows = RowPartition(len(self.x), comm.size)
         self.steady = bool(steady)
+        self.rough = rough
         self.line = bool(line)  # a line-contact run: the series of LINE_SERIES_UNITS, with their units
         self.names = [n for n in _series_names() if not (line and n in LINE_ABSENT)]
         self.steps = 0  # series rows in the file
@@ -255,6 +265,13 @@ class ResultsFile:
                                           dtype=np.float64, **PACKED).attrs["units"] = FIELD_UNITS[name]
                 fields.create_dataset("step", shape=(0,), maxshape=(None,), chunks=(SERIES_CHUNK,),
                                       dtype=np.int64)
+                if self.rough is not None:
+                    group = h.create_group("rough")
+                    for name, unit in ROUGH_UNITS.items():
+                        shape = () if name in ("area_fraction", "mean_gap") else (self.rough,)
+                        group.create_dataset(name, shape=(0, *shape), maxshape=(None, *shape),
+                                             chunks=(64, *shape), dtype=np.int64 if name == "modes" else
+                                             np.float64).attrs["units"] = unit
                 fields.create_dataset("x", data=self.x).attrs["units"] = "m"
                 fields.create_dataset("y", data=self.y).attrs["units"] = "m"
                 h.create_group("mesh").create_dataset(
@@ -297,6 +314,8 @@ class ResultsFile:
                 for name in (*self.fields, "step"):
                     h["fields"][name].resize(len(field_steps), axis=0)
                 _field_views(h, self.fields, len(field_steps))
+                for name in h.get("rough", ()):
+                    h["rough"][name].resize(len(field_steps), axis=0)
                 h.attrs["run_id"] = self.run_id
                 self._mark(h, steps, len(field_steps), complete=False)
 
@@ -305,9 +324,10 @@ class ResultsFile:
 
     # -- growing ----------------------------------------------------------------------------------------
     def append(self, records: list, saved: dict[str, np.ndarray] | None = None, complete: bool = False,
-               describe: bool = False) -> None:
+               describe: bool = False, rough=None) -> None:
         """Append the series of ``records`` (StepRecords) not yet in the file and, with ``saved`` ({field
-        name: this rank's rows}), the fields of the last record's step; then mark the file (``complete``:
+        name: this rank's rows}), the fields of the last record's step (and with them, on a periodic grid,
+        ``rough``: its petroll.solver.rough.RoughOutputs); then mark the file (``complete``:
         the run is over). ``describe`` rewrites results.xdmf too (atomically). The first append of a file
         neither created nor resumed creates it with these records (so a run failing in its first step
         leaves none)."""
@@ -337,6 +357,8 @@ class ResultsFile:
                 for name in self.fields:
                     f.put(f"fields/{name}", (k - 1,), r0, np.asarray(saved[name], dtype=np.float64))
                 f.put("fields/step", (), k - 1, np.array([step] if mine else [], dtype=np.int64))
+                if self.rough is not None:
+                    self._put_rough(f, k, rough, mine)
                 if f.writer:
                     _field_views(h, self.fields, k)
             if f.writer:
@@ -361,6 +383,18 @@ class ResultsFile:
             self._agree()
 
     # -- helpers ----------------------------------------------------------------------------------------
+    def _put_rough(self, f: RowFile, k: int, rough, mine: bool) -> None:
+        """Row k - 1 of the group rough: the saved step's RoughOutputs (rank 0 writes)."""
+        if f.writer:
+            for name in ROUGH_UNITS:
+                f.file["rough"][name].resize(k, axis=0)
+        for name in ("area_fraction", "mean_gap"):
+            value = [getattr(rough, name)] if mine else []
+            f.put(f"rough/{name}", (), k - 1, np.array(value, dtype=np.float64))
+        for name in ("q", "spectrum", "modes"):
+            dtype = np.int64 if name == "modes" else np.float64
+            f.put(f"rough/{name}", (k - 1,), 0, np.asarray(getattr(rough, name) if mine else [], dtype=dtype))
+
     def write_error_estimate(self, quantities: dict[str, dict], attrs: dict) -> None:
         """The group ``error_estimate`` (replaced if present): ``attrs`` on the group, one subgroup per
         quantity with its attributes (value, extrapolated, error, order, ...; docs/results.md). Written

@@ -4,6 +4,9 @@
 Fields on the grid are numpy arrays of shape (nx, ny), axis 0 along X; a flattened field has index
 ix * ny + iy.
 
+A *periodic* grid repeats along X, Y or both (``periodic``): the cells tile a cell of the periodic
+surface, and a body's offsets from its reference point wrap around (:meth:`Grid.offsets`).
+
 A *line-contact* grid (plane strain; a scene whose [grid] has nx and x only) is the same object with
 ``line = True``, ny = 1 and Y from -1/2 to 1/2: its cells are strips of unit length along Y, so that
 ``cell_area`` = dx and every force summed over the cells is a force per unit length (N/m), every area a
@@ -28,6 +31,7 @@ class Grid:
     y0: float
     y1: float
     line: bool = False  # plane strain: ny = 1 strip of unit length (use :func:`line_grid`)
+    periodic: tuple[bool, bool] = (False, False)  # the grid repeats along X, Y (a line grid: along X only)
 
     @property
     def dx(self) -> float:
@@ -53,6 +57,16 @@ class Grid:
         None for a 3-D grid."""
         return self.x1 - self.x0 if self.line else None
 
+    def offsets(self, x, y, sx: float, sy: float) -> tuple[np.ndarray, np.ndarray]:
+        """Offsets (x - sx, y - sy) (m) of points from a body's reference point at (sx, sy), taken along a
+        periodic axis to the nearest image of the reference point: in [-L/2, L/2), L the grid's length."""
+        out = []
+        for value, s, periodic, length in ((x, sx, self.periodic[0], self.x1 - self.x0),
+                                           (y, sy, self.periodic[1], self.y1 - self.y0)):
+            offset = np.asarray(value, dtype=float) - s
+            out.append(offset - length * np.floor(offset / length + 0.5) if periodic else offset)
+        return out[0], out[1]
+
     @property
     def x(self) -> np.ndarray:
         """Cell-centre X coordinates, shape (nx,)."""
@@ -64,6 +78,7 @@ class Grid:
         return self.y0 + (np.arange(self.ny) + 0.5) * self.dy
 
 
-def line_grid(nx: int, x0: float, x1: float) -> Grid:
-    """A line-contact (plane-strain) grid of nx strips covering [x0, x1] (m), unit length along Y."""
-    return Grid(nx, 1, x0, x1, -0.5, 0.5, line=True)
+def line_grid(nx: int, x0: float, x1: float, periodic: bool = False) -> Grid:
+    """A line-contact (plane-strain) grid of nx strips covering [x0, x1] (m), unit length along Y;
+    ``periodic``: repeating along X."""
+    return Grid(nx, 1, x0, x1, -0.5, 0.5, line=True, periodic=(periodic, False))

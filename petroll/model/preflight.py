@@ -18,8 +18,9 @@ cells per half-width).
 Path. The body's reference point over the whole run (petroll.model.clock.path) carries the box of the
 cells it can interfere with: where it lies within delta_e of its lowest point (rubbery delta_e under load
 control; line contact: the contact, within delta_e / 2). A run whose box would reach the grid's edge cells
-at some step is refused, saying where it leaves the grid and the extent it needs. A body that never
-presses (its largest penetration or load <= 0) or has no surface over the grid is refused.
+at some step is refused, saying where it leaves the grid and the extent it needs (along a periodic axis
+the body wraps around: nothing to leave). A body that never presses (its largest penetration or load
+<= 0) or has no surface over the grid is refused.
 """
 
 from __future__ import annotations
@@ -252,11 +253,12 @@ def check_touching(scene) -> None:
 
 def _edge_cells_reached(scene, depth: float, sx: float, sy: float) -> bool:
     """Whether the body at (sx, sy) interferes (lies below ``depth`` over its lowest point) with a cell
-    centre of the grid's edge rows or columns (line contact: its end strips): the solver's condition."""
+    centre of the grid's edge rows or columns (line contact: its end strips) along its non-periodic axes:
+    the solver's condition."""
     g = scene.grid
     x, y = g.x - sx, g.y - sy
-    points = [(x[[0, -1]][:, None], y[None, :])]
-    if not g.line:
+    points = [] if g.periodic[0] else [(x[[0, -1]][:, None], y[None, :])]
+    if not g.line and not g.periodic[1]:
         points.append((x[:, None], y[[0, -1]][None, :]))
     with np.errstate(all="ignore"):
         return any(bool(np.any(np.asarray(scene.body.height(px, py), dtype=float) < depth)) for px, py in points)
@@ -268,12 +270,15 @@ def path_leaves(scene, size: ContactSize, walked: Path, glassy: bool = True) -> 
     the extent the whole run needs); None if it never does. ``glassy``: the least region the run will
     need (under load control the glassy penetration), else the most it may (the rubbery one; a layer's
     bulge). Steps whose :func:`interference_box` comes within a cell of the edge cells are checked at the
-    edge cells' centres, as the solver does (a layer's box widened for its bulge is taken as it is)."""
+    edge cells' centres, as the solver does (a layer's box widened for its bulge is taken as it is). A
+    periodic axis has no edge: a body wraps around it; on a grid periodic along every axis, None."""
     g = scene.grid
+    if all(g.periodic[:1] if g.line else g.periodic):
+        return None
     depth, exact = interference_depth(scene, size, glassy)
     bx0, bx1, by0, by1 = interference_box(scene, size, walked, glassy)
-    axes = [("x", walked.sx + bx0, walked.sx + bx1, g.x0, g.x1, g.dx)]
-    if not g.line:
+    axes = [] if g.periodic[0] else [("x", walked.sx + bx0, walked.sx + bx1, g.x0, g.x1, g.dx)]
+    if not g.line and not g.periodic[1]:
         axes.append(("y", walked.sy + by0, walked.sy + by1, g.y0, g.y1, g.dy))
     near = np.zeros(len(walked.t), dtype=bool)
     for _, lo, hi, start, end, cell in axes:

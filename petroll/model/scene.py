@@ -19,9 +19,10 @@ import numpy as np
 
 from petroll.model import materials
 from petroll.model import motion
-from petroll.model.bodies import BODY_KEYS, Body, make_body
+from petroll.model.bodies import BODY_KEYS, Body, HeightMap, HeightProfile, make_body
 from petroll.errors import MISSING, SceneError
 from petroll.model.grid import Grid, line_grid
+from petroll.model.bodies.rough import PeriodicSurface
 
 TAO_TYPES = ("tron", "pk", "gpcg", "bntr", "bncg", "blmvm", "bqnls", "bnls", "bntl")
 """TAO's bound-constrained solvers that handle this QP (bqpip is left out: it needs finite upper bounds),
@@ -114,6 +115,20 @@ def _cells(value: Any) -> int:
     if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= MAX_CELLS_AXIS:
         raise _Invalid(f"must be an integer >= 1, at most {MAX_CELLS_AXIS} (2^24)")
     return int(value)
+
+
+PERIODIC_FORM = 'true (X and Y; a line-contact grid: X), false, or a list of axes: ["x"], ["y"], ["x", "y"]'
+"""What [grid] periodic may be written as."""
+
+
+def _periodic(value: Any) -> tuple[bool, bool]:
+    """[grid] periodic: (along X, along Y); a line-contact grid's true is (True, False) (parse_scene)."""
+    if isinstance(value, bool):
+        return (value, value)
+    if (isinstance(value, list) and value and len(set(map(str, value))) == len(value)
+            and all(v in ("x", "y") for v in value)):
+        return ("x" in value, "y" in value)
+    raise _Invalid(f"must be {PERIODIC_FORM}")
 
 
 def _interval(value: Any) -> tuple[float, float]:
@@ -305,6 +320,10 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "x": Key("[min, max]", "extent of the grid along X in the material frame", _interval, unit="m"),
         "y": Key("[min, max]", "extent of the grid along Y in the material frame (omitted: line contact)",
                  _interval, default=None, unit="m"),
+        "periodic": Key("bool or list", "the grid is one cell of a surface that repeats: " + PERIODIC_FORM
+                        + "; the influence operator is then periodic along those axes, a body's offsets "
+                        "wrap around, a height map of nx x ny samples at the grid's spacing is the periodic "
+                        "surface (docs/rough.md)", _periodic, default=False),
         "allow_coarse": Key("boolean", "run even with fewer than 2 cells per estimated contact half-width "
                             "(refused otherwise; below 8 a run warns: docs/accuracy.md)", _flag, default=False),
     },
@@ -366,17 +385,21 @@ SCHEMA: dict[str, dict[str, Key]] = {
                         default=[0.0, 0.0], unit="m/s"),
         "penetration": Key("number or program", "penetration delta of the body's lowest point below the "
                            "undeformed surface (displacement control; exactly one of penetration, load; not in line "
-                           "contact)",
+                           "contact unless periodic); on a periodic grid below the deformed surface's mean "
+                           "plane, the mean gap mean(Z) - delta > 0 (docs/rough.md)",
                            _program(vector=False, positive=False), default=None, unit="m"),
         "load": Key("number > 0 or program", "total normal force F (load control; exactly one of "
-                    "penetration, load); line contact: force per unit length, N/m", _program(vector=False, positive=True), default=None, unit="N"),
+                    "penetration, load); line contact: force per unit length, N/m; a periodic grid: the "
+                    "force on its cell (the mean pressure is load / cell area)",
+                    _program(vector=False, positive=True), default=None, unit="N"),
     },
     "time": {
         "mode": Key("string", '"transient" (march from the start in time steps) or "steady" (the steady '
                     "rolling state at constant velocity solved directly, one step: constant non-zero velocity "
-                    "along X or Y, constant penetration or load, a Prony/SLS/elastic material; takes "
+                    "along X or Y (a periodic grid: the steady sliding state, any direction along its "
+                    "periodic axes), constant penetration or load, a Prony/SLS/elastic material; takes "
                     "steps_per_cell or dt only, the integrator's step, default 1 step per cell; "
-                    'docs/rolling.md)', _choice("transient", "steady"), default="transient"),
+                    'docs/rolling.md, docs/rough.md)', _choice("transient", "steady"), default="transient"),
         "dt": Key("number > 0", "time step (or steps_per_cell); without [time]: one step at t = 0",
                   _positive, default=None, unit="s"),
         "steps_per_cell": Key("number > 0", "time step tied to the motion: dt = min(dx, dy) / (|V| "
@@ -541,22 +564,25 @@ def parse_scene(raw: dict, source: str = "<python>", base_dir: str | pathlib.Pat
 
     g = values["grid"]
     if line:
-        grid = line_grid(g["nx"], *g["x"])
+        if g["periodic"] == (False, True):
+            raise SceneError(source, "[grid] periodic", raw["grid"]["periodic"],
+                             'a line-contact grid repeats along X only: true or ["x"]')
+        grid = line_grid(g["nx"], *g["x"], periodic=g["periodic"][0])
     else:
         if g["nx"] * g["ny"] > MAX_CELLS:
             raise SceneError(source, "[grid] nx / ny", [g["nx"], g["ny"]], f"at most {MAX_CELLS} cells in "
                              "all (nx ny; PETSc's 32-bit indices)")
-        grid = Grid(g["nx"], g["ny"], *g["x"], *g["y"])
+        grid = Grid(g["nx"], g["ny"], *g["x"], *g["y"], periodic=g["periodic"])
     _check_cells(grid, raw["grid"], source)
     material = _material(values["material"], raw.get("material", {}), base_dir, source)
     material, shift_factor = _temperature(values["material"], raw.get("material", {}), material, source)
     for key in BODY_LENGTHS:
         if key in raw.get("body", {}) and (bad := out_of_scale(raw["body"][key])) is not None:
             raise SceneError(source, f"[body] {key}", raw["body"][key], _scale_message(bad, "m"))
-    body = make_body(raw.get("body", {}), base_dir, source, line=line, grid=grid)
+    body = periodic_body(make_body(raw.get("body", {}), base_dir, source, line=line, grid=grid), grid)
     m = values["motion"]
     if line:
-        _check_line_motion(m, raw.get("motion", {}), source)
+        _check_line_motion(m, raw.get("motion", {}), source, grid.periodic[0])
     if (m["penetration"] is None) == (m["load"] is None):
         given = {k: v for k, v in raw.get("motion", {}).items() if k in ("penetration", "load")}
         raise SceneError(source, "[motion] penetration / load", given or MISSING,
@@ -624,9 +650,10 @@ def _velocity_along_x(raw: dict) -> dict:
     return out
 
 
-def _check_line_motion(m: dict, table: dict, source: str) -> None:
-    """Line contact: load control only, motion along X only."""
-    if m["penetration"] is not None:
+def _check_line_motion(m: dict, table: dict, source: str, periodic: bool) -> None:
+    """Line contact: load control only (penetration too on a periodic grid, whose displacements are taken
+    from the deformed surface's mean plane), motion along X only."""
+    if m["penetration"] is not None and not periodic:
         raise SceneError(source, "[motion] penetration", table["penetration"], "not allowed in line contact "
                          "([grid] without ny and y): in plane strain the displacement of a half-space is "
                          "logarithmic and has no zero far away, so a penetration is defined only relative "
@@ -840,14 +867,26 @@ def _check_steps(scene: Scene) -> None:
 
 
 def _check_steady(scene: Scene) -> None:
-    """[time] mode = "steady": a constant, non-zero velocity along X or Y, a constant penetration or load
-    and a Prony (SLS, elastic) material; anything else refused naming its key."""
+    """[time] mode = "steady": a constant, non-zero velocity along X or Y (on a periodic grid: in any
+    direction along its periodic axes), a constant penetration or load and a Prony (SLS, elastic)
+    material; anything else refused naming its key."""
     raw, source = scene.raw.get("motion", {}), scene.source
-    velocity = scene.velocity
-    allowed = 'with [time] mode = "steady" it must be a constant non-zero [vx, 0] or [0, vy] (m/s)'
+    velocity, periodic = scene.velocity, scene.grid.periodic
+    value = np.asarray(getattr(velocity, "value", (0.0, 0.0)), dtype=float)
+    if all(periodic) or scene.grid.line and periodic[0]:
+        allowed = 'with [time] mode = "steady" it must be a constant non-zero [vx, vy] (m/s)'
+        wrong = not np.any(value)
+    elif any(periodic):
+        axis = 0 if periodic[0] else 1
+        allowed = (f'with [time] mode = "steady" on a grid periodic along {"xy"[axis]} only it must be a '
+                   f'constant non-zero {("[vx, 0]", "[0, vy]")[axis]} (m/s)')
+        wrong = value[axis] == 0 or value[1 - axis] != 0
+    else:
+        allowed = 'with [time] mode = "steady" it must be a constant non-zero [vx, 0] or [0, vy] (m/s)'
+        wrong = np.count_nonzero(value) != 1
     if not isinstance(velocity, motion.Constant):
         raise SceneError(source, "[motion] velocity", raw.get("velocity"), f"varies in time; {allowed}")
-    if np.count_nonzero(velocity.value) != 1:
+    if wrong:
         raise SceneError(source, "[motion] velocity", raw.get("velocity", [0.0, 0.0]), allowed)
     for key in ("penetration", "load"):
         if getattr(scene, key) is not None and not isinstance(getattr(scene, key), motion.Constant):
@@ -859,15 +898,38 @@ def _check_steady(scene: Scene) -> None:
                          '"transient")')
 
 
+def periodic_body(body: Body, grid: Grid) -> Body:
+    """On a periodic grid, a height map (a line-contact profile) of as many samples as the grid has cells,
+    at the grid's spacing, becomes the periodic surface through its samples (petroll.model.bodies.rough): with
+    the body at [body] position [0, 0], sample (i, j) on the centre of cell (i, j). Any other body as it is
+    (its offsets wrap around the periodic axes: Grid.offsets)."""
+    if not any(grid.periodic):
+        return body
+    if isinstance(body, HeightProfile):
+        heights, cell = np.repeat(body.heights[:, None], 4, axis=1), (body.cell, grid.dy)
+    elif isinstance(body, HeightMap):
+        heights, cell = body.heights, body.cell
+    else:
+        return body
+    if (heights.shape[0] != grid.nx or (not grid.line and heights.shape[1] != grid.ny)
+            or not np.allclose(cell, (grid.dx, grid.dy), rtol=1e-9, atol=0.0)
+            or not np.isfinite(heights).all()):
+        return body
+    return PeriodicSurface(heights, cell, (grid.x0 + grid.dx / 2, grid.y0 + grid.dy / 2))
+
+
 def _check_contact_inside(scene: Scene) -> None:
-    """Refuse a start whose rigid interference region reaches the grid's edge cells (displacement control)."""
+    """Refuse a start whose rigid interference region reaches the grid's edge cells (displacement control)
+    along an axis that does not repeat."""
     if scene.penetration is None:
         return  # load control: checked at each solve, once the penetration is known
     g, (sx, sy) = scene.grid, scene.position
     delta = float(scene.penetration(0.0))
-    edges = [(g.x[[0, -1]][:, None], g.y[None, :]), (g.x[:, None], g.y[[0, -1]][None, :])]
+    edges = [(g.x[[0, -1]][:, None], g.y[None, :])] if not g.periodic[0] else []
+    if not g.periodic[1] and not g.line:
+        edges.append((g.x[:, None], g.y[[0, -1]][None, :]))
     for x, y in edges:
-        if np.any(delta - scene.body.height(x - sx, y - sy) > 0):
+        if np.any(delta - scene.body.height(*g.offsets(x, y, sx, sy)) > 0):
             raise SceneError(scene.source, "[grid] x / y", [[g.x0, g.x1], [g.y0, g.y1]],
                              "must contain the contact region: the body interferes with the surface up to "
                              "the grid's edge; enlarge the grid or reduce [motion] penetration")

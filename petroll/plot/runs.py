@@ -1,5 +1,6 @@
 """Figures of a run's results.h5: pressure maps, patch outlines, series, the deformed surface (line contact:
-pressure profiles along X instead of maps and outlines; forces per unit length)."""
+pressure profiles along X instead of maps and outlines; forces per unit length), and on a periodic grid
+the contact islands with the pressure's spectrum."""
 
 from __future__ import annotations
 
@@ -18,9 +19,10 @@ MAX_PANELS = 4
 
 def plot_results(results_dir: str | pathlib.Path, out_dir: str | pathlib.Path | None = None,
                  times: Sequence[float] | None = None, fmt: str = "png") -> list[pathlib.Path]:
-    """Write pressure.png, patches.png and series.png for ``results_dir/results.h5``, and surface.png
-    when the run saved the surface displacement and gap ([output] fields); ``fmt`` (png, pdf, svg)
-    replaces the suffix.
+    """Write pressure.png, patches.png and series.png for ``results_dir/results.h5``, surface.png
+    when the run saved the surface displacement and gap ([output] fields), and islands.png for a run on a
+    periodic grid (the contact islands of the last saved field and the pressure's spectrum); ``fmt`` (png,
+    pdf, svg) replaces the suffix.
 
     ``out_dir`` defaults to ``results_dir/plots``; ``times`` (s) picks the saved pressure fields nearest to
     those times for pressure.png (default: up to 4 spread over the run). Returns the written paths.
@@ -50,6 +52,8 @@ def plot_results(results_dir: str | pathlib.Path, out_dir: str | pathlib.Path | 
                "patches": lambda: patches(results, label), "series": lambda: _series_figure(results, label)}
     if "displacement" in results.fields:
         figures["surface"] = lambda: _surface_figure(results, label)
+    if results.rough is not None:
+        figures["islands"] = lambda: _islands_figure(results, label)
     for name, figure in figures.items():
         target = out / f"{name}.{fmt}"
         figure().savefig(target, dpi=120)
@@ -267,6 +271,35 @@ def _patches_figure(results: Results, label: str):
                  f"{len(t_fields)} saved fields coloured by time", fontsize=10)
     mappable = matplotlib.cm.ScalarMappable(norm=norm, cmap=cmap)
     figure.colorbar(mappable, ax=ax, label="time t (s)")
+    return figure
+
+
+def _islands_figure(results: Results, label: str):
+    """The contact islands of the last saved field (cells sharing a side, joined around the periodic cell;
+    each island one colour) and the radially averaged spectrum of its pressure (results.h5 group rough)."""
+    import matplotlib
+
+    from petroll.solver.rough import contact_islands
+
+    p = results.pressure[-1]
+    islands, count = contact_islands(p > 0)
+    x, y = results.x * MM, results.y * MM
+    figure = constrained_figure(11, 5)
+    left, right = figure.subplots(1, 2, gridspec_kw={"width_ratios": [1.15, 1]})
+    colours = matplotlib.colormaps["tab20"](np.arange(20))
+    shade = np.where(islands[..., None] > 0, colours[(islands - 1) % 20], [1.0, 1.0, 1.0, 1.0])
+    left.imshow(np.transpose(shade, (1, 0, 2)), origin="lower", interpolation="nearest",
+                extent=(*cell_edges(x)[[0, -1]], *cell_edges(y)[[0, -1]]))
+    left.set(xlabel="X (mm)", ylabel="Y (mm)", aspect="equal")
+    fraction = float(results.rough["area_fraction"][-1])
+    left.set_title(f"{label}: {count} contact islands, {100 * fraction:.2f} % of the cell\n"
+                   f"(step {int(results.field_steps[-1])}; each island a colour)", fontsize=10)
+    q, spectrum = results.rough["q"][-1], results.rough["spectrum"][-1]
+    shown = np.isfinite(q) & (spectrum > 0)
+    right.loglog(q[shown], spectrum[shown], "o-", markersize=3)
+    right.set(xlabel="wavenumber q (rad/m)", ylabel="C(q) of the pressure (Pa$^2$ m$^2$)")
+    right.set_title("radially averaged power spectrum of the pressure", fontsize=10)
+    right.grid(alpha=0.3, which="both")
     return figure
 
 

@@ -32,7 +32,7 @@ from petroll.errors import SolverError
 from petroll.model.grid import Grid
 from petroll.model.scene import DEFAULT_TAO_TYPE, TAO_TYPES
 from petroll.solver.partition import RowPartition, move_rows
-from petroll.solver.influence import influence_operator, spare_cores
+from petroll.solver.influence import InfluenceOperator, influence_operator, spare_cores
 from petroll.solver.pk import PK_PYTHON_TYPE
 from petroll.solver.window_qp import WindowQP
 
@@ -60,22 +60,27 @@ class ContactSolver:
     Command-line options with that prefix (``-petroll_tao_type tron``, ``-petroll_tao_monitor``, ...)
     override the scene's settings; they never reach other solvers. ``-<prefix>fft_workers N``: FFT threads
     per rank (default: the rank's share of its node's cores, :func:`petroll.solver.influence.spare_cores`).
+    ``kernel``: the influence kernel (petroll/solver/kernels) instead of the grid's (a half-space's or
+    ``layer``'s).
     """
 
     def __init__(self, grid: Grid, comm: MPI.Comm, tao_type: str = DEFAULT_TAO_TYPE, tol: float = 1e-8,
                  prefix: str = "petroll_", max_iterations: int = 10000, precondition: bool = True,
-                 layer=None):
+                 layer=None, kernel=None):
         from petsc4py import PETSc
 
         self.grid, self.comm, self.tol, self.prefix = grid, comm, tol, prefix
         options = PETSc.Options(prefix)  # read once here and when a window shape's TAO is built
         self.tao_type, self.max_iterations = self._resolve_type(tao_type, prefix, options), max_iterations
         self.precondition = options.getBool("pc_circulant", precondition)
-        workers = options.getInt("fft_workers", spare_cores(comm))
-        if workers < 1:
-            raise SolverError(f"-{prefix}fft_workers {workers}: the FFT threads per rank must be >= 1")
-        self.influence = influence_operator(grid, comm, layer, workers)
-        self.lift = self.influence.lift_bound(grid.nx, grid.ny)  # upward displacement per unit pressure
+        self.workers = options.getInt("fft_workers", spare_cores(comm))
+        if self.workers < 1:
+            raise SolverError(f"-{prefix}fft_workers {self.workers}: the FFT threads per rank must be >= 1")
+        self.influence = (influence_operator(grid, comm, layer, self.workers) if kernel is None else
+                          InfluenceOperator(kernel, comm, self.workers))
+        self.periodic = self.influence.periodic  # the QP is posed on the whole (periodic) grid
+        # upward displacement per unit pressure (a periodic kernel's QP has no ring to check)
+        self.lift = None if self.periodic else self.influence.lift_bound(grid.nx, grid.ny)
         self.rows = RowPartition(grid.nx, comm.size)
         self.r0, self.r1 = self.rows.range(comm.rank)
         self.work = [0, 0]  # TAO iterations and operator applications of every QP solved so far
@@ -115,8 +120,17 @@ class ContactSolver:
     # -- displacement control ---------------------------------------------------------------------------
     def solve_penetration(self, height: np.ndarray, compliance: float, delta: float,
                           warm: np.ndarray | None = None) -> StepSolution:
-        """Pressure for a given penetration ``delta`` (m); ``height`` is h = Z + u on this rank's rows (m)."""
+        """Pressure for a given penetration ``delta`` (m); ``height`` is h = Z + u on this rank's rows (m).
+        On a periodic half-space (displacements from the deformed surface's mean plane) the mean gap
+        mean(h) - delta must be > 0 (SolverError otherwise: the pressure would grow without bound)."""
+        if self.influence.mean_free:
+            mean = self.comm.allreduce(float(height.sum())) / (self.grid.nx * self.grid.ny)
+            if not delta < mean:
+                raise SolverError(f"[motion] penetration: {delta:g} m leaves no mean gap on the periodic "
+                                  f"grid (the surface's mean height is {mean:g} m above its lowest point): "
+                                  "a penetration must be below it; full contact needs [motion] load")
         pressure, its, apps, residual, window, _ = self._solve_qp(delta - height, compliance, warm)
+        self._check_inside(pressure)
         force = self.comm.allreduce(float(pressure.sum())) * self.grid.cell_area
         return StepSolution(pressure, delta, force, its, apps, residual, window)
 
@@ -138,16 +152,21 @@ class ContactSolver:
                 raise SolverError(f"[motion] load: {load:g} N; must be >= 0 (a pulling load needs adhesion, "
                                   "which petroll does not model)")
             return StepSolution(np.zeros(self.local_shape), base, 0.0, 0, 0, 0.0, (0, 0, 0, 0))
+        ceiling = math.inf  # a periodic half-space's force grows without bound as delta -> mean(h)
+        if self.influence.mean_free:
+            ceiling = self.comm.allreduce(float(height.sum())) / (self.grid.nx * self.grid.ny)
         if delta_guess is None or delta_guess <= base:
             delta_guess = base + hertz_penetration(self.grid, compliance, load, radius_hint)
-        delta_guess = self._off_the_edge(height, base, delta_guess)
+        delta_guess = min(delta_guess, 0.5 * (base + ceiling))
+        if not self.periodic:
+            delta_guess = self._off_the_edge(height, base, delta_guess)
         if self.tao_type == "pk":
             if not reach > base:
                 raise BeyondReach(f"the load {load:g} N needs a penetration beyond {reach:g} m")
             if warm is None:
                 warm = self.hertz_pressure(height, compliance, load, radius_hint, min(delta_guess, reach))
             return self._load_in_pk(height, compliance, load, min(delta_guess, reach), warm, reach)
-        power = 1.0 if self.grid.line else 2 / 3
+        power = 1.0 if self.grid.line or self.periodic else 2 / 3
         rtol = 10 * self.tol
         iterations = applications = 0
         lo = hi = None  # bracketing (delta, phi) pairs with phi < 0 and phi > 0
@@ -159,8 +178,7 @@ class ContactSolver:
             applications += step.applications
             step.iterations, step.applications = iterations, applications
             if abs(step.force / load - 1) <= rtol:
-                if self.grid.line:
-                    self._check_inside(step.pressure)
+                self._check_inside(step.pressure)
                 return step
             warm = step.pressure
             phi = (step.force / load) ** power - 1
@@ -176,6 +194,8 @@ class ContactSolver:
                 candidate = delta - phi * (delta - previous[0]) / (phi - previous[1])
             if lo is not None and hi is not None and not (lo[0] < candidate < hi[0]):
                 candidate = 0.5 * (lo[0] + hi[0])
+            if candidate >= ceiling:
+                candidate = 0.5 * (delta + ceiling)
             if candidate > reach:
                 if delta >= reach:
                     raise BeyondReach(f"the load {load:g} N needs a penetration beyond {reach:g} m")
@@ -189,7 +209,7 @@ class ContactSolver:
         """The penetration guess ``delta`` (m), halved towards the lowest height ``base`` until the cells it
         interferes with stay off the grid's edge: a guess from the body's radius hint overshoots where the
         surface is not the sphere it hints at (a textured or rough map), and only the contact found must
-        fit on the grid."""
+        fit on the grid. Not for a periodic grid, whose QP has no window and no edge to reach."""
         for _ in range(60):
             box = self._box(delta - height > 0)
             if box is None or not self._at_edge(box):
@@ -201,8 +221,10 @@ class ContactSolver:
                         delta: float) -> np.ndarray:
         """Hertz's pressure (Pa) for ``load`` on a sphere (line contact: a cylinder, N/m) of ``radius`` (m)
         centred on the centroid of the interference delta - height > 0 (m): a cold start for load control
-        (this rank's rows; symmetric where the body is)."""
+        (this rank's rows; symmetric where the body is). On a periodic grid: :meth:`summits_pressure`."""
         g = self.grid
+        if self.periodic:
+            return self.summits_pressure(height, load)
         w = np.maximum(delta - height, 0.0)
         sums = np.array([w.sum(), (w.sum(axis=1) * g.x[self.r0 : self.r1]).sum(), (w.sum(axis=0) * g.y).sum()])
         self.comm.Allreduce(MPI.IN_PLACE, sums, op=MPI.SUM)
@@ -217,6 +239,29 @@ class ContactSolver:
             r2 = x**2 + (g.y[None, :] - centre[1]) ** 2
             p0 = 3 * load / (2 * math.pi * a * a)
         return p0 * np.sqrt(np.clip(1 - r2 / (a * a), 0.0, None))
+
+    SUMMITS = 0.05
+    """The fraction of a periodic grid's cells a cold start under load control loads (:meth:`summits_pressure`)."""
+
+    def summits_pressure(self, height: np.ndarray, load: float) -> np.ndarray:
+        """A cold start for load control on a periodic grid (Pa, this rank's rows): the interference
+        d - height over the SUMMITS fraction of the cells that stand highest (d found by bisection on that
+        count), scaled to ``load`` (N). Measured on rough surfaces at 512^2: the first QP takes 5x fewer
+        applications than from a uniform pressure, whose every cell must leave the contact."""
+        g, comm = self.grid, self.comm
+        extremes = np.array([-height.min(initial=np.inf), height.max(initial=-np.inf)])
+        comm.Allreduce(MPI.IN_PLACE, extremes, op=MPI.MAX)
+        lo, hi = -extremes[0], extremes[1]
+        target = self.SUMMITS * g.nx * g.ny
+        for _ in range(60):
+            mid = 0.5 * (lo + hi)
+            if comm.allreduce(int(np.count_nonzero(height < mid))) < target:
+                lo = mid
+            else:
+                hi = mid
+        w = np.maximum(hi - height, 0.0)
+        total = comm.allreduce(float(w.sum()))
+        return w * (load / (g.cell_area * total)) if total > 0 else np.full(w.shape, load / (g.cell_area * g.nx * g.ny))
 
     def _load_in_pk(self, height: np.ndarray, compliance: float, load: float, delta: float,
                     warm: np.ndarray | None, reach: float) -> StepSolution:
@@ -236,8 +281,7 @@ class ContactSolver:
             if needed is None or (window[0] <= needed[0] and needed[1] <= window[1] and window[2] <= needed[2]
                                   and needed[3] <= window[3]):
                 force = self.comm.allreduce(float(pressure.sum())) * self.grid.cell_area
-                if self.grid.line:
-                    self._check_inside(pressure)
+                self._check_inside(pressure)
                 return StepSolution(pressure, found, force, iterations, applications, residual, window)
             # a window too small concentrates the pressure: the penetration found overshoots; halve the
             # step while its interference would reach the grid's edge
@@ -264,6 +308,8 @@ class ContactSolver:
         beyond a clear ring touching would need the bulge to rise faster than the body's profile away from
         the contact; the thin incompressible layer's contact, 41 % wider than the interference region, is
         found this way: tests/test_layer.py.)"""
+        if self.periodic:
+            return self._solve_window(interference, compliance, warm, None, load)
         candidates = interference > 0
         if (not self.influence.positive and warm is not None
                 and self.comm.allreduce(bool(candidates.any()), op=MPI.LOR)):
@@ -338,13 +384,16 @@ class ContactSolver:
                       candidates: np.ndarray, load: float | None):
         grid, comm = self.grid, self.comm
         pressure = np.zeros(self.local_shape)
-        window = self._window(candidates, 0 if self.influence.positive or not grid.line else self.GROW)
+        if self.periodic:
+            window = (0, grid.nx, 0, grid.ny)
+        else:
+            window = self._window(candidates, 0 if self.influence.positive or not grid.line else self.GROW)
         if window is None:
             return pressure, 0, 0, 0.0, (0, 0, 0, 0), 0.0
         i0, i1, j0, j1 = window
         grid_ranges, window_ranges = self._box_ranges(i0, i1)
         target = move_rows(interference[:, j0:j1], grid_ranges, window_ranges, comm)
-        w_ref = comm.allreduce(float(target.max(initial=0.0)), op=MPI.MAX)
+        w_ref = self._scale(target)
         diagonal = self.influence.diagonal
         to_pressure = w_ref / (compliance * diagonal)  # p = to_pressure * p_hat
 
@@ -366,6 +415,17 @@ class ContactSolver:
                               f"-{self.prefix}tao_type or a larger [solver] tol")
         self._put_box(pressure, p_window, window)
         return pressure, its, applications, residual, window, multiplier * w_ref
+
+    def _scale(self, target: np.ndarray) -> float:
+        """w_ref (m), the QP's unit of gap: the largest interference (``target``, this rank's window rows),
+        on a periodic grid (where contact can be made at negative interference) its range (or |its
+        largest value| for a flat one; 1 for none)."""
+        extremes = np.array([target.max(initial=-np.inf), -target.min(initial=np.inf)])
+        self.comm.Allreduce(MPI.IN_PLACE, extremes, op=MPI.MAX)
+        if not self.periodic:
+            return max(float(extremes[0]), 0.0)
+        spread = float(extremes[0] + extremes[1])
+        return spread if spread > 0 else abs(float(extremes[0])) or 1.0
 
     def convolve_box(self, field: np.ndarray, box: tuple[int, int, int, int]) -> np.ndarray:
         """A ``field`` with the Love coefficients (A field, m per unit of field), sources and results both
@@ -400,17 +460,28 @@ class ContactSolver:
         return qp
 
     def _check_inside(self, pressure: np.ndarray) -> None:
-        """Line contact: SolverError if the contact (p > 0) reaches an end strip of the grid.
+        """SolverError if the contact (p > 0) reaches an end row or column of the grid along a
+        non-periodic axis, where the QP is posed on the whole grid's length: line contact, and grids
+        periodic along one axis only (nothing to check where the QP has a window, or every axis repeats).
 
         In plane strain the rigid interference delta - Z - u exceeds J A p > 0 wherever A p is, and A p
         (logarithmic) spreads over the whole grid, so the interference region is wider than the contact
         (by about sqrt(ln(2 L/a) + 1/2) for Hertz, L the datum): the contact itself is what must fit."""
         g = self.grid
+        if g.line and not g.periodic[0]:
+            ends = [i - self.r0 for i in (0, g.nx - 1) if self.r0 <= i < self.r1]
+            touching = self.comm.allreduce(bool(np.any(pressure[ends] > 0)), op=MPI.LOR)
+            if touching:
+                raise SolverError(f"[grid]: the contact reaches an end of the grid (X = {g.x0:g} or "
+                                  f"{g.x1:g}); enlarge [grid] x or reduce the load")
+        if g.line or not self.periodic or all(g.periodic):
+            return
         ends = [i - self.r0 for i in (0, g.nx - 1) if self.r0 <= i < self.r1]
-        touching = self.comm.allreduce(bool(np.any(pressure[ends] > 0)), op=MPI.LOR)
-        if touching:
-            raise SolverError(f"[grid]: the contact reaches an end of the grid (X = {g.x0:g} or {g.x1:g}); "
-                              "enlarge [grid] x or reduce the load")
+        edges = pressure[ends] if g.periodic[1] else pressure[:, [0, g.ny - 1]]
+        if self.comm.allreduce(bool(np.any(edges > 0)), op=MPI.LOR):
+            axis, (a, b) = ("x", (g.x0, g.x1)) if g.periodic[1] else ("y", (g.y0, g.y1))
+            raise SolverError(f"[grid]: the contact reaches the grid's edge along {axis} ({a:g} or {b:g}), "
+                              f"which does not repeat; enlarge [grid] {axis} or reduce the load")
 
     def _box(self, candidates: np.ndarray) -> tuple[int, int, int, int] | None:
         """Bounding box [i0, i1) x [j0, j1) of the candidate cells over all ranks; None when there are none."""

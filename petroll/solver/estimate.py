@@ -3,24 +3,28 @@ Richardson extrapolation (``petroll run --estimate-error``, ``petroll.run(scene,
 docs/accuracy.md).
 
 The coarser grids cover the scene's extent with cells 2x (4x) as long along each axis, shifted so that the
-body starts at the same fraction of a cell from a cell centre as on the fine grid (3-D); where the scene's
-steps follow the cell (``steps_per_cell``, and the steady solve's time step) the step grows with the cell,
-a fixed ``dt`` stays. They run to the fine run's last
-time without the steady stop, so that all grids compare the same instant. For each quantity q of the
-last step, with f1, f2, f4 its values on the fine, 2x and 4x grids:
+body starts at the same fraction of a cell from a cell centre as on the fine grid; in 3-D the 2x grid is
+solved twice, the second time shifted by half its cell along X and Y, and the two are averaged (a 3-D
+answer depends on where the contact's edges fall in their cells: one coarse alignment alone can happen to
+agree with the fine grid, or not). Where the scene's steps follow the cell (``steps_per_cell``, and the
+steady solve's time step) the step grows with the cell, a fixed ``dt`` stays. They run to the fine run's
+last time without the steady stop, so that all grids compare the same instant. For each quantity q of the
+last step, with f1 its fine value, f2 the 2x grids' (mean; s half their spread) and f4 the 4x grid's:
 
-- three grids: where the differences d1 = f2 - f1 and d2 = f4 - f2 have one sign and the observed order
-  p = log2(d2 / d1) lies within a factor 2 of the known one, p is used; otherwise the grids are not in the
-  asymptotic range and no error is given (nan): a sign change, or an order far from the method's, says the
-  error is not yet a power of the cell (d1 = 0, the two finer grids agree: the error is the floor below);
-- two grids: the method's known order for q (:data:`KNOWN_ORDER`);
-- extrapolated = f1 - d1 / (2^p - 1); the error of the fine value |d1| / (2^q - 1) with q = min(p, the
-  known order) (an observed order above the known one is not trusted to shrink the bound); for what counts
-  cells at least its quantisation (:func:`_floor`: half a cell for the patch edges lead and trail, a quarter
-  cell times the perimeter for the area).
+- d1 = f2 - f1, d2 = f4 - f2. Where the 4x grid was solved (it keeps at least ``THIRD_GRID_CELLS`` cells
+  per contact half-width; in line contact ``SIGN_CELLS``) and d2 does not have d1's sign and a larger
+  size, the grids are not in the asymptotic range: no error and no extrapolated value (nan), rather than a
+  false bound;
+- the order p: observed, log2(d2 / d1), where the 4x grid resolves the contact (``THIRD_GRID_CELLS``) and
+  that lies within a factor 2 of the method's known order (:data:`KNOWN_ORDER`; else not asymptotic);
+  otherwise the known order;
+- extrapolated = f1 - d1 / (2^p - 1); the error of f1 is (|d1| + s) / (2^q - 1) with q = min(p, the known
+  order) (an observed order above the known one does not shrink the bound); d1 = 0 on three grids (the
+  finer grids agree): s / 3, nothing extrapolated.
 
-The 4x grid is used where it still has ``THIRD_GRID_CELLS`` cells per contact half-width (estimated,
-petroll.model.preflight): a grid coarser than that is outside the asymptotic range and its order misleads.
+What counts cells (the area, the patch edges lead and trail) moves by whole cells, not by a power of the
+cell: it is not extrapolated, and its error is the larger of its 2x grids' difference and its quantisation
+(:func:`quantised`, :func:`_floor`).
 """
 
 from __future__ import annotations
@@ -40,15 +44,26 @@ from petroll.solver.simulation import Simulation, StepRecord
 QUANTITIES = ("force", "mu_r", "p_max", "area", "lead", "trail")
 """The last step's values an estimate covers (plus the penetration ``delta`` under load control)."""
 
-KNOWN_ORDER = {"force": 2.0, "mu_r": 1.0, "p_max": 2.0, "delta": 2.0, "area": 1.0, "lead": 1.0, "trail": 1.0}
-"""The order in the cell size taken for each quantity's error with two grids: 2 for the force, the
-penetration and the peak pressure (the integrals and values of the piecewise-constant pressure on Love's
-rectangles), 1 for mu_r (its resisting force weighs the contact's edges, which move by whole cells: measured
-orders 1.2 to 3 between successive grids, so the lower bound is taken) and for what counts cells (the area,
-the patch edges). Measured: docs/accuracy.md."""
+KNOWN_ORDER = {"force": 2.0, "mu_r": 2.0, "p_max": 2.0, "delta": 2.0}
+"""The order in the cell size taken for each quantity's error where it is not observed: 2 for the force,
+the penetration, mu_r and the peak pressure (the integrals and values of the piecewise-constant pressure
+on Love's rectangles, and the second-order time integrator with the step following the cell; measured
+orders between successive grids 1.1 to 2.4 around 10 cells per half-width, docs/accuracy.md)."""
+
+COUNTED = ("area", "lead", "trail")
+"""What counts cells (the contact area, the patch edges): a value that moves by whole cells, not by a
+power of the cell; :func:`quantised`."""
 
 THIRD_GRID_CELLS = 4.0
-"""Cells per contact half-width the 4x coarser grid must keep for its values to be used."""
+"""Cells per contact half-width the 4x coarser grid must keep for the order observed on it to be used."""
+
+SIGN_CELLS = 2.0
+"""In line contact, cells per contact half-width the 4x coarser grid must keep to be solved at all (below,
+the run itself would be refused); from here to THIRD_GRID_CELLS it checks the asymptotic range only (its
+order misleads). In 3-D such a grid is not solved: where the contact's edges cross its cells along two axes
+its values scatter with the alignment more than they trend (on the sphere as a height map at 3 cells per
+half-width its mu_r has the other sign of error than the 2x grids', whose estimate is within 1.3 of the
+true error)."""
 
 
 @dataclass(frozen=True)
@@ -69,33 +84,40 @@ class QuantityEstimate:
         return not math.isnan(self.error)
 
 
-def richardson(values: tuple[float, ...], known: float, floor: float = 0.0,
-               shifted: float | None = None) -> QuantityEstimate:
-    """The estimate from a quantity's values on grids 1x, 2x (and 4x) coarse (see the module's text);
-    ``floor``: the least error reported (half a cell for a cell edge); ``shifted``: the value on the 2x grid
-    shifted by half its cell: the two 2x values' mean is extrapolated, the larger difference bounds."""
-    scale = 1e-12 * max(abs(v) for v in values)  # differences below it are round-off: none
-    f1 = values[0]
-    f2 = values[1] if shifted is None else 0.5 * (values[1] + shifted)
-    spread = 0.0 if shifted is None else 0.5 * abs(values[1] - shifted)
-    d1 = f2 - f1 if abs(f2 - f1) > scale else 0.0
-    observed = len(values) > 2
+def richardson(fine: float, twice: tuple[float, ...], four: float | None, known: float,
+               observe: bool = True) -> QuantityEstimate:
+    """The estimate from a quantity's ``fine`` value, its values on the 2x coarser grid (``twice``: one, or
+    two alignments: their mean is extrapolated, half their spread added to the error) and on the 4x grid
+    (``four``; None: not solved); ``known``: the method's order; ``observe``: the order is observed on the 4x grid (else that grid checks the
+    asymptotic range only). See the module's text."""
+    coarse = tuple(twice) + (() if four is None else (four,))
+    scale = 1e-12 * max(abs(v) for v in (fine,) + coarse)  # differences below it are round-off: none
+    f2 = float(np.mean(twice))
+    spread = 0.5 * (max(twice) - min(twice))
+    d1 = f2 - fine if abs(f2 - fine) > scale else 0.0
+    observed = four is not None and observe
     order = known
-    if observed:
-        d2 = values[2] - f2 if abs(values[2] - f2) > scale else 0.0
-        if d1 == 0:
-            order = math.nan  # the fine grids agree: nothing to extrapolate
-        elif d1 * d2 > 0 and abs(d2) > abs(d1) and known / 2 <= math.log2(d2 / d1) <= 2 * known:
+    if four is not None:
+        d2 = four - f2 if abs(four - f2) > scale else 0.0
+        if d1 == 0:  # the finer grids agree: nothing to extrapolate
+            return QuantityEstimate(fine, fine, spread / (2**known - 1), math.nan, observed, coarse)
+        if not (d1 * d2 > 0 and abs(d2) > abs(d1)):
+            return QuantityEstimate(fine, math.nan, math.nan, math.nan, observed, coarse)
+        if observe:
             order = math.log2(d2 / d1)
-        else:
-            return QuantityEstimate(f1, math.nan, math.nan, math.nan, True, tuple(values[1:]))
-    coarse = tuple(values[1:]) + (() if shifted is None else (shifted,))
-    if d1 == 0 and spread == 0:
-        return QuantityEstimate(f1, f1, floor, order, observed, coarse)
-    trusted = known if math.isnan(order) else min(order, known)
-    extrapolated = f1 - d1 / (2**order - 1) if d1 else f1
-    return QuantityEstimate(f1, extrapolated, max((abs(d1) + spread) / (2**trusted - 1), floor), order,
+            if not known / 2 <= order <= 2 * known:
+                return QuantityEstimate(fine, math.nan, math.nan, order, True, coarse)
+    trusted = min(order, known)
+    extrapolated = fine - d1 / (2**order - 1)
+    return QuantityEstimate(fine, extrapolated, (abs(d1) + spread) / (2**trusted - 1), order,
                             observed, coarse)
+
+
+def quantised(fine: float, twice: tuple[float, ...], floor: float) -> QuantityEstimate:
+    """The estimate of what counts cells (:data:`COUNTED`): not extrapolated (its value jumps by cells),
+    its error the larger of the 2x grids' farthest difference from ``fine`` and its quantisation
+    ``floor``; order 1 (the cell's size)."""
+    return QuantityEstimate(fine, fine, max(max(abs(v - fine) for v in twice), floor), 1.0, False, tuple(twice))
 
 
 def _aligned(start: float, end: float, cell: float, count: int, factor: int, at: float,
@@ -118,14 +140,15 @@ def coarser(scene: Scene, factor: int, end: float | None, shift: float = 0.0) ->
     coarse grid is shifted (by less than a coarse cell) so that the body starts at the same fraction of a
     cell from a cell centre on every grid: the error that depends on that fraction (an alignment the grids
     would not share) is not taken for a discretisation error; ``shift``: moved by that many more coarse
-    cells along each axis. In line contact the grid is not shifted: its length is the penetration's datum."""
+    cells along each axis. In line contact the grid is not shifted: its length is the penetration's datum.
+    The solver's tolerance is :func:`coarse_tol`."""
     g, (sx, sy) = scene.grid, scene.position
     if g.line:  # the grid's length is the datum of the penetration (line-contact.md): kept, not shifted
-        nx = math.ceil(g.nx / factor)
-        nx, x = nx, [g.x0, g.x0 + nx * factor * g.dx]
+        nx = math.ceil(g.nx / factor)  # (grown by less than a coarse cell where nx is not a multiple)
+        x = [g.x0, g.x0 + nx * factor * g.dx]
     else:
         nx, x = _aligned(g.x0, g.x1, g.dx, g.nx, factor, sx, shift)
-    changes = {"grid.nx": nx, "grid.x": x}
+    changes = {"grid.nx": nx, "grid.x": x, "solver.tol": coarse_tol(scene.solver.tol)}
     if not g.line:
         ny, y = _aligned(g.y0, g.y1, g.dy, g.ny, factor, sy, shift)
         changes.update({"grid.ny": ny, "grid.y": y})
@@ -134,15 +157,23 @@ def coarser(scene: Scene, factor: int, end: float | None, shift: float = 0.0) ->
     return scene.replace(changes)
 
 
+def coarse_tol(tol: float) -> float:
+    """The coarser grids' solver tolerance: 100 times the scene's, at most 1e-6 (never looser than the
+    scene's). The values compared differ by 1e-5 to 1e-2 of themselves between the grids; a solve to 1e-6
+    moves them by about 1e-7 of themselves (runs/sphere.toml's 2x grid: mu_r by 4e-7, the force by 4e-8)
+    and takes a quarter fewer operator applications."""
+    return max(tol, min(100 * tol, 1e-6))
+
+
 def last_values(record: StepRecord, quantities: tuple[str, ...]) -> dict[str, float]:
     return {name: float(getattr(record, name)) for name in quantities}
 
 
 def _floor(scene: Scene, fine: StepRecord, name: str) -> float:
-    """The least error of a quantity that counts cells: half a cell along the motion for the patch edges
-    (cell edges), a quarter of a cell times the contact's perimeter for its area (line contact: its two
-    edges; 3-D: the perimeter of a disc of that area), the mean error of edges that fall anywhere in their
-    cells; 0 for the others."""
+    """The least error of a quantity that counts cells (m, m^2): half a cell along the motion for the patch
+    edges (the most a cell edge is off an edge inside its cell), a quarter of a cell times the contact's
+    perimeter for its area (the mean offset of edges that fall anywhere in their cells, over the perimeter:
+    line contact its two edges, 3-D that of a disc of that area); 0 for the others."""
     g = scene.grid
     along = g.dx if g.line or abs(fine.sx - scene.position[0]) >= abs(fine.sy - scene.position[1]) else g.dy
     if name in ("lead", "trail"):
@@ -164,33 +195,37 @@ class ErrorEstimate:
 
 
 def estimate_error(scene: Scene, fine: StepRecord, comm: MPI.Comm = MPI.COMM_WORLD) -> ErrorEstimate:
-    """Solve ``scene`` on the 2x (and, where it resolves the contact, 4x) coarser grids to the time of the
-    fine run's last record ``fine`` and estimate the error of that record's values (collective). A coarse
-    run that fails (its contact at the coarser grid's edge) leaves ``failed`` set, no quantities."""
+    """Solve ``scene`` on the 2x (and, where it still has THIRD_GRID_CELLS cells per contact half-width,
+    in line contact SIGN_CELLS, 4x) coarser grids to the time of the fine run's last record ``fine`` and estimate the error of that
+    record's values (collective). A 2x run that fails (its contact at the coarser grid's edge) leaves
+    ``failed`` set and no quantities; a 4x run that fails is left out."""
     began = clock.perf_counter()
     g = scene.grid
     timed = scene.time.mode != "steady" and (scene.time.dt is not None or scene.time.steps_per_cell is not None)
     end = fine.t if timed and fine.t > 0 else None
-    factors = [2, 4] if min(check(scene).cells) >= 4 * THIRD_GRID_CELLS else [2]
+    cells = min(check(scene).cells) / 4  # on the 4x grid
     names = QUANTITIES + (("delta",) if scene.penetration is None else ())
-    values = {name: [v] for name, v in last_values(fine, names).items()}
-    shifted = {}
     found = ErrorEstimate(grids=[(g.nx, g.ny)])
-    runs = [(2, 0.0)] + ([] if g.line else [(2, 0.5)]) + ([(4, 0.0)] if 4 in factors else [])
+    solved: dict[tuple[int, float], dict[str, float]] = {}
+    fourth = cells >= (SIGN_CELLS if g.line else THIRD_GRID_CELLS)
+    runs = [(2, 0.0)] + ([] if g.line else [(2, 0.5)]) + ([(4, 0.0)] if fourth else [])
     for factor, shift in runs:
         coarse = coarser(scene, factor, end, shift)
         try:
             record = list(Simulation(coarse, comm).steps())[-1]
         except PetrollError as exc:
+            if factor == 4:
+                break
             found.failed = f"the grid {factor}x coarser ({coarse.grid.nx} x {coarse.grid.ny}) failed: {exc}"
-            found.wall_s = clock.perf_counter() - began
+            found.wall_s = comm.allreduce(clock.perf_counter() - began, op=MPI.MAX)
             return found
         found.grids.append((coarse.grid.nx, coarse.grid.ny))
-        for name, v in last_values(record, names).items():
-            (shifted.__setitem__(name, v) if shift else values[name].append(v))
-    for name in names:
-        found.quantities[name] = richardson(tuple(values[name]), KNOWN_ORDER[name], _floor(scene, fine, name),
-                                            shifted.get(name))
+        solved[factor, shift] = last_values(record, names)
+    for name, value in last_values(fine, names).items():
+        twice = tuple(v[name] for (factor, _), v in solved.items() if factor == 2)
+        four = solved[4, 0.0][name] if (4, 0.0) in solved else None
+        found.quantities[name] = (quantised(value, twice, _floor(scene, fine, name)) if name in COUNTED else
+                                  richardson(value, twice, four, KNOWN_ORDER[name], observe=cells >= THIRD_GRID_CELLS))
     found.wall_s = comm.allreduce(clock.perf_counter() - began, op=MPI.MAX)
     return found
 

@@ -236,6 +236,41 @@ def make_history(material, integrator: str, local_shape: tuple[int, int], guard:
     return history
 
 
+# -- the integrator as a linear state machine ---------------------------------------------------------------
+def state_space(material, integrator: str, dt: float):
+    """(h0, s1, M, c): the integrator ``integrator`` for a Prony ``material`` at steps of dt (s) as a
+    linear, time-invariant state machine on one material point. A pressure p over a step gives W = h0 p
+    (1/Pa, h0 = J_eff) and, from rest, the state s1 p; a step at p = 0 maps a state s to M s and gives
+    W = c s. s1, M and c are measured by steps of the integrator itself from every basis state at once
+    (one cell each); (h0, None, None, None) for a material without memory (elastic). Guarded like a run's
+    history (SolverError at a step the integrator cannot hold)."""
+    history = make_history(material, integrator, (1, 1))
+    h0 = history.compliance(dt)
+    history.advance(np.ones((1, 1)), dt)
+    if history.preceding(dt) is None:
+        return h0, None, None, None
+    after = np.array([f[0, 0] for f in history.state()])  # s1, just after a unit pulse
+    d = len(after)
+    history.load_state([row.reshape(1, d).copy() for row in np.eye(d)])  # cell j holds the state e_j
+    c = history.preceding(dt)[0].copy()
+    history.advance(np.zeros((1, d)), dt)
+    return h0, after, np.array([f[0] for f in history.state()]), c  # M: column j = M e_j
+
+
+def transfer(material, integrator: str, dt: float, z: np.ndarray) -> np.ndarray:
+    """H(z) = sum_s h[s] z^-s (1/Pa): the steady response W_n = H(z) p_n of the integrator (steps of dt)
+    to a pressure p_n = z^n (|z| = 1: oscillating at the angular frequency arg(z) / dt), h the pulse
+    response of :func:`state_space`: h0 + c (z I - M)^-1 s1. As dt -> 0 at a fixed frequency it tends to
+    the complex compliance J*(omega) (Prony.complex_compliance)."""
+    h0, after, M, c = state_space(material, integrator, dt)
+    z = np.asarray(z, dtype=complex)
+    if after is None:
+        return np.full(z.shape, h0, dtype=complex)
+    eigen, vectors = np.linalg.eig(M)  # M is diagonalisable (distinct decay rates): c V (z - L)^-1 V^-1 s1
+    left, right = c @ vectors, np.linalg.solve(vectors, after)
+    return h0 + (left * right / (z[..., None] - eigen)).sum(axis=-1)
+
+
 # -- the holding test ---------------------------------------------------------------------------------------
 def holding_response(material, integrator: str, dt: float, steps: int = 40) -> np.ndarray:
     """Pressures (Pa) of one cell (unit influence) held at a unit displacement in pressure space from a

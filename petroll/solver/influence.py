@@ -65,22 +65,33 @@ class Convolution:
     ``coefficients=None`` builds no kernel: the instance then gives the padded transforms only
     (:meth:`forward`, :meth:`backward`, :meth:`kernel_spectrum`), e.g. for kernels that are not even
     (petroll/solver/stress.py).
+
+    ``coefficients`` may also be a :class:`petroll.solver.kernels.periodic.Spectral` kernel of an nx x ny
+    grid: along its Fourier axes the transforms are not padded (length n: a periodic convolution) and its
+    values are the spectrum there; along the others, as above. ``diagonal`` is then the mean of the
+    spectrum over all frequencies (the coefficient at offset 0), and with ``inverse`` (the whole grid:
+    no torus) the spectrum is floored at its smallest positive value (a half-space's k = 0 value is 0),
+    so that C^-1 is symmetric positive definite and the exact inverse on every other frequency.
     """
 
-    def __init__(self, coefficients: np.ndarray | None, nx: int, ny: int, comm: MPI.Comm = MPI.COMM_SELF,
+    def __init__(self, coefficients, nx: int, ny: int, comm: MPI.Comm = MPI.COMM_SELF,
                  inverse: bool = False, workers: int = 1, torus: tuple[int, int] | None = None):
         self.nx, self.ny, self.comm, self.workers = nx, ny, comm, workers
+        self.fourier = getattr(coefficients, "fourier", (False, False))
         if inverse:
             self.lx, self.ly = torus or (nx, ny)
         else:  # padded lengths: >= 2n - 1 (no wrap-around), rounded up to fast FFT sizes
-            self.lx = scipy.fft.next_fast_len(2 * nx - 1)
-            self.ly = scipy.fft.next_fast_len(2 * ny - 1, real=True)
+            self.lx = nx if self.fourier[0] else scipy.fft.next_fast_len(2 * nx - 1)
+            self.ly = ny if self.fourier[1] else scipy.fft.next_fast_len(2 * ny - 1, real=True)
         self.kx, self.ky = (self.lx, self.ly) if inverse else (nx, ny)  # the kernel's offsets are below these
         self.cost = fft_cost(self.lx * self.ly, self.lx * self.ly)  # of one application (fft_work)
         self.rows = RowPartition(nx, comm.size)
         self.freqs = RowPartition(self.ly // 2 + 1, comm.size)  # Y-frequencies, split after transposing
         self.r0, self.r1 = self.rows.range(comm.rank)
         if coefficients is None:
+            return
+        if any(self.fourier):
+            self._spectral(coefficients, inverse)
             return
         if callable(coefficients):
             rows_of = coefficients
@@ -94,30 +105,52 @@ class Convolution:
             floor = comm.allreduce(float(self.spectrum.max(initial=0.0)), op=MPI.MAX) * 1e-12
             self.spectrum = 1.0 / np.maximum(self.spectrum, floor)
 
-    def kernel_spectrum(self, kernel) -> np.ndarray:
+    def _spectral(self, kernel, inverse: bool) -> None:
+        """The spectrum of a kernel with Fourier axes (class docstring), and its diagonal."""
+        spectrum = self.kernel_spectrum(kernel.values, kernel.fourier)
+        weights = np.full(self.ly // 2 + 1, 2.0)  # each rfft frequency counts for itself and its mirror
+        weights[0] = 1.0
+        if self.ly % 2 == 0:
+            weights[-1] = 1.0
+        f0, f1 = self.freqs.range(self.comm.rank)
+        total = self.comm.allreduce(float((spectrum.real * weights[f0:f1]).sum()))
+        self.diagonal = total / (self.lx * self.ly)
+        self.spectrum = spectrum.real if kernel.even else spectrum
+        if inverse:
+            floor = self.comm.allreduce(float(np.min(self.spectrum, initial=np.inf,
+                                                     where=self.spectrum > 0)), op=MPI.MIN)
+            self.spectrum = 1.0 / np.maximum(self.spectrum, floor)
+
+    def kernel_spectrum(self, kernel, fourier: tuple[bool, bool] = (False, False)) -> np.ndarray:
         """The lx x ly DFT of a kernel given at signed cell offsets, for this rank's Y-frequencies.
 
         ``kernel(ox, oy)`` returns the kernel at integer offsets (target minus source cell; broadcast
         arrays with |ox| < nx, |oy| < ny; an inverse's on a torus: every offset of the torus), or a stack
         of kernels (m, ...); they are zero beyond those offsets. The spectrum (or the stack of m spectra)
-        is complex in general, real for an even kernel. Collective.
+        is complex in general, real for an even kernel. ``fourier``: along those axes the kernel is
+        given at DFT frequency indices instead (signed along X, 0 ... ly/2 along Y) and not transformed; a
+        complex kernel (Fourier along X, real space along Y) is transformed along Y at the non-negative
+        frequencies only (the operator's output is real: the others are their conjugates').
+        Collective.
         """
         padded_rows = RowPartition(self.lx, self.comm.size)
         k0, k1 = padded_rows.range(self.comm.rank)
         offsets_x = _wrapped_offsets(self.lx)[k0:k1]
-        offsets_y = _wrapped_offsets(self.ly)
-        rows = np.flatnonzero(np.abs(offsets_x) < self.kx)
-        cols = np.flatnonzero(np.abs(offsets_y) < self.ky)
-        inside = np.asarray(kernel(offsets_x[rows, None], offsets_y[None, cols]), dtype=float)
+        offsets_y = np.arange(self.ly // 2 + 1) if fourier[1] else _wrapped_offsets(self.ly)
+        rows = np.arange(k1 - k0) if fourier[0] else np.flatnonzero(np.abs(offsets_x) < self.kx)
+        cols = np.arange(len(offsets_y)) if fourier[1] else np.flatnonzero(np.abs(offsets_y) < self.ky)
+        inside = np.asarray(kernel(offsets_x[rows, None], offsets_y[None, cols]))
+        inside = inside.astype(complex if np.iscomplexobj(inside) else float)
         lead = inside.shape[:-2]
         stack = inside.reshape((int(np.prod(lead)), len(rows), len(cols)))
         spectra = []
         for block in stack:
-            values = np.zeros((k1 - k0, self.ly))
+            values = np.zeros((k1 - k0, len(offsets_y)), dtype=block.dtype)
             values[np.ix_(rows, cols)] = block
-            half = scipy.fft.rfft(values, axis=1, workers=self.workers)
+            half = values if fourier[1] else _half_transform(values, self.workers)
             columns = rows_to_columns(half, padded_rows, self.freqs, self.comm)
-            spectra.append(scipy.fft.fft(columns, axis=0, overwrite_x=True, workers=self.workers))
+            spectra.append(columns if fourier[0] else
+                           scipy.fft.fft(columns, axis=0, overwrite_x=True, workers=self.workers))
         return np.stack(spectra).reshape(lead + spectra[0].shape)
 
     def forward(self, x: np.ndarray) -> np.ndarray:
@@ -137,6 +170,15 @@ class Convolution:
         spectrum = self.forward(x)
         spectrum *= self.spectrum
         return self.backward(spectrum)
+
+
+def _half_transform(values: np.ndarray, workers: int) -> np.ndarray:
+    """The DFT along axis 1 at its non-negative frequencies (0 ... n/2) of real or complex rows (a complex
+    row's: the real part's plus i times the imaginary part's)."""
+    if not np.iscomplexobj(values):
+        return scipy.fft.rfft(values, axis=1, workers=workers)
+    return (scipy.fft.rfft(values.real, axis=1, workers=workers)
+            + 1j * scipy.fft.rfft(values.imag, axis=1, workers=workers))
 
 
 def spare_cores(comm: MPI.Comm) -> int:
@@ -165,6 +207,10 @@ class InfluenceOperator:
     kept for blocks up to ``TABLE_CELLS`` cells; a larger block's kernel, where the kernel computes any
     rows directly (Love's), is computed for the rows each rank needs, so that no rank holds a table of a
     whole large grid. :func:`influence_operator` picks a grid's.
+
+    A periodic kernel (petroll.solver.kernels.periodic; ``periodic`` True) is applied on its whole grid
+    only (its windows are the grid: ``window(kernel.nx, kernel.ny)``), unpadded along its periodic axes,
+    and has no row-sum bounds.
     """
 
     TABLE_CELLS = 1 << 20
@@ -174,7 +220,10 @@ class InfluenceOperator:
         self.kernel, self.comm, self.workers = kernel, comm, workers
         self.dx, self.dy = kernel.dx, kernel.dy
         self.positive = kernel.positive  # every coefficient > 0 (a layer's are not: its surface bulges)
-        self._table = kernel.table(1, 1)
+        self.periodic = any(getattr(kernel, "fourier", (False, False)))
+        # a periodic kernel without a k = 0 response: displacements are taken from their mean plane
+        self.mean_free = all(getattr(kernel, "fourier", (False, False))) and float(kernel.values(0, 0)) == 0
+        self._table = None if self.periodic else kernel.table(1, 1)
         self._windows: dict[tuple[int, int], Convolution] = {}
 
     def coefficients(self, nx: int, ny: int) -> np.ndarray:
@@ -184,6 +233,8 @@ class InfluenceOperator:
     @property
     def diagonal(self) -> float:
         """A_ii, the displacement at a loaded cell's own centre per unit pressure (unit compliance)."""
+        if self.periodic:
+            return self.window(self.kernel.nx, self.kernel.ny).diagonal
         return float(self._table[0, 0])
 
     kept = 12
@@ -195,7 +246,12 @@ class InfluenceOperator:
         on the torus of :meth:`pc_torus`."""
         key = (nx, ny, inverse)
         conv = self._windows.pop(key, None)
-        if conv is None:
+        if conv is None and self.periodic:
+            if (nx, ny) != (self.kernel.nx, self.kernel.ny):
+                raise ValueError(f"a periodic kernel applies to its whole grid ({self.kernel.nx} x "
+                                 f"{self.kernel.ny} cells), not to a {nx} x {ny} block")
+            conv = Convolution(self.kernel, nx, ny, self.comm, inverse, self.workers)
+        elif conv is None:
             torus = self.pc_torus(nx, ny) if inverse else None
             table = self.table_rows(*(torus or (nx, ny)))
             conv = Convolution(table, nx, ny, self.comm, inverse, self.workers, torus)

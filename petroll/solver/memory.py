@@ -33,7 +33,7 @@ import scipy.fft
 from mpi4py import MPI
 
 from petroll.solver.fft_work import fft_cost, tally
-from petroll.solver.history import make_history
+from petroll.solver.history import state_space
 from petroll.solver.partition import RowPartition, columns_to_rows, move_rows, rows_to_columns
 
 
@@ -43,11 +43,10 @@ def pulse_response(material, integrator: str, dt: float, steps: int) -> np.ndarr
     The history is guarded: a step at which the integrator cannot hold a penetration is refused
     (SolverError), as in a transient run.
 
-    The integrator is a linear state machine: after the pulse (state S_1) a step at p = 0 maps the state
-    S to M S and outputs W = c S. M and c are measured by one step of the integrator itself from every
-    basis state at once (a field of d cells); then h[1 + j K + r] = (c M^r) (M^K)^j S_1 for r < K ~
-    sqrt(steps): about 2 sqrt(steps) products of d x d matrices instead of ``steps`` integrator steps."""
-    h0, after, c, M = _state_machine(material, integrator, dt)
+    The integrator is a linear state machine (petroll.solver.history.state_space): after the pulse (state
+    S_1) a step at p = 0 maps the state S to M S and outputs W = c S; h[1 + j K + r] = (c M^r) (M^K)^j S_1
+    for r < K ~ sqrt(steps): about 2 sqrt(steps) products of d x d matrices instead of ``steps`` integrator steps."""
+    h0, after, M, c = state_space(material, integrator, dt)
     h = np.zeros(steps)
     h[0] = h0
     rest = steps - 1
@@ -74,27 +73,11 @@ def memory_steps(material, integrator: str, dt: float, tol: float) -> float:
     matrix (the slowest mode's decay per step: exp(-dt / tau) for the exponential and paper integrators,
     tau the longest creep time; a little slower for the relaxation integrator at steps beyond tau); 1 for
     a material without memory; infinite if it never decays."""
-    M = _state_machine(material, integrator, dt)[3]
+    M = state_space(material, integrator, dt)[2]
     rho = 0.0 if M is None else float(np.abs(np.linalg.eigvals(M)).max(initial=0.0))
     if rho == 0.0:
         return 1
     return 2 + math.ceil(math.log(tol) / math.log(rho)) if rho < 1.0 else math.inf
-
-
-def _state_machine(material, integrator: str, dt: float):
-    """(h[0], S_1, c, M) of :func:`pulse_response`'s state machine; S_1, c, M None without memory."""
-    history = make_history(material, integrator, (1, 1))
-    h0 = history.compliance(dt)
-    history.advance(np.ones((1, 1)), dt)
-    if history.preceding(dt) is None:
-        return h0, None, None, None
-    after = np.array([f[0, 0] for f in history.state()])  # S_1, just after the pulse
-    d = len(after)
-    history.load_state([row.reshape(1, d).copy() for row in np.eye(d)])  # cell j holds the state e_j
-    c = history.preceding(dt)[0].copy()
-    history.advance(np.zeros((1, d)), dt)
-    M = np.array([f[0] for f in history.state()])  # column j = M e_j
-    return h0, after, c, M
 
 
 def memory_kernel(h: np.ndarray, c: float, cells: int) -> np.ndarray:

@@ -83,6 +83,22 @@ def shift_field(local: np.ndarray, di: int, dj: int, rows: RowPartition, comm) -
     return out
 
 
+def roll_field(local: np.ndarray, di: int, dj: int, rows: RowPartition, comm) -> np.ndarray:
+    """The distributed field of a periodic grid moved by (di, dj) cells: out[i, j] = field[(i - di) mod nx,
+    (j - dj) mod ny]. ``local`` holds this rank's rows of ``rows``."""
+    n = rows.n
+    ranges = [rows.range(r) for r in range(comm.size)]
+    parts = []
+    for first in (True, False):  # the source rows of each rank, before and after they wrap past row n - 1
+        wanted = []
+        for a, b in ranges:
+            start, cut = (a - di) % n, b - a
+            split = min(cut, n - start)  # rows from start up to n, then from 0
+            wanted.append((start, start + split) if first else (0, cut - split))
+        parts.append(move_rows(local, ranges, wanted, comm))
+    return np.roll(np.concatenate(parts), dj, axis=1)
+
+
 def rows_to_columns(a: np.ndarray, rows: RowPartition, cols: RowPartition, comm) -> np.ndarray:
     """Local rows (all columns) -> all rows of the local columns (an all-to-all transpose)."""
     if comm.size == 1:

@@ -21,7 +21,9 @@ from mpi4py import MPI
 from petroll.solver.contact import BeyondReach, ContactSolver
 from petroll.errors import SceneError
 from petroll.solver.history import make_history
-from petroll.solver.steady import SteadySolve
+from petroll.solver.rough import RoughOutputs, radial_spectrum, spectrum_edges
+from petroll.solver.sliding import SteadySliding
+from petroll.solver.steady import SteadySolve, steady_step
 from petroll.model.clock import step_length
 from petroll.model.scene import Scene
 from petroll.solver.wake import Wake
@@ -96,7 +98,8 @@ class Simulation:
         the steady state solved directly (:meth:`solve_steady`).
         """
         if self.scene.time.mode == "steady":
-            record = self.solve_steady(tol=self.scene.solver.tol)
+            periodic = any(self.scene.grid.periodic)
+            record = (self.solve_sliding if periodic else self.solve_steady)(tol=self.scene.solver.tol)
             self.t, self.dt_next = 0.0, None
             yield record
             return
@@ -131,7 +134,7 @@ class Simulation:
         scene, solver = self.scene, self.solver
         start = clock.perf_counter()
         sx, sy = np.asarray(scene.position) + scene.velocity.integral(t)
-        profile = scene.body.height(self.x - sx, self.y - sy)
+        profile = scene.body.height(*scene.grid.offsets(self.x, self.y, sx, sy))
         v = self.history.preceding(dt)
         compliance = self.history.compliance(dt)
         warm = self.warm.guess(sx, sy)
@@ -187,6 +190,58 @@ class Simulation:
         self.records.append(record)
         return record
 
+    def solve_sliding(self, tol: float = 1e-10, max_iterations: int = 500,
+                      start: tuple[np.ndarray, float] | None = None) -> StepRecord:
+        """The constant-velocity steady state on a periodic grid solved directly (petroll.solver.sliding),
+        recorded as step 0 at t = 0 with the body at [body] position (velocity, load or penetration taken
+        at t = 0, constant: the scene checks this for [time] mode = "steady"). The memory is the scene's
+        integrator at its time step: dt from [time] dt or steps_per_cell (default 1 step per cell), so that
+        with one step per cell crossed along X or Y this is the state the transient run converges to.
+        ``tol``: the fixed point's largest change of the pressure between iterations, relative to its
+        peak, at which it stops. ``start``: a first guess (the whole grid's pressure, Pa, and its
+        penetration, m; default ``self.steady_start``). Its iterations are kept in
+        ``self.fixed_point_iterations``. Collective."""
+        scene, g = self.scene, self.scene.grid
+        began = clock.perf_counter()
+        velocity, dt = steady_step(scene)
+        speed = float(np.hypot(*velocity))
+        sliding = SteadySliding(scene, self.comm, self.solver.influence.kernel, velocity, dt)
+        sx, sy = scene.position
+        profile = scene.body.height(*g.offsets(self.x, self.y, sx, sy))
+        start = start if start is not None else self.steady_start
+        if start is not None:
+            start = (np.asarray(start[0], dtype=float).reshape(g.nx, g.ny)[self.solver.r0 : self.solver.r1],
+                     start[1])
+        solution, w = sliding.solve(profile, tol, max_iterations, start)
+        self.fixed_point_iterations = sliding.iterations
+        self.direction = velocity / speed
+        self.pressure = solution.pressure
+        self._newest = (profile, w, None, solution.delta)
+        record = self._diagnose(0, 0.0, sx, sy, solution, velocity, 0.0, clock.perf_counter() - began)
+        self.records.append(record)
+        return record
+
+    def rough_outputs(self) -> RoughOutputs:
+        """The newest solved step's contact fraction, mean gap (m) and pressure spectrum on a 3-D grid
+        periodic along both axes (petroll.solver.rough). The mean displacement is the kernel's k = 0
+        response to the mean of its source (0 on a half-space: displacements from the mean plane); a
+        steady solve's w is averaged. Collective; RuntimeError for a restored step not solved since."""
+        if self._newest is None:
+            raise RuntimeError("no solved step: the surface of a restored step is not kept")
+        g, p = self.scene.grid, self.pressure
+        profile, v, compliance, delta = self._newest
+        if compliance is None:  # a steady solve: v is w
+            source, scale = v, 1.0
+        else:
+            source = compliance * p if v is None else compliance * p + v
+            scale = float(self.solver.influence.kernel.values(0, 0))
+        sums = np.array([np.count_nonzero(p > 0), profile.sum(), source.sum()], dtype=float)
+        self.comm.Allreduce(MPI.IN_PLACE, sums, op=MPI.SUM)
+        cells = g.nx * g.ny
+        conv = self.solver.influence.window(g.nx, g.ny)
+        q, spectrum, modes = radial_spectrum(conv, p, g, spectrum_edges(g))
+        return RoughOutputs(sums[0] / cells, (sums[1] + scale * sums[2]) / cells - delta, q, spectrum, modes)
+
     def surface(self) -> tuple[np.ndarray, np.ndarray]:
         """The newest solved step's surface displacement w (m, positive into the half-space) and gap
         g = Z + w - delta (m) on this rank's rows. w = J_eff A p + A v is the whole displacement at that
@@ -223,7 +278,7 @@ class Simulation:
 
     def _diagnose(self, n, t, sx, sy, solution, velocity, distance, elapsed) -> StepRecord:
         g, comm, p = self.scene.grid, self.comm, solution.pressure
-        x, y = self.x - sx, self.y - sy
+        x, y = g.offsets(self.x, self.y, sx, sy)
         slope_x, slope_y = self.scene.body.slope(x, y)
         d = self.direction
         along = x * d[0] + y * d[1]

@@ -37,6 +37,21 @@ MEMORY_STEPS = 2**24
 times over while it is made); more only with a time step far below the material's relaxation times."""
 
 
+def steady_step(scene) -> tuple[np.ndarray, float]:
+    """The constant velocity (m/s, taken at t = 0) of a steady solve and its integrator's step dt (s): [time]
+    dt, else the time to cross a cell over [time] steps_per_cell (default 1). SceneError for a material
+    that is not a Prony series or a zero velocity."""
+    if not isinstance(scene.material, Prony):
+        raise SceneError(scene.source, "[material] model", "tabulated",
+                         'the direct steady solve needs a Prony series: use [time] mode = "transient"')
+    velocity = np.asarray(scene.velocity(0.0), dtype=float)
+    speed = float(np.hypot(*velocity))
+    if speed == 0:
+        raise SceneError(scene.source, "[motion] velocity", list(velocity),
+                         "the steady solve needs a non-zero velocity")
+    return velocity, scene.time.dt or scene.grid.cell / ((scene.time.steps_per_cell or 1.0) * speed)
+
+
 class SteadySolve:
     """The steady state of ``scene`` at its constant velocity, by the fixed point of the module docstring,
     with the contact ``solver`` (its grid rows, TAO objects and operator); collective over its comm.
@@ -54,20 +69,16 @@ class SteadySolve:
 
     def __init__(self, scene, solver, tol: float, steady: float | None = None):
         self.scene, self.solver, self.comm, self.tol, self.steady = scene, solver, solver.comm, tol, steady
-        g, material = scene.grid, scene.material
-        if not isinstance(material, Prony):
-            raise SceneError(scene.source, "[material] model", "tabulated",
-                             'the direct steady solve needs a Prony series: use [time] mode = "transient"')
-        velocity = np.asarray(scene.velocity(0.0), dtype=float)
+        g = scene.grid
+        velocity, dt = steady_step(scene)
         self.speed = speed = float(np.hypot(*velocity))
         axis = 0 if abs(velocity[1]) == 0 else 1
-        if speed == 0 or abs(velocity[1 - axis]) > 0:
+        if abs(velocity[1 - axis]) > 0:
             raise SceneError(scene.source, "[motion] velocity", list(velocity),
                              "the steady solve needs a non-zero velocity along X or Y")
         self.direction = velocity / speed
         sign = 1 if velocity[axis] > 0 else -1
         cell = g.dx if axis == 0 else g.dy
-        dt = scene.time.dt or g.cell / ((scene.time.steps_per_cell or 1.0) * speed)
         self.x, self.y = g.x[solver.r0 : solver.r1, None], g.y[None, :]
         sx, sy = scene.position
         self.profile = scene.body.height(self.x - sx, self.y - sy)

@@ -17,7 +17,9 @@ track's length:
   reach - Z is below that bound cannot be in contact at a penetration <= reach (exact).
 
 u is computed on the bounding box of both (its sides rounded up to multiples of ``QUANTUM`` cells, so
-that few kernel shapes are built) and is zero outside it, where no cell can touch.
+that few kernel shapes are built) and is zero outside it, where no cell can touch. On a periodic grid
+(a kernel with negative coefficients everywhere but at its centre, every cell a candidate) u is computed
+on the whole grid.
 """
 
 from __future__ import annotations
@@ -36,14 +38,17 @@ class Wake:
     def __init__(self, solver, cutoff: float):
         self.solver, self.cutoff = solver, cutoff
         g = solver.grid
-        self.row_sum = solver.influence.row_sum_bound(g.nx, g.ny)
-        self.lift = solver.influence.lift_bound(g.nx, g.ny)
+        self.whole = solver.influence.periodic  # a periodic kernel's u is computed on the whole grid
+        self.row_sum = None if self.whole else solver.influence.row_sum_bound(g.nx, g.ny)
+        self.lift = None if self.whole else solver.influence.lift_bound(g.nx, g.ny)
         self.boxes = 0
 
     def displacement(self, v: np.ndarray, profile: np.ndarray, reach: float) -> np.ndarray:
         """u = A v (m; this rank's rows) where it matters for a penetration <= ``reach`` (m) of a body of
         rigid heights ``profile`` (m, this rank's rows); see the module docstring for the error bound."""
         comm, g = self.solver.comm, self.solver.grid
+        if self.whole:
+            return self.solver.influence.window(g.nx, g.ny)(v)
         extremes = np.array([np.abs(v).max(initial=0.0), (-v).max(initial=0.0), v.max(initial=0.0)])
         comm.Allreduce(MPI.IN_PLACE, extremes, op=MPI.MAX)
         largest, negative, positive = extremes

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from petroll.solver.partition import shift_field
+from petroll.solver.partition import roll_field, shift_field
 
 DEPTH = 3
 """Solutions per lag that the extrapolation uses."""
@@ -82,6 +82,14 @@ class WarmStart:
         return (di, dj) if abs(fx - di) <= _WHOLE and abs(fy - dj) <= _WHOLE else None
 
     def _carry(self, pressure: np.ndarray, cells: tuple[int, int]) -> np.ndarray:
+        """``pressure`` moved by ``cells``, around along a periodic grid's repeating axes."""
         if cells == (0, 0):
             return pressure
+        periodic = self.grid.periodic
+        if any(periodic):  # wrap along the periodic axes first, then shift along the others
+            pressure = roll_field(pressure, cells[0] * periodic[0], cells[1] * periodic[1], self.rows,
+                                  self.comm)
+            cells = (cells[0] * (not periodic[0]), cells[1] * (not periodic[1]))
+            if cells == (0, 0):
+                return pressure
         return shift_field(pressure, cells[0], cells[1], self.rows, self.comm)

@@ -197,18 +197,24 @@ def append(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, side: int = 512, 
 
 def _mpirun(k: int, args: list[str]) -> dict:
     """This module's child (``args``) under ``mpirun -n k``; its JSON line."""
+    return mpirun_child(k, "petroll.studies.bench_memory", args, "bench memory")
+
+
+def mpirun_child(k: int, module: str, args: list[str], what: str) -> dict:
+    """``python -m module args DIR`` under ``mpirun -n k`` (DIR a temporary directory, removed after):
+    its last line, JSON. PetrollError naming ``what`` if it fails."""
     env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
                OMPI_MCA_btl_vader_single_copy_mechanism="none")
     where = tempfile.mkdtemp(prefix="petroll-bench-")
     command = ["mpirun", "-n", str(k), *(["--oversubscribe"] if k > (os.cpu_count() or 1) else []),
-               sys.executable, "-m", "petroll.studies.bench_memory", *args, where]
+               sys.executable, "-m", module, *args, where]
     try:
         done = subprocess.run(command, env=env, capture_output=True, text=True)
     finally:
         shutil.rmtree(where, ignore_errors=True)
     if done.returncode != 0:
         tail = " ".join((done.stderr or done.stdout).strip().splitlines()[-3:])
-        raise PetrollError(f"bench memory: mpirun -n {k} failed (exit {done.returncode}): {tail}")
+        raise PetrollError(f"{what}: mpirun -n {k} failed (exit {done.returncode}): {tail}")
     return json.loads(done.stdout.strip().splitlines()[-1])
 
 

@@ -2,7 +2,8 @@
 
 ``--quick`` runs every verb at the smallest sizes that still go through all of its code paths and write all
 of its files, in seconds: a check that the benchmark runs (from an install, in the docs test); it
-measures nothing. ``bench peers --quick`` runs petroll's own solver only, so it installs nothing.
+measures nothing. ``bench peers --quick`` runs petroll's own solver only and ``bench periodic --quick``
+leaves Tamaas out, so neither installs anything.
 """
 
 from __future__ import annotations
@@ -14,7 +15,7 @@ from mpi4py import MPI
 from petroll.errors import PetrollError
 
 VERBS = ("tao", "warm", "skips", "peers", "precision", "growth", "mpi", "memory", "append", "layer", "steady",
-         "steady-growth", "estimate", "accuracy")
+         "steady-growth", "estimate", "accuracy", "periodic", "sliding")
 
 QUICK = {
     "tao": dict(repeats=1, cells_per_radius=(6,), load_cells=48, rolling_distance=0.1e-3),
@@ -32,6 +33,8 @@ QUICK = {
     "steady-growth": dict(grids=((64, 32),), repeats=1),
     "estimate": dict(factors=(1,), repeats=1),
     "accuracy": dict(scenes=("roller-2d.toml",), factors=(0.5,), reference=2.0),
+    "periodic": dict(sides=(32,), repeats=1, tamaas_sides=()),
+    "sliding": dict(cells=32, curve_cells=32, points=2),
 }
 """Keyword arguments of each verb's function under ``--quick``."""
 
@@ -40,12 +43,17 @@ def run(which: str, out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, quick: b
         ranks: tuple[int, ...] | None = None, sides: tuple[int, ...] | None = None, steady: bool = False):
     """Run benchmark ``which`` (one of :data:`VERBS`) writing into ``out``; ``ranks`` (mpi, memory),
     ``sides`` and ``steady`` (memory) as on the command line. Returns the benchmark's rows."""
-    if ranks is not None and which not in ("mpi", "memory"):
-        raise PetrollError(f"petroll bench {which}: --ranks applies to petroll bench mpi and memory only")
-    if sides is not None and which != "memory":
-        raise PetrollError(f"petroll bench {which}: --sides applies to petroll bench memory only")
+    if ranks is not None and which not in ("mpi", "memory", "sliding"):
+        raise PetrollError(f"petroll bench {which}: --ranks applies to petroll bench mpi, memory and sliding "
+                           "only")
+    if sides is not None and which not in ("memory", "sliding"):
+        raise PetrollError(f"petroll bench {which}: --sides applies to petroll bench memory and sliding only")
     if steady and which != "memory":
         raise PetrollError(f"petroll bench {which}: --steady applies to petroll bench memory only")
+    if which == "sliding" and (ranks or sides):  # memory and time per rank of the rough sliding solve
+        from petroll.studies import bench_rough
+
+        return bench_rough.scale(out, sides or bench_rough.SCALE_SIDES, ranks or (1, 2))
     options = dict(QUICK[which]) if quick else {}
     if ranks is not None:
         options["ranks"] = ranks
@@ -68,6 +76,10 @@ def _function(which: str):
         from petroll.studies.peers.bench import peers
 
         return peers
+    if which in ("periodic", "sliding"):
+        from petroll.studies import bench_rough
+
+        return {"periodic": bench_rough.periodic, "sliding": bench_rough.sliding}[which]
     if which in ("estimate", "accuracy"):
         from petroll.studies import accuracy
 

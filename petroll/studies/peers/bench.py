@@ -107,7 +107,7 @@ def _rows(out: pathlib.Path, problems, cells, repeats: int, target: float, solve
     runs = [(name, "zero") for name in solvers if name != "petroll"]
     if "petroll" in solvers:
         runs = [*runs, ("petroll", "zero"), ("petroll", "hertz")]  # after the peers: held to their error
-    python = {name: sys.executable if name == "petroll" else _peers_python() for name, _ in runs}
+    python = {name: sys.executable if name == "petroll" else peers_python() for name, _ in runs}
     rows = []
     with tempfile.TemporaryDirectory() as scratch:
         where = pathlib.Path(scratch)
@@ -115,14 +115,14 @@ def _rows(out: pathlib.Path, problems, cells, repeats: int, target: float, solve
         for name in problems:
             for n in cells:
                 write_problem(name, n, problem)
-                _run(sys.executable, "petroll", [problem, "hertz", reference, "1e-12"])
+                peer_process(sys.executable, "petroll", [problem, "hertz", reference, "1e-12"])
                 done = {}
                 for solver, start in runs:
                     bound = min([target, *(float(r["difference"]) for r in done.values())])
                     bound = bound if (solver, start) == ("petroll", "zero") else target
-                    found = _run(python[solver], solver, [problem, start, field, *map(str, TOLERANCES),
+                    found = peer_process(python[solver], solver, [problem, start, field, *map(str, TOLERANCES),
                                                           "--reference", reference, "--target", bound])
-                    timed = [_run(python[solver], solver, [problem, start, field, found["tol"]])
+                    timed = [peer_process(python[solver], solver, [problem, start, field, found["tol"]])
                              for _ in range(repeats)]
                     for r in timed:  # the process up to its first answer: less the second solve it then timed
                         r["cold_s"] -= r["warm_s"]
@@ -147,8 +147,8 @@ def _rows(out: pathlib.Path, problems, cells, repeats: int, target: float, solve
     return rows
 
 
-def _run(python: str, name: str, args: list) -> dict:
-    """One whole run of ``solve_<name>.py``: its JSON answer, with the process's wall time as cold_s."""
+def peer_process(python: str, name: str, args: list) -> dict:
+    """One whole run of ``solve_<name>.py`` (this package's) with ``python``: its JSON answer, with the process's wall time as cold_s."""
     script = importlib.resources.files("petroll.studies.peers") / f"solve_{name}.py"
     with importlib.resources.as_file(script) as path:
         start = time.perf_counter()
@@ -180,7 +180,7 @@ def _plot(rows: list[dict], path: pathlib.Path) -> None:
     save_figure(figure, path)
 
 
-def _peers_python() -> str:
+def peers_python() -> str:
     """The Python of .venv-peers, created on first use; installs whichever peer it lacks (pip, PyPI).
 
     Tamaas and ContactMechanics share it: both install from wheels against numpy 2 (checked with pip check).
