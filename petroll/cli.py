@@ -351,18 +351,22 @@ def _main(args: argparse.Namespace, comm) -> int:
 
 def estimate_line(estimate: dict) -> str:
     """The summary's lines on results.h5's error_estimate group: a heading naming the grids, then each
-    quantity's value +- its discretisation error, or why it has none."""
+    quantity's value +- its discretisation error (with the order where it was observed), or why it has
+    none."""
     group = estimate[""]
     if group.get("failed"):
         return f"petroll: no error estimate: {group['failed']}"
     grids = ", ".join(f"{nx} x {ny}" for nx, ny in group["grids"])
-    lines = [f"petroll: error estimate of the last step (grids {grids}):"]
+    lines = [(f"petroll: error estimate of the last step (grids {grids}; orders the method's, 2 and 1 for "
+              "what counts cells, unless observed):")]
     for name in ("force", "delta", "mu_r", "p_max", "area", "lead", "trail"):
         if name in estimate:
             q = estimate[name]
+            observed = (f", observed order {q['order']:.2f}" if q["observed_order"] and math.isfinite(q["order"])
+                        else "")
             lines.append(f"  {name} {q['value']:.4e} " + (
                 "(the grids are not in the asymptotic range: no estimate)" if math.isnan(q["error"]) else
-                f"+- {q['error']:.1e} (discretisation)"))
+                f"+- {q['error']:.1e} (discretisation{observed})"))
     return "\n".join(lines)
 
 

@@ -58,6 +58,23 @@ def test_a_coarse_fourth_grid_checks_the_range_only():
     assert not q.observed and q.order == 2.0 and q.error == pytest.approx(0.1, rel=1e-12)
 
 
+def test_a_difference_within_the_alignments_spread_takes_the_known_order():
+    """The 2x grids' mean 50 from the fine value, their spread +-650 (runs/hertz.toml's peak pressure): d1
+    is noise, so would be the order from the 4x grid (5.9 here): the known order bounds (50 + 650) / 3."""
+    q = richardson(379420.0, (378719.0, 380020.0), 376433.0, known=2.0)
+    assert not q.observed and q.order == 2.0
+    assert q.error == pytest.approx((abs(0.5 * (378719 + 380020) - 379420) + 650.5) / 3, rel=1e-12)
+
+
+def test_values_that_agree_to_round_off_have_no_error():
+    """mu_r of a symmetric contact, 0 on the fine grid and round-off on the coarser ones (runs/hertz.toml:
+    1.8e-18 and 0 on its 2x grids): an error of 0, not a sign change between round-offs."""
+    for twice, four in (((1.8e-18, 0.0), 0.0), ((1.8e-18,), -5e-19)):
+        q = richardson(0.0, twice, four, known=2.0, round_off=1e-15)
+        assert q.error == 0 and q.extrapolated == 0
+    assert math.isnan(richardson(0.0, (1.8e-18,), -5e-19, known=2.0).error)  # without: a false alarm
+
+
 def test_what_counts_cells_is_bounded_not_extrapolated():
     q = quantised(0.5, (0.6, 0.45), floor=0.01)
     assert q.extrapolated == 0.5 and q.error == pytest.approx(0.1)
@@ -77,7 +94,8 @@ def test_a_run_with_its_estimate_writes_the_group_and_the_summary_lines(comm, sh
     scene = roller()
     results = petroll.run(scene, comm, out=shared_dir / "api", estimate_error=True)
     found = results.error_estimate
-    assert [tuple(g) for g in found[""]["grids"]] == [(184, 1), (92, 1), (46, 1)] and found[""]["failed"] == ""
+    assert [tuple(g) for g in found[""]["grids"]] == [(184, 1), (92, 1), (46, 1)]
+    assert found[""]["failed"] == ""
     t_end = float(results.series["t"][-1])
     twice, four = (list(Simulation(coarser(scene, k, t_end), comm).steps())[-1] for k in (2, 4))
     assert twice.t == pytest.approx(t_end, rel=1e-12) and four.t == pytest.approx(t_end, rel=1e-12)
@@ -102,7 +120,26 @@ def test_a_run_with_its_estimate_writes_the_group_and_the_summary_lines(comm, sh
     if comm.rank == 0:
         mu = found["mu_r"]
         assert f"\n  mu_r {mu['value']:.4e} +- {mu['error']:.1e} (discretisation)\n" in out
-        assert "error estimate of the last step (grids 184 x 1, 92 x 1, 46 x 1):" in out
+        assert "error estimate of the last step (grids 184 x 1, 92 x 1, 46 x 1; orders the method's" in out
+
+
+def test_where_the_4x_grid_resolves_the_contact_its_order_is_observed(comm, shared_dir):
+    """runs/roller-2d.toml at 2x its strips (17.5 cells per half-width; the 4x grid 4.4): the penetration's,
+    mu_r's and the peak pressure's orders are observed, log2(d2 / d1) from the coarser grids' values,
+    within a factor 2 of 2; the summary line states them."""
+    from petroll.cli import estimate_line
+    from petroll.studies.accuracy import refined
+
+    results = petroll.run(refined(roller(), 2, None), comm, out=shared_dir / "fine", estimate_error=True)
+    found = results.error_estimate
+    assert [tuple(g) for g in found[""]["grids"]] == [(368, 1), (184, 1), (92, 1)]
+    for name in ("delta", "mu_r", "p_max"):
+        q = found[name]
+        (f2, f4), f1 = q["coarse"], q["value"]
+        assert q["observed_order"] and q["order"] == pytest.approx(math.log2((f4 - f2) / (f2 - f1)), rel=1e-9)
+        assert 1 <= q["order"] <= 4
+        line = f"+- {q['error']:.1e} (discretisation, observed order {q['order']:.2f})"
+        assert line in estimate_line(found)
 
 
 def test_the_coarser_3d_grids_keep_the_body_at_the_same_place_in_its_cell():
@@ -114,7 +151,8 @@ def test_the_coarser_3d_grids_keep_the_body_at_the_same_place_in_its_cell():
     fine = ((sx - g.x0) / g.dx - 0.5) % 1.0, ((sy - g.y0) / g.dy - 0.5) % 1.0  # past a cell centre
     for factor, shift in ((2, 0.0), (4, 0.0), (2, 0.5)):
         c = coarser(scene, factor, 0.1, shift).grid
-        assert c.dx == pytest.approx(factor * g.dx, rel=1e-12) and c.dy == pytest.approx(factor * g.dy, rel=1e-12)
+        assert c.dx == pytest.approx(factor * g.dx, rel=1e-12)
+        assert c.dy == pytest.approx(factor * g.dy, rel=1e-12)
         assert c.x0 <= g.x0 + 1e-12 and c.x1 >= g.x1 - 1e-12 and c.y0 <= g.y0 + 1e-12 and c.y1 >= g.y1 - 1e-12
         phase = ((sx - c.x0) / c.dx - 0.5 - shift) % 1.0, ((sy - c.y0) / c.dy - 0.5 - shift) % 1.0
         for a, b in zip(phase, fine):
@@ -189,3 +227,14 @@ def test_on_the_sphere_the_estimate_is_within_3_of_the_true_error(comm):
     checks, found = verify(load_scene(shipped_scene("sphere.toml")), comm)
     assert found.failed is None and len(found.grids) == 3  # the fine grid, the 2x grid at two alignments
     assert_verified(checks)
+
+
+def test_the_cost_bench_times_the_run_and_its_estimate_as_results_h5_records_them(comm, shared_dir):
+    """petroll bench estimate's measure on runs/roller-2d.toml: the run's and the estimate's wall times as
+    results.h5 records them, and their ratio."""
+    from petroll.studies.accuracy import cost
+
+    found = cost(roller(), shared_dir / "cost", comm, repeats=1)
+    group = petroll.Results.open(shared_dir / "cost" / "results.h5").error_estimate[""]
+    assert found["fine_s"] == group["run_wall_s"] > 0 and found["estimate_s"] == group["wall_s"] > 0
+    assert found["ratio"] == found["estimate_s"] / found["fine_s"]

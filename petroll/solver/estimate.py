@@ -12,15 +12,15 @@ last time without the steady stop, so that all grids compare the same instant. F
 last step, with f1 its fine value, f2 the 2x grids' (mean; s half their spread) and f4 the 4x grid's:
 
 - d1 = f2 - f1, d2 = f4 - f2. Where the 4x grid was solved (it keeps at least ``THIRD_GRID_CELLS`` cells
-  per contact half-width; in line contact ``SIGN_CELLS``) and d2 does not have d1's sign and a larger
+  per contact half-width; in line contact ``SIGN_CELLS``), |d1| exceeds s (else d1 is the alignments'
+  noise, and so would be its order: the known order is taken) and d2 does not have d1's sign and a larger
   size, the grids are not in the asymptotic range: no error and no extrapolated value (nan), rather than a
   false bound;
 - the order p: observed, log2(d2 / d1), where the 4x grid resolves the contact (``THIRD_GRID_CELLS``) and
   that lies within a factor 2 of the method's known order (:data:`KNOWN_ORDER`; else not asymptotic);
   otherwise the known order;
 - extrapolated = f1 - d1 / (2^p - 1); the error of f1 is (|d1| + s) / (2^q - 1) with q = min(p, the known
-  order) (an observed order above the known one does not shrink the bound); d1 = 0 on three grids (the
-  finer grids agree): s / 3, nothing extrapolated.
+  order) (an observed order above the known one does not shrink the bound).
 
 What counts cells (the area, the patch edges lead and trail) moves by whole cells, not by a power of the
 cell: it is not extrapolated, and its error is the larger of its 2x grids' difference and its quantisation
@@ -49,6 +49,11 @@ KNOWN_ORDER = {"force": 2.0, "mu_r": 2.0, "p_max": 2.0, "delta": 2.0}
 the penetration, mu_r and the peak pressure (the integrals and values of the piecewise-constant pressure
 on Love's rectangles, and the second-order time integrator with the step following the cell; measured
 orders between successive grids 1.1 to 2.4 around 10 cells per half-width, docs/accuracy.md)."""
+
+ROUND_OFF = {"mu_r": 1e-15}
+"""Differences below which a quantity's values agree whatever their size (absolute): mu_r of a symmetric
+contact is a sum of terms p dZ/dX that cancel to about 1e-18 of the force, not a number to extrapolate.
+Every quantity's differences below 1e-12 of its largest value count as round-off too."""
 
 COUNTED = ("area", "lead", "trail")
 """What counts cells (the contact area, the patch edges): a value that moves by whole cells, not by a
@@ -85,22 +90,22 @@ class QuantityEstimate:
 
 
 def richardson(fine: float, twice: tuple[float, ...], four: float | None, known: float,
-               observe: bool = True) -> QuantityEstimate:
+               observe: bool = True, round_off: float = 0.0) -> QuantityEstimate:
     """The estimate from a quantity's ``fine`` value, its values on the 2x coarser grid (``twice``: one, or
     two alignments: their mean is extrapolated, half their spread added to the error) and on the 4x grid
-    (``four``; None: not solved); ``known``: the method's order; ``observe``: the order is observed on the 4x grid (else that grid checks the
-    asymptotic range only). See the module's text."""
+    (``four``; None: not solved); ``known``: the method's order; ``observe``: the order is observed on the
+    4x grid (else that grid checks the asymptotic range only); ``round_off``: differences below it are none
+    (:data:`ROUND_OFF`). See the module's text."""
     coarse = tuple(twice) + (() if four is None else (four,))
-    scale = 1e-12 * max(abs(v) for v in (fine,) + coarse)  # differences below it are round-off: none
+    scale = max(1e-12 * max(abs(v) for v in (fine,) + coarse), round_off)  # differences below: none
     f2 = float(np.mean(twice))
-    spread = 0.5 * (max(twice) - min(twice))
+    spread = 0.5 * (max(twice) - min(twice)) if max(twice) - min(twice) > scale else 0.0
     d1 = f2 - fine if abs(f2 - fine) > scale else 0.0
-    observed = four is not None and observe
+    checked = four is not None and abs(d1) > spread  # a difference within the alignments' spread: noise
+    observed = checked and observe
     order = known
-    if four is not None:
+    if checked:
         d2 = four - f2 if abs(four - f2) > scale else 0.0
-        if d1 == 0:  # the finer grids agree: nothing to extrapolate
-            return QuantityEstimate(fine, fine, spread / (2**known - 1), math.nan, observed, coarse)
         if not (d1 * d2 > 0 and abs(d2) > abs(d1)):
             return QuantityEstimate(fine, math.nan, math.nan, math.nan, observed, coarse)
         if observe:
@@ -117,7 +122,8 @@ def quantised(fine: float, twice: tuple[float, ...], floor: float) -> QuantityEs
     """The estimate of what counts cells (:data:`COUNTED`): not extrapolated (its value jumps by cells),
     its error the larger of the 2x grids' farthest difference from ``fine`` and its quantisation
     ``floor``; order 1 (the cell's size)."""
-    return QuantityEstimate(fine, fine, max(max(abs(v - fine) for v in twice), floor), 1.0, False, tuple(twice))
+    error = max(max(abs(v - fine) for v in twice), floor)
+    return QuantityEstimate(fine, fine, error, 1.0, False, tuple(twice))
 
 
 def _aligned(start: float, end: float, cell: float, count: int, factor: int, at: float,
@@ -165,6 +171,14 @@ def coarse_tol(tol: float) -> float:
     return max(tol, min(100 * tol, 1e-6))
 
 
+def end_time(scene: Scene, record: StepRecord) -> float | None:
+    """The time (s) the coarser grids run to: that of ``record``, where the scene keeps a clock (its steps
+    follow the cell or ``dt``) and has taken a step; None for a scene of one step or a steady solve."""
+    clocked = scene.time.dt is not None or scene.time.steps_per_cell is not None
+    timed = scene.time.mode != "steady" and clocked
+    return record.t if timed and record.t > 0 else None
+
+
 def last_values(record: StepRecord, quantities: tuple[str, ...]) -> dict[str, float]:
     return {name: float(getattr(record, name)) for name in quantities}
 
@@ -196,13 +210,13 @@ class ErrorEstimate:
 
 def estimate_error(scene: Scene, fine: StepRecord, comm: MPI.Comm = MPI.COMM_WORLD) -> ErrorEstimate:
     """Solve ``scene`` on the 2x (and, where it still has THIRD_GRID_CELLS cells per contact half-width,
-    in line contact SIGN_CELLS, 4x) coarser grids to the time of the fine run's last record ``fine`` and estimate the error of that
+    in line contact SIGN_CELLS, 4x) coarser grids to the time of the fine run's last record ``fine`` and
+    estimate the error of that
     record's values (collective). A 2x run that fails (its contact at the coarser grid's edge) leaves
     ``failed`` set and no quantities; a 4x run that fails is left out."""
     began = clock.perf_counter()
     g = scene.grid
-    timed = scene.time.mode != "steady" and (scene.time.dt is not None or scene.time.steps_per_cell is not None)
-    end = fine.t if timed and fine.t > 0 else None
+    end = end_time(scene, fine)
     cells = min(check(scene).cells) / 4  # on the 4x grid
     names = QUANTITIES + (("delta",) if scene.penetration is None else ())
     found = ErrorEstimate(grids=[(g.nx, g.ny)])
@@ -224,8 +238,10 @@ def estimate_error(scene: Scene, fine: StepRecord, comm: MPI.Comm = MPI.COMM_WOR
     for name, value in last_values(fine, names).items():
         twice = tuple(v[name] for (factor, _), v in solved.items() if factor == 2)
         four = solved[4, 0.0][name] if (4, 0.0) in solved else None
-        found.quantities[name] = (quantised(value, twice, _floor(scene, fine, name)) if name in COUNTED else
-                                  richardson(value, twice, four, KNOWN_ORDER[name], observe=cells >= THIRD_GRID_CELLS))
+        found.quantities[name] = (
+            quantised(value, twice, _floor(scene, fine, name)) if name in COUNTED else
+            richardson(value, twice, four, KNOWN_ORDER[name], observe=cells >= THIRD_GRID_CELLS,
+                       round_off=ROUND_OFF.get(name, 0.0)))
     found.wall_s = comm.allreduce(clock.perf_counter() - began, op=MPI.MAX)
     return found
 

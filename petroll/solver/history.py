@@ -266,9 +266,17 @@ def transfer(material, integrator: str, dt: float, z: np.ndarray) -> np.ndarray:
     z = np.asarray(z, dtype=complex)
     if after is None:
         return np.full(z.shape, h0, dtype=complex)
-    eigen, vectors = np.linalg.eig(M)  # M is diagonalisable (distinct decay rates): c V (z - L)^-1 V^-1 s1
-    left, right = c @ vectors, np.linalg.solve(vectors, after)
-    return h0 + (left * right / (z[..., None] - eigen)).sum(axis=-1)
+    # (z I - M) y = s1 solved for each distinct z (M's eigenvectors are too ill-conditioned to diagonalise
+    # it once many decay rates lie near 1: long times over short steps), in blocks of 512 systems
+    values, where = np.unique(z.ravel(), return_inverse=True)
+    out = np.empty(len(values), dtype=complex)
+    d = len(after)
+    for start in range(0, len(values), 512):
+        block = values[start : start + 512]
+        systems = block[:, None, None] * np.eye(d) - M
+        y = np.linalg.solve(systems, np.broadcast_to(after.astype(complex), (len(block), d))[..., None])
+        out[start : start + 512] = h0 + y[..., 0] @ c
+    return out[where].reshape(z.shape)
 
 
 # -- the holding test ---------------------------------------------------------------------------------------

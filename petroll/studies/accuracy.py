@@ -23,7 +23,7 @@ import numpy as np
 from mpi4py import MPI
 
 from petroll.model.scene import Scene, load_scene, parse_scene, shipped_scene
-from petroll.solver.estimate import COUNTED, ErrorEstimate, estimate_error
+from petroll.solver.estimate import COUNTED, ErrorEstimate, end_time, estimate_error
 from petroll.solver.simulation import Simulation, StepRecord
 
 
@@ -44,11 +44,6 @@ def last_record(scene: Scene, comm: MPI.Comm) -> tuple[StepRecord, float]:
     began = clock.perf_counter()
     record = list(Simulation(scene, comm).steps())[-1]
     return record, comm.allreduce(clock.perf_counter() - began, op=MPI.MAX)
-
-
-def _end(scene: Scene, record: StepRecord) -> float | None:
-    timed = scene.time.mode != "steady" and (scene.time.dt is not None or scene.time.steps_per_cell is not None)
-    return record.t if timed and record.t > 0 else None
 
 
 @dataclass(frozen=True)
@@ -92,7 +87,7 @@ def verify(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD) -> tuple[list[Check], 
     """Run ``scene``, estimate its error, and compare with a reference 4x finer at the same time."""
     record, _ = last_record(scene, comm)
     found = estimate_error(scene, record, comm)
-    reference, _ = last_record(refined(scene, 4, _end(scene, record)), comm)
+    reference, _ = last_record(refined(scene, 4, end_time(scene, record)), comm)
     checks = []
     for name, q in found.quantities.items():
         ref = float(getattr(reference, name))
@@ -100,7 +95,8 @@ def verify(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD) -> tuple[list[Check], 
     return checks, found
 
 
-def cost(scene: Scene, out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, repeats: int = 3) -> dict[str, float]:
+def cost(scene: Scene, out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD,
+         repeats: int = 3) -> dict[str, float]:
     """Wall times (s, warm, in this process, best of ``repeats``) of ``petroll.run(scene, out=out,
     estimate_error=True)`` as results.h5 records them: the run itself (with its output), its estimate, and
     their ratio."""
@@ -213,7 +209,7 @@ def bench_convergence(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD,
     rows = []
     for label, scene in verification_scenes(out / "bodies", comm, scenes).items():
         record, _ = last_record(scene, comm)
-        end = _end(scene, record)
+        end = end_time(scene, record)
         truth, _ = last_record(refined(scene, reference, end), comm)
         for factor in factors:
             grid = refined(scene, factor, end)
