@@ -8,15 +8,19 @@
                             per rank without running (docs/accuracy.md)
     petroll keys            print the scene reference (docs/scene.md) generated from the schema
     petroll stability [--fast] [--out DIR]   the stability map (docs/stability.md): CSV and Markdown in DIR
-    petroll plot DIR [--out PLOTS] [--times T1,T2,...]   PNG figures of DIR/results.h5 (needs matplotlib)
+    petroll plot PATH [--out DIR] [--times T1,T2,...] [--format png|pdf|svg]   figures (needs matplotlib) of a
+                            run directory or its results.h5, a sweep directory, or a stress.h5
+    petroll info DIR        what a run directory holds: scene, steps, last values, fields, checkpoints
+    petroll export DIR --csv [--field NAME [--step N]] [--out FILE]   the series (or one saved field) as CSV
     petroll sweep SCENE.toml --vary KEY=SPEC [--out DIR] [--estimate-error]   one scene over values of a
                             key (docs/sweep.md)
     petroll stress DIR [--step N] [--depth z1,z2,... | --depths auto] [--nu NU]   stresses below a saved
                             pressure field: DIR/stress.h5 and DIR/stress.png
     petroll bench tao|warm|skips|peers|precision|growth|mpi|memory|append|layer|steady|steady-growth|
-                            estimate|accuracy|periodic|sliding [--out DIR]   benchmarks (docs/benchmarks.md);
-                            bench warm --quick: a seconds-long check that it runs; bench memory --steady:
-                            steady solves; bench sliding --ranks/--sides: the rough solve's memory per rank
+                            estimate|accuracy|periodic|sliding [--out DIR] [--quick]   benchmarks
+                            (docs/benchmarks.md); --quick: a seconds-long check that it runs; bench memory
+                            --steady: steady solves; bench sliding --ranks/--sides: the rough solve's memory
+                            per rank
     petroll material fit DMA.csv [--terms N | --per-decade K] [--nu NU] [--shift LAW|auto:T_REF]
                             [--tolerance K] [--einf E | --einf-from-data] [--out FILE.toml]
                             a Prony series fitted to DMA data: the [material] block (docs/materials.md)
@@ -39,185 +43,7 @@ import sys
 import time
 import warnings
 
-
-class _Parser(argparse.ArgumentParser):
-    """Command-line mistakes as one line ``petroll: error: ...`` (exit status 2), without the usage text."""
-
-    def error(self, message: str):
-        verb = self.prog.partition(" ")[2]
-        self.exit(2, f"petroll: error: {' '.join(message.split())} (petroll {verb + ' ' if verb else ''}"
-                     "--help lists what is allowed)\n")
-
-
-def _parser() -> argparse.ArgumentParser:
-    parser = _Parser(prog="petroll", description=__doc__.split("\n\n")[0],
-                     epilog="PETSc options (-petroll_tao_type, -log_view, ...) may follow.")
-    verbs = parser.add_subparsers(dest="verb", required=True)
-    run = verbs.add_parser("run", help="run a scene and write DIR/results.h5")
-    run.add_argument("scene", help="scene file (TOML)")
-    run.add_argument("--out", help="output directory (default: the scene's [output] dir)")
-    run.add_argument("--quiet", action="store_true", help="no progress line (also off when not a terminal)")
-    run.add_argument("--overwrite", action="store_true", help="replace the results of another scene in the "
-                     "output directory (refused without it)")
-    run.add_argument("--estimate-error", action="store_true", help="also solve on grids 2x (and 4x) coarser "
-                     "and report the discretisation error of the last step's values (docs/accuracy.md)")
-    restart = verbs.add_parser("restart", help="continue a run from a checkpoint to its end "
-                               "(docs/checkpoints.md)")
-    restart.add_argument("checkpoint", help="a checkpoint file, or a run directory (its newest checkpoint)")
-    restart.add_argument("--out", help="output directory (default: the run directory of the checkpoint)")
-    restart.add_argument("--scene", help="scene file replacing the checkpoint's own; it may change only "
-                         "[time] end, distance, steady, max_steps and [output] dir, every, checkpoint_every, "
-                         "keep")
-    restart.add_argument("--quiet", action="store_true", help="no progress line (also off when not a "
-                         "terminal)")
-    restart.add_argument("--overwrite", action="store_true", help="with --out: replace the results of another "
-                         "run there (refused without it)")
-    launch = verbs.add_parser("launch", help="run an MPI launch line (e.g. mpirun -n 4 petroll run ...) so "
-                              "that SIGTERM/SIGINT reach the ranks and its exit status is theirs (143/130; "
-                              "docs/cluster.md)")
-    launch.add_argument("command", nargs=argparse.REMAINDER, help="the launch line")
-    check = verbs.add_parser("check", help="estimate the contact, cells per contact half-width, steps and "
-                             "memory per rank without running (docs/accuracy.md)")
-    check.add_argument("scene", help="scene file (TOML)")
-    check.add_argument("--ranks", type=_positive(int), help="ranks the memory is predicted for (default: "
-                       "those of this command)")
-    verbs.add_parser("keys", help="print the scene reference generated from the schema (Markdown)")
-    stability = verbs.add_parser("stability", help="sweep the stability map, write CSV and Markdown "
-                                 "(docs/stability.md); exit status 1 if a run fails its checks")
-    stability.add_argument("--fast", action="store_true", help="only the subset that the test suite runs")
-    stability.add_argument("--out", default="results/stability", help="directory for stability.csv and .md")
-    bench = verbs.add_parser("bench", help="run a benchmark, print its table and write CSV (docs/benchmarks.md)")
-    bench.add_argument("which", choices=["tao", "warm", "skips", "peers", "precision", "growth", "mpi", "memory",
-                                         "append", "layer", "steady", "steady-growth", "estimate", "accuracy",
-                                         "periodic", "sliding"],
-                       help="tao: every TAO type on the Hertz step; warm: operator applications per rolling "
-                       "step for each first guess; skips: each saving on and off; peers: petroll against Tamaas "
-                       "and ContactMechanics on the Hertz step and a wavy sphere, from the same start; "
-                       "precision: error against run time of the "
-                       "integrators and of grid refinement on the rolling sphere; growth: time per rolling "
-                       "step against the contact window's cells, and along a long track; mpi: time per "
-                       "rolling step against the rank count; memory: peak memory of every rank against the "
-                       "grid's cells at 1, 2 and 4 ranks (--ranks); append: results.h5 writing time per "
-                       "saved step over 1000 steps; layer: cost per step of layer scenes against the "
-                       "half-space (docs/layer.md); steady: the direct steady solve against the transient "
-                       "run to the same steady tolerance, V tau/a 1e-3 to 1e3; steady-growth: the direct "
-                       "steady solve's time against the grid (512 x 256 to 2048 x 1024); estimate: the error "
-                       "estimate's wall time against the run's; accuracy: the estimate against the true "
-                       "error, and errors against cells per contact half-width (docs/accuracy.md); periodic: "
-                       "the periodic operator's cost against the non-periodic one, and periodic rough contact "
-                       "against Tamaas; sliding: steady sliding against its closed forms, a 1024^2 rough "
-                       "surface, a 512^2 friction master curve (docs/rough.md)")
-    bench.add_argument("--out", default="results/bench", help="directory for the CSV (and PNG) files")
-    bench.add_argument("--ranks", type=_ranks, help="mpi, memory and sliding only: rank counts to run side by "
-                       "side as mpirun children, e.g. 1,2 (default: mpi: the current communicator only; memory: "
-                       "1,2,4; sliding: 1,2, its memory and time per rank instead of its default tables)")
-    bench.add_argument("--sides", type=_ranks, help="memory and sliding only: grid sides (cells) to measure, "
-                       "e.g. 1024,2048,4096 (memory's default; sliding: 2048,4096)")
-    bench.add_argument("--steady", action="store_true", help="memory only: the steady state solved directly "
-                       "([time] mode = \"steady\") instead of rolled steps")
-    bench.add_argument("--quick", action="store_true", help="warm only: a coarse grid (a/dx = 6) and one "
-                       "repeat, in seconds: shows that the benchmark runs (e.g. from an install); measures "
-                       "nothing")
-    sweep = verbs.add_parser("sweep", help="run a scene over values of one key to steady state; table and "
-                             "plot in DIR (docs/sweep.md); run again to resume")
-    sweep.add_argument("scene", help="scene file (TOML)")
-    sweep.add_argument("--vary", action="append", required=True, metavar="KEY=SPEC",
-                       help="KEY=V1,V2,... or KEY=START..STOP:log:N or KEY=START..STOP:lin:N, e.g. "
-                       "motion.velocity=1e-4..1e-1:log:7 (a vector key varies its magnitude)")
-    sweep.add_argument("--out", help="output directory (default: the scene's [output] dir + -sweep)")
-    sweep.add_argument("--quiet", action="store_true", help="no progress line (also off when not a terminal)")
-    sweep.add_argument("--transient", action="store_true", help="run every point from rest to steady state, "
-                       "even where its steady state can be solved directly (the default there)")
-    sweep.add_argument("--estimate-error", action="store_true", help="estimate each point's discretisation "
-                       "error (grids 2x and 4x coarser): columns <quantity>_error (docs/accuracy.md)")
-    material = verbs.add_parser("material", help="materials from measurements (docs/materials.md)")
-    material_verbs = material.add_subparsers(dest="material_verb", required=True, metavar="fit")
-    fit = material_verbs.add_parser("fit", help="fit a Maxwell (relaxation) Prony series with non-negative "
-                                    "moduli to DMA data; write the scene's [material] block and fit.png")
-    fit.add_argument("csv", help="DMA table: header frequency,storage,loss[,temperature][,set] (Hz, Pa, Pa, "
-                     "K, a label)")
-    density = fit.add_mutually_exclusive_group()
-    density.add_argument("--terms", type=_positive(int), help="candidate relaxation times in all, evenly in "
-                         "log (the fit keeps at most N terms)")
-    density.add_argument("--per-decade", type=_positive(float), help="candidate relaxation times per decade "
-                         "(default: chosen for the data, the coarsest whose error is within 5 %% of the best; "
-                         "about 2 for measured data)")
-    relaxed = fit.add_mutually_exclusive_group()
-    relaxed.add_argument("--einf", type=_positive(float), help="the relaxed modulus Einf (Pa), instead of "
-                         "fitting it")
-    relaxed.add_argument("--einf-from-data", action="store_true", help="Einf = the mean E' within a quarter "
-                         "decade of the lowest frequency")
-    fit.add_argument("--nu", type=float, default=0.5, help="Poisson's ratio written into the block (default "
-                     "0.5)")
-    fit.add_argument("--shift", help="shift law for a temperature column, written into the block: "
-                     "auto:T_ref (the factors found from the data, kept as a table law; WLF and Arrhenius "
-                     "fitted to them are reported), wlf:C1,C2,T_ref or arrhenius:Ea,T_ref (C2, T_ref in K; Ea "
-                     "in J/mol) or a TOML file whose [material] shift gives it")
-    fit.add_argument("--tolerance", type=float, default=0.5, help="temperatures (K) within which rows belong "
-                     "to one measurement set, without a set column (default 0.5)")
-    fit.add_argument("--out", help="write the [material] block here (atomically, its folder made if need "
-                     "be; default: print it)")
-    fit.add_argument("--plot", help="the figure of data and fit (default: fit.png beside --out, or in the "
-                     "current directory)")
-    plot = verbs.add_parser("plot", help="write PNG figures of a run (pressure maps, patch outlines, series)")
-    plot.add_argument("dir", help="a run's output directory (holding results.h5)")
-    plot.add_argument("--out", help="directory for the PNG files (default: DIR/plots)")
-    plot.add_argument("--times", type=_seconds, help="comma-separated times in s: draw the saved pressure "
-                      "fields nearest to them (default: up to 4 spread over the run)")
-    stress = verbs.add_parser("stress", help="the stresses below a saved pressure field: DIR/stress.h5 and "
-                              "DIR/stress.png (docs/results.md)")
-    stress.add_argument("dir", help="a run's output directory (holding results.h5)")
-    stress.add_argument("--step", type=int, help="the step whose saved pressure field to use (default: the "
-                        "last saved)")
-    depth = stress.add_mutually_exclusive_group()
-    depth.add_argument("--depth", type=_depths, help="comma-separated depths below the surface in m, e.g. "
-                       "0,1e-4,2e-4")
-    depth.add_argument("--depths", choices=["auto"], help="auto (the default): 41 depths from 0 to twice "
-                       "the contact's smaller half-width")
-    stress.add_argument("--nu", type=float, help="Poisson's ratio (default: the scene's [material] nu)")
-    return parser
-
-
-def _depths(text: str) -> list[float]:
-    try:
-        values = [float(item) for item in text.split(",") if item.strip()]
-    except ValueError:
-        values = []
-    if not values or not all(math.isfinite(v) and v >= 0 for v in values):
-        raise argparse.ArgumentTypeError(f"expected comma-separated depths >= 0 in m, got {text!r}")
-    return values
-
-
-def _ranks(text: str) -> tuple[int, ...]:
-    try:
-        counts = tuple(int(item) for item in text.split(","))
-    except ValueError:
-        counts = ()
-    if not counts or min(counts) < 1:
-        raise argparse.ArgumentTypeError(f"expected comma-separated rank counts >= 1, got {text!r}")
-    return counts
-
-
-def _positive(kind: type):
-    """An argparse type: a finite ``kind`` (int or float) > 0."""
-    def parse(text: str):
-        try:
-            value = kind(text)
-        except ValueError:
-            value = 0
-        if not 0 < value < float("inf"):
-            raise argparse.ArgumentTypeError(f"expected {'an integer' if kind is int else 'a finite number'} "
-                                             f"> 0, got {text!r}")
-        return value
-
-    return parse
-
-
-def _seconds(text: str) -> list[float]:
-    try:
-        return [float(item) for item in text.split(",") if item.strip()]
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected comma-separated seconds, got {text!r}") from None
+from petroll.cli_parser import parser
 
 
 def _on_rank0(action, comm) -> int:
@@ -242,11 +68,72 @@ def _on_rank0(action, comm) -> int:
 
 
 def _plot(args: argparse.Namespace) -> None:
-    """``petroll plot``."""
-    from petroll.plot import plot_results
+    """``petroll plot``: the figures of a run, a sweep or a stress file, whichever ``args.path`` is."""
+    import pathlib
 
-    paths = plot_results(args.dir, args.out, args.times)
+    from petroll.io.export import file_kind
+    from petroll.plot import plot_results, plot_stress, plot_sweep
+
+    kind, file = file_kind(args.path)
+    if kind == "run":
+        paths = plot_results(file.parent, args.out, args.times, args.format)
+    else:
+        out = pathlib.Path(args.out) if args.out else file.parent
+        out.mkdir(parents=True, exist_ok=True)
+        if kind == "sweep":
+            from petroll.studies.sweep import SweepTable
+
+            paths = [plot_sweep(SweepTable.open(file), out / f"sweep.{args.format}")]
+        else:
+            paths = [plot_stress(file, out / f"stress.{args.format}")]
     print("petroll: wrote " + ", ".join(str(p) for p in paths))
+
+
+def _info(args: argparse.Namespace) -> None:
+    """``petroll info``: what a run directory holds, a few lines."""
+    from petroll.io.export import run_contents
+
+    found = run_contents(args.dir)
+    r, s = found.results, found.results.series
+    n, last = len(s["t"]), len(s["t"]) - 1
+    state = "complete (the run finished)" if r.complete else "partial (still running, or stopped or killed)"
+    per = "/m" if r.line else ""
+    lines = [f"{found.directory}: a petroll run, written by petroll {r.version or '0.1.0'}",
+             f"  scene: {r.scene_file or '(not recorded)'}; its text is in {r.path.name} (attribute scene)",
+             f"  steps: {n} written (0 ... {last}), {state}" + (", the steady state solved directly"
+                                                                 if r.solved_steady else ""),
+             f"  last step {last}: t = {s['t'][-1]:.6g} s, rolled {s['distance'][-1]:.6g} m, force "
+             f"{s['force'][-1]:.6g} N{per}, mu_r {s['mu_r'][-1]:.5g}, penetration {s['delta'][-1]:.6g} m",
+             f"  saved fields: {', '.join(r.fields)} at {len(r.field_steps)} steps "
+             f"({', '.join(str(int(k)) for k in r.field_steps)}); results.xdmf for ParaView"]
+    if found.checkpoints:
+        steps = ", ".join(str(step) for step, _ in found.checkpoints)
+        where = found.checkpoints[-1][1].parent
+        lines.append(f"  checkpoints: {len(found.checkpoints)} (steps {steps}) in {where}"
+                     + ("" if r.complete else f"; petroll restart {found.directory} continues from the "
+                                              "newest"))
+    else:
+        lines.append("  checkpoints: none")
+    lines.append(f"  other files: {', '.join(found.others) or 'none'}")
+    print("\n".join(lines))
+
+
+def _export(args: argparse.Namespace) -> None:
+    """``petroll export``: the series, or one saved field, as CSV."""
+    from petroll.io.export import open_results, write_field_csv, write_series_csv
+
+    results = open_results(args.dir)
+    if args.step is not None and args.field is None:
+        args.field = "pressure"
+    if args.field is None:
+        path = write_series_csv(results, args.out or results.path.parent / "series.csv")
+        what = f"{len(results.series['t'])} steps x {len(results.series)} series"
+    else:
+        step = int(results.field_steps[-1]) if args.step is None else args.step
+        default = results.path.parent / f"{args.field}-step-{step}.csv"
+        path = write_field_csv(results, args.field, step, args.out or default)
+        what = f"{args.field} at step {step}, {len(results.x) * len(results.y)} cells"
+    print(f"petroll: wrote {path} ({what})")
 
 
 def _material_fit(args: argparse.Namespace) -> None:
@@ -255,7 +142,7 @@ def _material_fit(args: argparse.Namespace) -> None:
 
     from petroll.io.results import atomic_write
     from petroll.model import dma
-    from petroll.plot_dma import plot_fit, plot_shifts  # import matplotlib only when drawing
+    from petroll.plot import plot_fit, plot_shifts  # matplotlib imported only when drawing
 
     shift = dma.parse_shift(args.shift) if args.shift else None
     data = dma.read_dma(args.csv, shift, args.tolerance)
@@ -273,12 +160,15 @@ def _material_fit(args: argparse.Namespace) -> None:
     else:
         print(text, end="", flush=True)
         report = sys.stderr  # the block alone on stdout, ready to redirect
-    png = pathlib.Path(args.plot) if args.plot else (pathlib.Path(args.out).with_name("fit.png") if args.out
-                                                      else pathlib.Path("fit.png"))
-    drawn = [png] + ([png.with_name(png.stem + "-shift.png")] if data.found is not None else [])
+    png = None  # the figure: --plot, else beside --out, else none
+    if args.plot or args.out:
+        png = pathlib.Path(args.plot or pathlib.Path(args.out).with_suffix(".png"))
+    drawn = [] if png is None else [png] + (
+        [png.with_name(png.stem + "-shift.png")] if data.found is not None else [])
     try:
-        plot_fit(data, fit, drawn[0])
-        if data.found is not None:
+        if drawn:
+            plot_fit(data, fit, drawn[0])
+        if len(drawn) > 1:
             plot_shifts(data, drawn[1])
     except ImportError:
         print("petroll: warning: matplotlib is not installed: no plot", file=sys.stderr)
@@ -286,19 +176,19 @@ def _material_fit(args: argparse.Namespace) -> None:
     except OSError as exc:
         raise dma.DMAError(f"--plot {png}: cannot write it ({exc.strerror})") from None
     print(dma.report(data, fit) + f" Block: {args.out or 'printed above'}; plot: "
-          f"{', '.join(str(p) for p in drawn)}", file=report)
+          f"{', '.join(str(p) for p in drawn) or 'none (--plot PNG draws one)'}", file=report)
 
 
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
-    args, petsc_args = _parser().parse_known_args(argv)
+    args, petsc_args = parser().parse_known_args(argv)
     if args.verb == "launch":  # no MPI here: the launched command has it
         from petroll.launch import launch
 
         return launch(args.command + petsc_args)
     stray = [a for a in petsc_args if a.startswith("--")]
     if stray:
-        _parser().error(f"unknown option {stray[0]} (PETSc options start with a single dash)")
+        parser().error(f"unknown option {stray[0]} (PETSc options start with a single dash)")
 
     import petsc4py
 
@@ -311,8 +201,8 @@ def main(argv: list[str] | None = None) -> int:
     from petroll.model.limits import PetrollWarning
 
     comm = MPI.COMM_WORLD
-    if args.verb == "plot":
-        return _on_rank0(lambda: _plot(args), comm)
+    if args.verb in ("plot", "info", "export"):
+        return _on_rank0(lambda: {"plot": _plot, "info": _info, "export": _export}[args.verb](args), comm)
     if args.verb == "material":
         return _on_rank0(lambda: _material_fit(args), comm)
     errors = comm.Dup() if comm.size > 1 else None  # only for agreeing on an error (see _failed)
@@ -412,58 +302,9 @@ def _main(args: argparse.Namespace, comm) -> int:
     if args.verb == "bench":
         import pathlib
 
-        from petroll.studies import bench, bench_rolling
-        from petroll.studies.layer import bench as layer_bench
-        from petroll.errors import PetrollError
+        from petroll.studies.bench_verbs import run as bench
 
-        if args.ranks is not None and args.which not in ("mpi", "memory", "sliding"):
-            raise PetrollError(f"petroll bench {args.which}: --ranks applies to petroll bench mpi, memory and "
-                               "sliding only")
-        if args.sides is not None and args.which not in ("memory", "sliding"):
-            raise PetrollError(f"petroll bench {args.which}: --sides applies to petroll bench memory and "
-                               "sliding only")
-        if args.quick and args.which != "warm":
-            raise PetrollError(f"petroll bench {args.which}: --quick applies to petroll bench warm only")
-        if args.steady and args.which != "memory":
-            raise PetrollError(f"petroll bench {args.which}: --steady applies to petroll bench memory only")
-        out = pathlib.Path(args.out)
-        if args.which in ("estimate", "accuracy"):
-            from petroll.studies import accuracy
-
-            if args.which == "estimate":
-                accuracy.bench_cost(out, comm)
-            else:
-                accuracy.bench_verify(out, comm)
-                accuracy.bench_convergence(out, comm)
-        elif args.which in ("steady", "steady-growth"):
-            from petroll.studies import bench_steady
-
-            (bench_steady.steady if args.which == "steady" else bench_steady.growth)(out, comm)
-        elif args.which == "mpi":
-            bench_rolling.mpi_scaling(out, comm, ranks=args.ranks)
-        elif args.which in ("memory", "append"):
-            from petroll.studies import bench_memory
-
-            if args.which == "append":
-                bench_memory.append(out, comm)
-            else:
-                bench_memory.memory(out, comm, sides=args.sides or bench_memory.SIDES,
-                                    ranks=args.ranks or bench_memory.RANKS, steady=args.steady)
-        elif args.which in ("periodic", "sliding"):
-            from petroll.studies import bench_rough
-
-            if args.ranks or args.sides:  # memory and time per rank of the rough sliding solve
-                bench_rough.scale(out, args.sides or bench_rough.SCALE_SIDES, args.ranks or (1, 2))
-            else:
-                getattr(bench_rough, args.which)(out, comm)
-        elif args.quick:
-            bench.warm_starts(out, comm, cells_per_radius=6, repeats=1)
-        else:
-            from petroll.studies.peers.bench import peers
-
-            {"tao": bench.tao_types, "warm": bench.warm_starts, "peers": peers,
-             "precision": bench_rolling.precision, "growth": bench_rolling.growth,
-             "skips": bench_rolling.skips, "layer": layer_bench}[args.which](out, comm)
+        bench(args.which, pathlib.Path(args.out), comm, args.quick, args.ranks, args.sides, args.steady)
         return 0
     if args.verb == "sweep":
         from petroll.studies.sweep import command
@@ -502,7 +343,7 @@ def _main(args: argparse.Namespace, comm) -> int:
             print(summary(scene, Results.open(exc.results), wall=time.perf_counter() - start))
         raise
     if comm.rank == 0:
-        print(summary(scene, results, wall=time.perf_counter() - start))
+        print(summary(scene, results, wall=time.perf_counter() - start, resumed=checkpoint))
         if results.error_estimate is not None:
             print(estimate_line(results.error_estimate))
     return 0
@@ -564,8 +405,9 @@ def _restart_inputs(args: argparse.Namespace, comm):
     return scene, checkpoint, args.out if args.out is not None else run_directory(path)
 
 
-def summary(scene, results, wall: float) -> str:
-    """One paragraph on a finished run: its extent, the last (steady) values, wall time and output path."""
+def summary(scene, results, wall: float, resumed=None) -> str:
+    """One paragraph on a finished run: its extent, the last (steady) values, wall time and output path;
+    ``resumed``: the checkpoint a restart continued from (its step is named)."""
     s = results.series
     n = len(s["t"])
     if scene.time.mode == "steady":
@@ -580,10 +422,13 @@ def summary(scene, results, wall: float) -> str:
         state = "partial: the run stopped before its end, results.h5 has complete = false; "
     line = scene.grid.line  # plane strain: per unit length, the penetration relative to the datum
     force, area = ("N/m", "contact width {:.4g} m") if line else ("N", "contact area {:.4g} m^2")
+    if resumed is not None:
+        how = f"resumed after step {resumed.step} (t = {resumed.t:.4g} s; {resumed.path}), {how}"
     patch = (f"patch from {s['trail'][-1]:.4g} to {s['lead'][-1]:.4g} m along the motion"
              if s["area"][-1] > 0 else "no contact")
-    return (f"petroll: {scene.source}: {how} ({state}wall time {wall:.1f} s). Last step: force {s['force'][-1]:.6g} {force} at "
-            f"penetration {s['delta'][-1]:.6g} m{' (to the datum)' if line else ''}, mu_r {s['mu_r'][-1]:.4e}, "
+    return (f"petroll: {scene.source}: {how} ({state}wall time {wall:.1f} s). Last step: force "
+            f"{s['force'][-1]:.6g} {force} at penetration {s['delta'][-1]:.6g} m"
+            f"{' (to the datum)' if line else ''}, mu_r {s['mu_r'][-1]:.4e}, "
             f"{area.format(s['area'][-1])}, {patch}, max pressure "
             f"{s['p_max'][-1]:.6g} Pa; {int(s['applications'].sum())} operator applications in all. "
             f"Results: {results.path}")

@@ -87,7 +87,7 @@ def _run(scene: Scene, comm: MPI.Comm, out: pathlib.Path, run_id: str, progress:
     steady = scene.time.mode == "steady"
     rough = None if g.line or not all(g.periodic) else BINS  # the group rough of a periodic grid
     results = ResultsFile(out / "results.h5", scene.text, g.x, g.y, comm, fields=scene.fields, line=g.line,
-                          steady=steady, run_id=run_id, rough=rough)
+                          steady=steady, source=str(scene.source), run_id=run_id, rough=rough)
     if restart is not None:
         t, field_steps = restart.restore(sim)
         results.resume(run_directory(restart.path) / "results.h5", len(sim.records), field_steps,

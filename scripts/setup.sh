@@ -21,7 +21,7 @@ stamp="$venv/.petroll-setup"
 want="$(cat pyproject.toml scripts/setup.sh | sha256sum | cut -c1-16)"
 
 if [ -x "$venv/bin/python" ] && [ "$(cat "$stamp" 2>/dev/null)" = "$want" ] \
-   && "$venv/bin/python" -c "import petsc4py, mpi4py, h5py, meshio, scipy, petroll" 2>/dev/null; then
+   && "$venv/bin/python" -c "import petsc4py, mpi4py, h5py, meshio, scipy, tomli_w, petroll" 2>/dev/null; then
   exit 0
 fi
 
@@ -76,7 +76,7 @@ if [ -z "$python" ] && [ "${PETROLL_SETUP_NO_APT:-0}" != 1 ] && command -v apt-g
     || fail "apt-get update: $(last_line "$log"); check the network or apt sources, or set PETROLL_PYTHON to a Python that imports petsc4py"
   $sudo apt-get install -y -qq --no-install-recommends \
     python3-petsc4py python3-mpi4py python3-h5py-mpi python3-numpy python3-venv python3-pip \
-    python3-meshio python3-pytest python3-hypothesis python3-matplotlib python3-scipy \
+    python3-meshio python3-pytest python3-hypothesis python3-matplotlib python3-scipy python3-tomli-w \
     openmpi-bin libopenmpi-dev >"$log" 2>&1 \
     || fail "apt-get could not install python3-petsc4py and its companions: $(last_line "$log"); set PETROLL_PYTHON to a Python that imports petsc4py, or install them by hand"
   python=/usr/bin/python3
@@ -114,7 +114,7 @@ fi
 "$venv/bin/python" -m pip install -q --no-deps --no-build-isolation -e . >"$log" 2>&1 \
   || "$venv/bin/python" -m pip install -q --no-deps -e . >"$log" 2>&1 \
   || fail "pip install -e . (petroll itself): $(last_line "$log"); check that setuptools is installed in $python"
-modules="numpy h5py meshio pytest hypothesis scipy matplotlib"
+modules="numpy h5py meshio pytest hypothesis scipy matplotlib tomli_w"  # tomli_w: pip finds tomli-w
 # x3pio reads .x3p topographies and needs Python >= 3.11 (older: .x3p files are refused in one line)
 "$venv/bin/python" -c "import sys; sys.exit(sys.version_info < (3, 11))" 2>/dev/null && modules="$modules x3pio"
 missing=()
@@ -126,7 +126,7 @@ if [ ${#missing[@]} -gt 0 ]; then
   "$venv/bin/python" -m pip install -q "${missing[@]}" >"$log" 2>&1 \
     || fail "pip install ${missing[*]}: $(last_line "$log"); check that PyPI is reachable"
 fi
-"$venv/bin/python" -c "import petsc4py, mpi4py, h5py, meshio, scipy, petroll" >"$log" 2>&1 \
+"$venv/bin/python" -c "import petsc4py, mpi4py, h5py, meshio, scipy, tomli_w, petroll" >"$log" 2>&1 \
   || fail "the new .venv does not import petroll's dependencies: $(last_line "$log"); remove .venv and try again"
 echo "$want" > "$stamp"
 say "ready: $venv"

@@ -1,11 +1,14 @@
 #!/usr/bin/env bash
-# The test suite, serially and under `mpirun -n 2` (rank 1's report goes to a log shown when it fails).
+# The test suite, serially and under `mpirun -n 2` (rank 1's report goes to a log shown when it fails), after
+# installing what only the tests need (scripts/setup-tests.sh: ParaView's pvpython).
 # Extra arguments are passed to pytest (e.g. `scripts/test.sh -k hertz`).
 set -uo pipefail
 cd "$(dirname "$0")/.."
 py=.venv/bin/python
 export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 OMPI_MCA_rmaps_base_oversubscribe=1
 export OMPI_MCA_btl_vader_single_copy_mechanism=none OMPI_MCA_mpi_yield_when_idle=1 PYTHONDONTWRITEBYTECODE=1
+
+scripts/setup-tests.sh || exit 1  # ParaView's pvpython for tests/test_paraview.py (first time: apt-get)
 
 echo "== serial: pytest =="
 "$py" -m pytest -q "$@" tests

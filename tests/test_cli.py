@@ -49,13 +49,14 @@ def test_pk_on_the_command_line_and_its_view(tmp_path, cli):
     assert "preconditioner: none" in off.stdout and "CirculantInverse" not in off.stdout
 
 
-def test_quick_is_refused_beside_benchmarks_other_than_warm(comm, capsys):
+def test_ranks_are_refused_beside_benchmarks_other_than_mpi_memory_and_sliding(comm, capsys):
     from petroll.cli import main
 
-    assert main(["bench", "tao", "--quick"]) == 2
+    assert main(["bench", "tao", "--quick", "--ranks", "1,2"]) == 2
     if comm.rank == 0:
         err = capsys.readouterr().err
-        assert err == "petroll: error: petroll bench tao: --quick applies to petroll bench warm only\n"
+        assert err == ("petroll: error: petroll bench tao: --ranks applies to petroll bench mpi, memory and "
+                       "sliding only\n")
 
 
 @pytest.mark.serial

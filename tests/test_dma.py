@@ -235,6 +235,11 @@ def test_material_fit_writes_a_block_ready_to_paste_and_the_figure(comm, capsys,
     assert main(["material", "fit", str(shared_dir / "dma.csv"), "--shift", str(shared_dir / "material.toml"),
                  "--nu", "0.49", "--plot", str(shared_dir / "other.png")]) == 0
     printed = capsys.readouterr()
+    here = sorted(pathlib.Path.cwd().iterdir())
+    shift = str(shared_dir / "material.toml")
+    assert main(["material", "fit", str(shared_dir / "dma.csv"), "--shift", shift]) == 0
+    assert sorted(pathlib.Path.cwd().iterdir()) == here  # no figure dropped into the current directory
+    assert "plot: none" in capsys.readouterr().err or comm.rank != 0
     if comm.rank != 0:
         assert out == printed.out == printed.err == ""  # only rank 0 works and speaks
         return
@@ -250,7 +255,7 @@ def test_material_fit_writes_a_block_ready_to_paste_and_the_figure(comm, capsys,
     fit = dma.fit_prony(data.reduced, data.storage, data.loss, nu=0.49)  # the Python API: the same fit
     t = np.geomspace(1e-8, 1e3, 50)
     assert scene.material(t) == pytest.approx(fit.material()(t), rel=1e-12)
-    assert (shared_dir / "fit.png").read_bytes()[:8] == PNG_MAGIC
+    assert (shared_dir / "material.png").read_bytes()[:8] == PNG_MAGIC  # beside --out
     assert not [p for p in shared_dir.iterdir() if ".tmp" in p.name]  # atomic writes leave no temporary files
     assert printed.out == text and "relative error rms" in printed.err
     assert (shared_dir / "other.png").read_bytes()[:8] == PNG_MAGIC

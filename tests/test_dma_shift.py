@@ -106,8 +106,8 @@ def test_auto_shift_writes_a_table_law_a_scene_takes_and_both_figures(comm, shar
     assert block["shift"] == data.found.law.table() and len(block["shift"]["T"]) == 20
     assert "log10 a_T" in out and "--shift wlf:8.85" in out and "--shift arrhenius:" in out
     assert "written as a table law" in out and "20 sets shifted to T_ref = 293.15 K" in out
-    assert (tmp_path / "new" / "fit.png").stat().st_size > 0
-    assert (tmp_path / "new" / "fit-shift.png").stat().st_size > 0
+    assert (tmp_path / "new" / "block.png").stat().st_size > 0
+    assert (tmp_path / "new" / "block-shift.png").stat().st_size > 0
     scene = parse_scene({**SCENE, "material": {**block, "temperature": 273.15}})  # pasted into a scene
     assert scene.shift_factor == pytest.approx(10 ** data.found.law.log10(273.15), rel=1e-12)
     assert math.log10(scene.shift_factor) == pytest.approx(RUBBER.law.log10(273.15), abs=0.05)

@@ -59,5 +59,36 @@ def test_cli_plot_without_results_exits_2_naming_the_file(comm, capsys, shared_d
         err = capsys.readouterr().err
         lines = [line for line in err.splitlines() if line.strip()]
         assert len(lines) == 1 and lines[0].startswith("petroll: error: "), err
-        assert str(missing / "results.h5") in lines[0]
+        assert lines[0] == f"petroll: error: {missing}: no such file or directory"
         assert not missing.exists()  # no plots directory created
+
+
+def test_stress_sections_lie_on_the_contact_centre_line(comm, shared_dir):
+    """The rolling sphere on 20 cells across (an even count: no row of cells on the centre line Y = 0): the
+    section of stress.png is on the centre line, the mean of the two rows either side of it, which the
+    symmetry of the contact makes equal (read here with h5py); an odd count (21 cells) has a row on it."""
+    import h5py
+    import numpy as np
+
+    import petroll
+    from petroll.io.stress import stress_planes
+    from petroll.plot import plot_stress
+    from petroll.plot.stress import centre_section
+
+    for ny in (20, 21):
+        out = shared_dir / f"ny{ny}"
+        run(rolling_scene().replace("grid.ny", ny), comm, out)
+        petroll.stress(out, depths=[0.0, 5e-5, 1e-4], comm=comm)
+        if comm.rank != 0:
+            continue
+        for name in ("von_mises", "max_shear"):
+            planes = stress_planes(out / "stress.h5", name)
+            section, centre = centre_section(out / "stress.h5", name, planes)
+            assert centre == 0.0
+            with h5py.File(out / "stress.h5") as f:
+                middle = [ny // 2 - 1, ny // 2] if ny % 2 == 0 else [ny // 2]
+                rows = [f[name][:, :, j] for j in middle]
+                assert np.allclose(f["y"][middle].sum(), 0.0, atol=1e-15)
+            assert np.allclose(rows[0], rows[-1], rtol=1e-10, atol=1e-10 * rows[0].max())  # symmetric
+            assert np.allclose(section, np.mean(rows, axis=0), rtol=1e-12, atol=0)
+        assert plot_stress(out / "stress.h5").read_bytes()[:8] == PNG_MAGIC

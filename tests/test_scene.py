@@ -365,6 +365,29 @@ def test_docs_scene_md_is_the_generated_reference():
     assert (ROOT / "docs" / "scene.md").read_text(encoding="utf-8") == scene_reference()
 
 
+@pytest.mark.parametrize("kind", ["constant", "ramp", "sinusoidal", "tabulated"])
+def test_each_program_example_of_the_reference_gives_its_kind(kind):
+    """The example of every kind of program in docs/scene.md, in runs/sphere.toml's [motion], is that kind
+    with the values its formula gives (written out here independently of petroll.model.motion)."""
+    from petroll.model.motion import PROGRAMS
+
+    line = PROGRAMS[kind].example
+    key = line.split(" = ")[0]
+    raw = tomllib.loads((ROOT / "runs" / "sphere.toml").read_text(encoding="utf-8"))
+    raw["motion"] = {k: v for k, v in raw["motion"].items() if k != ("penetration" if key == "load" else key)}
+    raw["motion"].update(tomllib.loads(line))
+    program = getattr(parse_scene(raw), key)
+    expected = {
+        "constant": lambda t: np.array([0.01, 0.0]),
+        "ramp": lambda t: np.array(0.05 * min(t / 0.02, 1.0)),
+        "sinusoidal": lambda t: np.array([0.01 + 0.008 * math.sin(2 * math.pi * t / 0.2), 0.0]),
+        "tabulated": lambda t: np.array(np.interp(t, [0.0, 0.05, 0.1], [1e-5, 2e-5, 2e-5])),
+    }[kind]
+    assert type(program).__name__.lower() == kind
+    for t in (0.0, 0.013, 0.02, 0.07, 0.3):
+        assert program(t) == pytest.approx(expected(t), rel=1e-14, abs=1e-300), t
+
+
 def test_the_reference_shows_each_default_as_the_toml_that_gives_it():
     """Every default in the reference's tables, parsed as TOML and given in a scene, is the key's value when
     the key is left out (checked through the key's own conversion)."""

@@ -168,11 +168,12 @@ def test_a_relaxation_history_rebuilds_its_displacement_when_its_state_is_set():
 # -- the command -------------------------------------------------------------------------------------------
 def test_stability_command_writes_the_map_and_fails_on_a_failed_run(comm, monkeypatch, capsys, shared_dir):
     from petroll.cli import main
+    from petroll.studies.stability import runs  # where the sweep finds them
 
     keep = [c for c in FAST if c.name.startswith("held penetration, dt = 0.01 T")]
-    monkeypatch.setattr(stability, "cases", lambda: keep)
-    monkeypatch.setattr(stability, "refinement", lambda comm, fast: [])
-    monkeypatch.setattr(stability, "scaling", lambda comm, fast: [])
+    monkeypatch.setattr(runs, "cases", lambda: keep)
+    monkeypatch.setattr(runs, "refinement", lambda comm, fast: [])
+    monkeypatch.setattr(runs, "scaling", lambda comm, fast: [])
     assert main(["stability", "--fast", "--out", str(shared_dir / "ok")]) == 0
     if comm.rank == 0:
         text = (shared_dir / "ok" / "stability.md").read_text()
@@ -180,7 +181,7 @@ def test_stability_command_writes_the_map_and_fails_on_a_failed_run(comm, monkey
         assert (shared_dir / "ok" / "stability.csv").read_text().startswith("axis,case,status")
     broken = [stability.Case("dt", "expects a refusal that does not come", keep[0].raw, fast=True,
                               refuse=("never",))]
-    monkeypatch.setattr(stability, "cases", lambda: broken)
+    monkeypatch.setattr(runs, "cases", lambda: broken)
     assert main(["stability", "--fast", "--out", str(shared_dir / "bad")]) == 1
     if comm.rank == 0:
         assert "petroll: FAIL dt / expects a refusal" in capsys.readouterr().out

@@ -5,9 +5,13 @@
     /fields/step          (n_saved,) step number of each saved field
     /fields/x, /fields/y  cell-centre coordinates in m (material frame)
     /mesh/xy              ((nx + 1) (ny + 1), 2) cell-corner coordinates in m, for the XDMF file
+    /xdmf/<field>/<k>     (nx, ny) virtual datasets (no data of their own): the k-th saved field, what
+                          results.xdmf points at (every XDMF reader reads a whole dataset; hyperslabs of
+                          /fields are not read alike by ParaView's two readers)
     /rough/<name>         a grid periodic along every axis: at each saved field, the contact's fraction of
                           the cell, the mean gap and the pressure's radially averaged spectrum (ROUGH_UNITS)
-    attributes            scene (the scene's TOML text), petroll_version, format_version, complete
+    attributes            scene (the scene's TOML text), scene_file (the path it was read from),
+                          petroll_version, format_version, complete
                           (False while the run goes on), steps_written, fields_written, last_step,
                           line_contact (True: a plane-strain run; fields (n_saved, nx, 1) on strips of
                           unit length, y = [0]; series per unit length, force_y and cop_y absent),
@@ -152,6 +156,8 @@ class Results:
     line: bool = False  # a line-contact (plane-strain) run: series per unit length, pressure (n, nx, 1)
     fields: tuple[str, ...] = ("pressure",)  # the saved fields in the file (keys of FIELD_UNITS)
     solved_steady: bool = False  # the steady state solved directly ([time] mode = "steady"; attribute steady)
+    scene_file: str = ""  # the path the scene was read from ("" in files of petroll 0.1.0)
+    version: str = ""  # the petroll version that wrote the file
     run_id: str = ""  # the run's identifier, shared with its checkpoints ("" in files written before them)
     error_estimate: dict | None = None  # group error_estimate: {quantity: {attribute: value}, "": group attrs}
     rough: dict[str, np.ndarray] | None = None  # a periodic grid's group rough (ROUGH_UNITS), per saved field
@@ -173,6 +179,7 @@ class Results:
             return cls(path, series, fields["step"][:k], fields["x"][()], fields["y"][()], str(f.attrs["scene"]),
                        bool(f.attrs.get("complete", True)), bool(f.attrs.get("line_contact", False)),
                        tuple(name for name in FIELD_UNITS if name in fields), bool(f.attrs.get("steady", False)),
+                       str(f.attrs.get("scene_file", "")), str(f.attrs.get("petroll_version", "")),
                        str(f.attrs.get("run_id", "")), estimate, rough)
 
     def field(self, name: str) -> np.ndarray:
@@ -216,10 +223,11 @@ class ResultsFile:
 
     def __init__(self, path: str | pathlib.Path, scene_text: str, x: np.ndarray, y: np.ndarray, comm,
                  fields: tuple[str, ...] = ("pressure",), line: bool = False, steady: bool = False,
-                 run_id: str = "", rough: int | None = None):
+                 source: str = "", run_id: str = "", rough: int | None = None):
         from petroll.solver.partition import RowPartition
 
         self.path, self.scene_text, self.comm = pathlib.Path(path), scene_text, comm
+        self.source = source  # the scene file's path (attribute scene_file)
         self.run_id = run_id  # the run's identifier (attribute run_id), shared with its checkpoints
         self.x, self.y, self.fields = np.asarray(x, dtype=float), np.asarray(y, dtype=float), tuple(fields)
         self.rows = RowPartition(len(self.x), comm.size)
@@ -242,8 +250,9 @@ class ResultsFile:
         def build(f: RowFile):
             if f.writer:
                 h = f.file
-                h.attrs.update(scene=self.scene_text, petroll_version=__version__, format_version=FORMAT_VERSION,
-                               line_contact=self.line, steady=self.steady, run_id=self.run_id)
+                h.attrs.update(scene=self.scene_text, scene_file=self.source, petroll_version=__version__,
+                               format_version=FORMAT_VERSION, line_contact=self.line, steady=self.steady,
+                               run_id=self.run_id)
                 units = LINE_SERIES_UNITS if self.line else SERIES_UNITS
                 group = h.create_group("series")
                 for name in self.names:
@@ -304,6 +313,7 @@ class ResultsFile:
                     h["series"][name].resize((steps,))
                 for name in (*self.fields, "step"):
                     h["fields"][name].resize(len(field_steps), axis=0)
+                _field_views(h, self.fields, len(field_steps))
                 for name in h.get("rough", ()):
                     h["rough"][name].resize(len(field_steps), axis=0)
                 h.attrs["run_id"] = self.run_id
@@ -349,6 +359,8 @@ class ResultsFile:
                 f.put("fields/step", (), k - 1, np.array([step] if mine else [], dtype=np.int64))
                 if self.rough is not None:
                     self._put_rough(f, k, rough, mine)
+                if f.writer:
+                    _field_views(h, self.fields, k)
             if f.writer:
                 h.flush()  # the data first, then the marks that make them count
                 self._mark(h, n, k, complete)
@@ -534,12 +546,26 @@ def cell_corners(x: np.ndarray, y: np.ndarray, i0: int = 0, i1: int | None = Non
     return np.stack([X.ravel(), Y.ravel()], axis=1)
 
 
+def _field_views(h: h5py.File, fields: tuple[str, ...], count: int) -> None:
+    """/xdmf/<name>/<k> for k < ``count``: virtual datasets viewing /fields/<name>[k] (made where missing,
+    dropped beyond ``count``); the source is this file (".", so the file may move)."""
+    for name in fields:
+        group = h.require_group(f"xdmf/{name}")
+        source = h["fields"][name]
+        for key in [key for key in group if int(key) >= count]:
+            del group[key]
+        for k in range(count):
+            if str(k) not in group:
+                layout = h5py.VirtualLayout(shape=source.shape[1:], dtype=source.dtype)
+                layout[...] = h5py.VirtualSource(source)[k]
+                group.create_virtual_dataset(str(k), layout)
+
+
 def xdmf_text(h5_name: str, nx: int, ny: int, field_steps: list[int], times: list[float],
               fields: tuple[str, ...] = ("pressure",)) -> str:
     """XDMF 2 describing the saved ``fields`` of ``h5_name`` (same directory) as a temporal collection of
-    structured grids over the HDF5 datasets, one cell attribute per field: no data is copied.
-    ParaView: File > Open results.xdmf."""
-    n = len(field_steps)
+    structured grids, one cell attribute per field, each the virtual dataset /xdmf/<field>/<k>: no data is
+    copied. ParaView's default (XDMF 3) and XDMF (v2) readers read it alike (tests/test_paraview.py)."""
     corners = f"{(nx + 1) * (ny + 1)} 2"
     lines = ['<?xml version="1.0" ?>', '<!DOCTYPE Xdmf SYSTEM "Xdmf.dtd" []>',
              '<Xdmf Version="2.0">', "  <Domain>",
@@ -557,11 +583,8 @@ def xdmf_text(h5_name: str, nx: int, ny: int, field_steps: list[int], times: lis
         for name in fields:
             lines += [
                 f'        <Attribute Name="{name}" AttributeType="Scalar" Center="Cell">',
-                f'          <DataItem ItemType="HyperSlab" Dimensions="1 {nx} {ny}" Type="HyperSlab">',
-                f'            <DataItem Dimensions="3 3" Format="XML">{k} 0 0 1 1 1 1 {nx} {ny}</DataItem>',
-                f'            <DataItem Dimensions="{n} {nx} {ny}" NumberType="Float" Precision="8" Format="HDF">'
-                f"{h5_name}:/fields/{name}</DataItem>",
-                "          </DataItem>",
+                f'          <DataItem Dimensions="{nx} {ny}" NumberType="Float" Precision="8" Format="HDF">'
+                f"{h5_name}:/xdmf/{name}/{k}</DataItem>",
                 "        </Attribute>",
             ]
         lines.append("      </Grid>")

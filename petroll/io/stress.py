@@ -127,25 +127,35 @@ def _drain(depths, nx: int, comm) -> None:
             gather_field(field, nx, comm)
 
 
+def stress_section(path: str | pathlib.Path, name: str, index: int) -> np.ndarray:
+    """Dataset ``name`` of a stress file on the section along the motion (attribute motion_axis) through
+    cell ``index`` across it: (nz, cells along the motion), Pa."""
+    path = pathlib.Path(path)
+    try:
+        with h5py.File(path, "r") as f:
+            d = f[name]
+            return d[:, :, index] if f.attrs["motion_axis"] == "x" else d[:, index, :]
+    except (OSError, KeyError) as exc:
+        raise PetrollError(f"{path}: not a readable petroll stress file ({reason(exc)})") from None
+
+
 def stress_planes(path: str | pathlib.Path, name: str) -> dict:
-    """For figures: dataset ``name`` (von_mises or max_shear) of a stress file in the two planes through
-    its maximum: ``section`` (nz, n) along the motion axis (attribute motion_axis) through the maximum's
-    cell row, and ``map`` (nx, ny) at the maximum's depth (line contact: the (nz, nx) field and the (nx,)
-    profile at that depth); with ``z``, ``x``, ``y`` (m), ``peak`` (Pa),
-    ``at`` (x, y, z of the maximum, m) and ``attrs``. Reads only those planes."""
+    """For figures: dataset ``name`` (von_mises or max_shear) of a stress file at its maximum's depth:
+    ``map`` (nx, ny) (line contact: the (nx,) profile, and ``section``: the whole (nz, nx) field); with
+    ``z``, ``x``, ``y`` (m), ``peak`` (Pa), ``at`` (x, y, z of the maximum, m) and ``attrs``. Reads only
+    that plane; :func:`stress_section` reads a section along the motion."""
     path = pathlib.Path(path)
     try:
         with h5py.File(path, "r") as f:
             attrs = dict(f.attrs)
             z, x, y = f["z"][()], f["x"][()], f["y"][()]
             at = np.asarray(attrs[f"{name}_at"], dtype=float)
-            i, j, k = (int(np.argmin(np.abs(c - v))) for c, v in ((x, at[0]), (y, at[1]), (z, at[2])))
+            k = int(np.argmin(np.abs(z - at[2])))
             d = f[name]
+            planes = {"map": d[k], "z": z, "x": x, "y": y, "peak": float(attrs[f"{name}_max"]), "at": at,
+                      "attrs": attrs}
             if d.ndim == 2:  # line contact: the whole (nz, nx) section, a profile at the maximum's depth
-                section = d[()]
-            else:
-                section = d[:, :, j] if attrs["motion_axis"] == "x" else d[:, i, :]
-            return {"section": section, "map": d[k], "z": z, "x": x, "y": y,
-                    "peak": float(attrs[f"{name}_max"]), "at": at, "attrs": attrs}
+                planes["section"] = d[()]
+            return planes
     except (OSError, KeyError) as exc:
         raise PetrollError(f"{path}: not a readable petroll stress file ({reason(exc)})") from None

@@ -173,6 +173,34 @@ class Tabulated:
     def longest_time(self) -> float:
         return self.t[-1]
 
+    def complex_compliance(self, omega) -> np.ndarray:
+        """J*(omega) = J(0) + integral_0^inf J'(t) exp(-i omega t) dt (1/Pa) at angular frequencies omega > 0
+        (rad/s), exact for the piecewise linear J of the table (constant after its last time)."""
+        w = np.asarray(omega, dtype=float)[..., None]
+        t, J = np.asarray(self.t), np.asarray(self.J)
+        slope = np.diff(J) / np.diff(t)
+        pieces = slope * (np.exp(-1j * w * t[:-1]) - np.exp(-1j * w * t[1:])) / (1j * w)
+        return J[0] + pieces.sum(axis=-1)
+
+
+def loss_peak_time(material: Prony | Tabulated) -> float:
+    """The characteristic time of a viscoelastic material: 1/omega (s) at the largest loss compliance
+    J''(omega) = -Im J*(omega), the frequency at which it dissipates most under a given pressure. For an
+    SLS this is its creep (retardation) time tau exactly; NaN for an elastic material."""
+    from scipy.optimize import minimize_scalar
+
+    times = [t for t in (material.tau if isinstance(material, Prony) else material.t) if t > 0]
+    if not times or material.J0 == material.Jinf:
+        return math.nan
+    lo, hi = math.log(1e-3 / max(times)), math.log(1e3 / min(times))
+    grid = np.linspace(lo, hi, int(20 * (hi - lo)) + 2)
+    loss = -material.complex_compliance(np.exp(grid)).imag
+    k = int(np.argmax(loss))
+    best = minimize_scalar(lambda x: float(material.complex_compliance(np.exp(x)).imag),
+                           bounds=(grid[max(k - 1, 0)], grid[min(k + 1, len(grid) - 1)]), method="bounded",
+                           options={"xatol": 1e-10})
+    return float(math.exp(-best.x))
+
 
 # -- a layer on a rigid base ------------------------------------------------------------------------------
 LAYER_BASES = ("bonded", "frictionless")

@@ -7,9 +7,46 @@ arrays). Times in s; values in the unit of the quantity (m/s, m, N).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
+
+
+@dataclass(frozen=True)
+class ProgramKind:
+    """How a program of one kind is written in a scene: ``kind = NAME`` in an inline table with ``keys``
+    (name: (unit, meaning); unit "value" stands for the quantity's own unit, m/s, m or N), of which
+    ``optional`` ones have defaults; ``example`` is a [motion] line using it."""
+
+    doc: str
+    keys: dict[str, tuple[str, str]]
+    example: str
+    optional: dict[str, float] = field(default_factory=dict)
+
+
+PROGRAMS = {
+    "constant": ProgramKind(
+        "the value itself, written without a table: a number ([x, y] for the velocity)", {},
+        "velocity = [0.01, 0.0]"),
+    "ramp": ProgramKind(
+        "from start at t = 0 linearly to end at t = duration, then constant at end",
+        {"start": ("value", "the value at t = 0 (a load: >= 0)"),
+         "end": ("value", "the value from t = duration on"),
+         "duration": ("s", "the ramp's length in time, > 0")},
+        'load = {kind = "ramp", start = 0.0, end = 0.05, duration = 0.02}'),
+    "sinusoidal": ProgramKind(
+        "value = mean + amplitude sin(2 pi t / period + phase)",
+        {"mean": ("value", "the mean value"),
+         "amplitude": ("value", "the amplitude (a load: no larger than the mean)"),
+         "period": ("s", "the period, > 0"), "phase": ("rad", "the phase at t = 0 (default 0)")},
+        'velocity = {kind = "sinusoidal", mean = [0.01, 0.0], amplitude = [0.008, 0.0], period = 0.2}',
+        optional={"phase": 0.0}),
+    "tabulated": ProgramKind(
+        "linear between the points of a table, constant before the first and after the last",
+        {"t": ("s", "increasing times, from t >= 0"), "value": ("value", "one value per time")},
+        'penetration = {kind = "tabulated", t = [0.0, 0.05, 0.1], value = [1.0e-5, 2.0e-5, 2.0e-5]}'),
+}
+"""The kinds of program a [motion] key takes (docs/scene.md is generated from this)."""
 
 
 @dataclass(frozen=True)

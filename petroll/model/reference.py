@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from petroll.model.bodies import BODY_KEYS, LINE_BODY_KEYS
 from petroll.errors import MISSING
+from petroll.model.motion import PROGRAMS
 from petroll.model.scene import SCHEMA, toml_value
 
 _INTRO = """# Scene reference
@@ -28,6 +29,8 @@ def scene_reference() -> str:
                        else f"`{toml_value(key.default)}`")
             lines.append(f"| `{name}` | {key.kind} | {key.unit} | {default} | {key.doc} |")
         lines.append("")
+        if section == "motion":
+            lines += _programs()
         if section == "body":
             for shape, shape_keys in BODY_KEYS.items():
                 lines += [f"### shape = \"{shape}\"", "", "| key | meaning |", "|---|---|"]
@@ -39,4 +42,22 @@ def scene_reference() -> str:
                 lines += [f"| `{name}` | {doc} |" for name, doc in shape_keys.items()]
                 lines.append("")
     return "\n".join(lines)
+
+
+def _programs() -> list[str]:
+    """The section on programs in time: every kind, its keys with units, an example."""
+    lines = ["### Programs in time", "",
+             "`velocity`, `penetration` and `load` are each a value or a program of one of these kinds, an "
+             "inline table with `kind` and the keys below. \"value\" is the unit of the key the program "
+             "is given to (m/s as [x, y] for the velocity, m for the penetration, N for the load); times are "
+             "in s from the start of the run (t = 0).", ""]
+    for name, kind in PROGRAMS.items():
+        title = f"kind = \"{name}\"" if kind.keys else f"a {name} (no kind)"
+        lines += [f"#### {title}", "", f"{kind.doc[0].upper()}{kind.doc[1:]}.", ""]
+        if kind.keys:
+            lines += ["| key | unit | meaning |", "|---|---|---|"]
+            lines += [f"| `{key}` | {unit} | {doc} |" for key, (unit, doc) in kind.keys.items()]
+            lines.append("")
+        lines += ["```toml", "[motion]", kind.example, "```", ""]
+    return lines
 

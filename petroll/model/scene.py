@@ -218,11 +218,17 @@ def _positives(value: Any) -> tuple[float, ...]:
 
 
 def _program(vector: bool, positive: bool) -> Callable[[Any], Any]:
-    """A program in time (petroll.model.motion): a value, or {kind = "ramp" | "sinusoidal" | "tabulated", ...}."""
+    """A program in time (petroll.model.motion): a value, or {kind = "ramp" | "sinusoidal" | "tabulated", ...}
+    with the keys of motion.PROGRAMS."""
     what = "[x, y]" if vector else "a number"
-    forms = (f"{what}, or an inline table {{kind = \"ramp\", start, end, duration}}, "
-             f"{{kind = \"sinusoidal\", mean, amplitude, period, phase = 0}} or "
-             f"{{kind = \"tabulated\", t = [...], value = [...]}}")
+    tables = [f"{{kind = \"{name}\", " + ", ".join(
+        key + (f" = {kind.optional[key]:g}" if key in kind.optional else "") for key in kind.keys) + "}"
+        for name, kind in motion.PROGRAMS.items() if kind.keys]
+    forms = f"{what}, or an inline table {', '.join(tables[:-1])} or {tables[-1]}"
+
+    def keys_of(kind: str, keys: set) -> bool:
+        spec = motion.PROGRAMS[kind]
+        return set(spec.keys) - set(spec.optional) <= keys <= set(spec.keys)
 
     def value_of(v: Any) -> np.ndarray:
         out = np.array(_point(v)) if vector else np.array(_number(v))
@@ -235,14 +241,13 @@ def _program(vector: bool, positive: bool) -> Callable[[Any], Any]:
             if not isinstance(value, dict):
                 return motion.Constant(value_of(value))
             kind, keys = value.get("kind"), set(value) - {"kind"}
-            if kind == "ramp" and keys == {"start", "end", "duration"}:
+            if kind == "ramp" and keys_of(kind, keys):
                 start = np.array(_point(value["start"])) if vector else np.array(_number(value["start"]))
                 if positive and not vector and start < 0:  # a load ramp may start from 0, never below
                     raise _Invalid(f"start = {float(start):g} must be >= 0 (a pulling load needs adhesion, "
                                    "which petroll does not model)")
                 return motion.Ramp(start, value_of(value["end"]), _positive(value["duration"]))
-            if kind == "sinusoidal" and {"mean", "amplitude", "period"} <= keys <= {"mean", "amplitude",
-                                                                                    "period", "phase"}:
+            if kind == "sinusoidal" and keys_of(kind, keys):
                 amplitude = np.array(_point(value["amplitude"])) if vector else np.array(
                     _number(value["amplitude"]))
                 mean = value_of(value["mean"])
@@ -250,8 +255,8 @@ def _program(vector: bool, positive: bool) -> Callable[[Any], Any]:
                     raise _Invalid(f"mean - |amplitude| = {float(mean - abs(amplitude)):g} must be >= 0 (a "
                                    "pulling load needs adhesion, which petroll does not model)")
                 return motion.Sinusoidal(mean, amplitude, _positive(value["period"]),
-                                         _number(value.get("phase", 0.0)))
-            if kind == "tabulated" and keys == {"t", "value"}:
+                                         _number(value.get("phase", motion.PROGRAMS[kind].optional["phase"])))
+            if kind == "tabulated" and keys_of(kind, keys):
                 times = np.array(_numbers(value["t"]))
                 rows = value["value"]
                 values = np.array([value_of(v) for v in rows]) if isinstance(rows, list) else None
@@ -931,28 +936,27 @@ def _check_contact_inside(scene: Scene) -> None:
 
 
 def dumps(raw: dict) -> str:
-    """A TOML text for a scene dict (sections of scalars and flat lists): what ``results.h5`` stores."""
-    lines = []
-    for section, table in raw.items():
-        lines.append(f"[{section}]")
-        lines += [f"{key} = {toml_value(value)}" for key, value in table.items()]
-        lines.append("")
-    return "\n".join(lines)
+    """A TOML text for a scene dict (written by tomli-w; numpy values as plain Python): what ``results.h5``
+    stores and ``petroll material fit`` writes. Inline tables come out as sub-tables ([material.layer]):
+    the same scene to a TOML reader."""
+    import tomli_w
+
+    return tomli_w.dumps(_plain(raw))
 
 
 def toml_value(value: Any) -> str:
-    """``value`` written as a TOML value: bool, int, float, str, list or tuple (array), dict (inline table),
-    numpy scalars and arrays too. petroll's one TOML writer (with :func:`dumps`)."""
-    if isinstance(value, np.ndarray):
-        value = value.tolist()
-    if isinstance(value, (bool, np.bool_)):
-        return "true" if value else "false"
-    if isinstance(value, str):
-        return '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
-    if isinstance(value, (list, tuple)):
-        return "[" + ", ".join(toml_value(v) for v in value) + "]"
+    """``value`` (not a table) written as one line of TOML, tomli-w's text of it without its line breaks:
+    the defaults of the scene reference."""
+    import tomli_w
+
+    lines = tomli_w.dumps({"v": _plain(value)}).strip().partition(" = ")[2].splitlines()
+    return " ".join(line.strip() for line in lines).replace("[ ", "[").replace(", ]", "]")
+
+
+def _plain(value: Any) -> Any:
+    """``value`` with numpy arrays and scalars as Python lists and numbers, tuples as lists."""
     if isinstance(value, dict):
-        return "{" + ", ".join(f"{k} = {toml_value(v)}" for k, v in value.items()) + "}"
-    if isinstance(value, (int, np.integer)):
-        return str(int(value))
-    return repr(float(value))
+        return {k: _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple, np.ndarray)):
+        return [_plain(v) for v in value]
+    return value.item() if isinstance(value, np.generic) else value

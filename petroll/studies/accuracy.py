@@ -145,24 +145,39 @@ def profile_roller(directory: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD) -> 
     return parse_scene(raw, source="roller-2d.toml as a profile", base_dir=directory)
 
 
-def verification_scenes(directory: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD) -> dict[str, Scene]:
-    """The scenes of the verification table: runs/sphere.toml, runs/roller-2d.toml, the sphere as a height
-    map (:func:`heightmap_sphere`), the roller as a 1-D profile (:func:`profile_roller`) and the conveyor
-    idler's belt cover (a layer, runs/conveyor-idler.toml)."""
-    return {"sphere.toml": load_scene(shipped_scene("sphere.toml")),
-            "roller-2d.toml": load_scene(shipped_scene("roller-2d.toml")),
-            "sphere.toml, height map": heightmap_sphere(directory, comm),
-            "roller-2d.toml, 1-D profile": profile_roller(directory, comm),
-            "conveyor-idler.toml (layer)": load_scene(shipped_scene("conveyor-idler.toml"))}
+VERIFICATION = ("sphere.toml", "roller-2d.toml", "sphere.toml, height map", "roller-2d.toml, 1-D profile",
+                "conveyor-idler.toml (layer)")
+"""The labels of the verification scenes (:func:`verification_scenes`)."""
 
 
-def bench_verify(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD) -> list[dict]:
+def verification_scenes(directory: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD,
+                        only: tuple[str, ...] = VERIFICATION) -> dict[str, Scene]:
+    """The scenes of the verification table (those of ``only``): runs/sphere.toml, runs/roller-2d.toml, the
+    sphere as a height map (:func:`heightmap_sphere`), the roller as a 1-D profile (:func:`profile_roller`)
+    and the conveyor idler's belt cover (a layer, runs/conveyor-idler.toml)."""
+    make = {"sphere.toml": lambda: load_scene(shipped_scene("sphere.toml")),
+            "roller-2d.toml": lambda: load_scene(shipped_scene("roller-2d.toml")),
+            "sphere.toml, height map": lambda: heightmap_sphere(directory, comm),
+            "roller-2d.toml, 1-D profile": lambda: profile_roller(directory, comm),
+            "conveyor-idler.toml (layer)": lambda: load_scene(shipped_scene("conveyor-idler.toml"))}
+    return {label: make[label]() for label in only}
+
+
+def bench(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, scenes: tuple[str, ...] = VERIFICATION,
+          factors: tuple[float, ...] = (0.25, 0.5, 1.0, 2.0), reference: float = 4.0) -> list[dict]:
+    """``petroll bench accuracy``: :func:`bench_verify` then :func:`bench_convergence` on ``scenes``
+    (labels of :data:`VERIFICATION`); returns both tables' rows."""
+    return bench_verify(out, comm, scenes) + bench_convergence(out, comm, factors, reference, scenes)
+
+
+def bench_verify(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD,
+                 scenes: tuple[str, ...] = VERIFICATION) -> list[dict]:
     """``petroll bench accuracy``'s first table: each verification scene's estimate against its true error
     (reference 4x finer); writes ``out/estimate_verification.csv``."""
     from petroll.studies.tables import print_table, write_table
 
     rows = []
-    for label, scene in verification_scenes(out / "bodies", comm).items():
+    for label, scene in verification_scenes(out / "bodies", comm, scenes).items():
         checks, found = verify(scene, comm)
         grids = " / ".join(f"{nx}x{ny}" if ny > 1 else f"{nx}" for nx, ny in found.grids)
         for c in checks:
@@ -183,8 +198,8 @@ def bench_verify(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD) -> list[dic
 
 
 def bench_convergence(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD,
-                      factors: tuple[float, ...] = (0.25, 0.5, 1.0, 2.0),
-                      reference: float = 4.0) -> list[dict]:
+                      factors: tuple[float, ...] = (0.25, 0.5, 1.0, 2.0), reference: float = 4.0,
+                      scenes: tuple[str, ...] = VERIFICATION) -> list[dict]:
     """``petroll bench accuracy``'s second table: the last step's relative errors against cells per contact
     half-width (each verification scene at ``factors`` times its cells per axis, against ``reference``
     times, all to the time of the shipped resolution's last step); writes ``out/convergence.csv``."""
@@ -192,7 +207,7 @@ def bench_convergence(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD,
     from petroll.studies.tables import print_table, write_table
 
     rows = []
-    for label, scene in verification_scenes(out / "bodies", comm).items():
+    for label, scene in verification_scenes(out / "bodies", comm, scenes).items():
         record, _ = last_record(scene, comm)
         end = end_time(scene, record)
         truth, _ = last_record(refined(scene, reference, end), comm)
@@ -210,21 +225,21 @@ def bench_convergence(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD,
     return rows
 
 
-def bench_cost(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD) -> list[dict]:
-    """``petroll bench estimate``: the estimate's wall time against the run's (:func:`cost`), runs/sphere.toml
-    at its own grid and at 2x and 4x its cells per axis (the estimate's cost is a fixed part per step plus a
-    part per cell), runs/roller-2d.toml and runs/conveyor-idler.toml; writes ``out/estimate_cost.csv``.
+def bench_cost(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, factors: tuple[int, ...] = (1, 2, 4),
+               repeats: int = 3) -> list[dict]:
+    """``petroll bench estimate``: the estimate's wall time against the run's (:func:`cost`, best of
+    ``repeats``), runs/sphere.toml at ``factors`` times its cells per axis (the estimate's cost is a fixed
+    part per step plus a part per cell), runs/roller-2d.toml and runs/conveyor-idler.toml; writes ``out/estimate_cost.csv``.
     The target: at most 25 %."""
     from petroll.studies.tables import print_table, write_table
 
     rows = []
     sphere = load_scene(shipped_scene("sphere.toml"))
-    cases = [("sphere.toml", sphere), ("sphere.toml, 2x cells", refined(sphere, 2, None)),
-             ("sphere.toml, 4x cells", refined(sphere, 4, None)),
-             ("roller-2d.toml", load_scene(shipped_scene("roller-2d.toml"))),
-             ("conveyor-idler.toml", load_scene(shipped_scene("conveyor-idler.toml")))]
+    cases = [(f"sphere.toml, {k}x cells" if k > 1 else "sphere.toml", refined(sphere, k, None)) for k in factors]
+    cases += [("roller-2d.toml", load_scene(shipped_scene("roller-2d.toml"))),
+              ("conveyor-idler.toml", load_scene(shipped_scene("conveyor-idler.toml")))]
     for k, (label, scene) in enumerate(cases):
-        found = cost(scene, out / f"runs-{k}", comm)
+        found = cost(scene, out / f"runs-{k}", comm, repeats)
         g = scene.grid
         rows.append({"scene": label, "grid": f"{g.nx}x{g.ny}", "fine_s": f"{found['fine_s']:.3f}",
                      "estimate_s": f"{found['estimate_s']:.3f}", "ratio": f"{found['ratio']:.3f}",

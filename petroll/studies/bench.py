@@ -30,7 +30,8 @@ from mpi4py import MPI
 
 from petroll.model.bodies import Sphere
 from petroll.model.scene import TAO_TYPES
-from petroll.solver.contact import KRYLOV_TYPES, ContactSolver
+from petroll.solver.contact import ContactSolver
+from petroll.solver.window_qp import KRYLOV_TYPES
 from petroll.errors import PetrollError
 from petroll.model.grid import Grid
 from petroll.solver.warm import DEPTH, WarmStart
@@ -40,8 +41,10 @@ _R, _J, _DELTA = 0.01, 7.5e-8, 1e-5  # m, 1/Pa, m: a steel ball on rubber (E = 1
 
 
 def tao_types(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, repeats: int = 3,
-              cells_per_radius: tuple[int, ...] = (16, 48)) -> list[dict]:
-    """Measure every TAO type; returns the rows and writes ``out/tao_types.csv`` (rank 0)."""
+              cells_per_radius: tuple[int, ...] = (16, 48), load_cells: int = 256,
+              rolling_distance: float | None = None) -> list[dict]:
+    """Measure every TAO type; returns the rows and writes ``out/tao_types.csv`` (rank 0), then
+    :func:`load_control` on ``load_cells`` and :func:`tao_types_rolling` to ``rolling_distance``."""
     a = math.sqrt(_R * _DELTA)
     force = 4 * math.sqrt(_R) * _DELTA**1.5 / (3 * _J)
     rows = []
@@ -73,8 +76,8 @@ def tao_types(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, repeats: int =
     if comm.rank == 0:
         write_table(rows, out / "tao_types.csv")
         _plot_tao(rows, out / "tao_types.png")
-    rows += load_control(out, comm)
-    rows += tao_types_rolling(out, comm)
+    rows += load_control(out, comm, load_cells)
+    rows += tao_types_rolling(out, comm, rolling_distance)
     return rows
 
 

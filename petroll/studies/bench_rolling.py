@@ -1,4 +1,4 @@
-"""Rolling benchmarks (issue 5): work-precision of the integrators, cost growth, MPI scaling.
+"""Rolling benchmarks: work-precision of the integrators, cost growth, MPI scaling.
 
 ``petroll bench precision [--out DIR]``: the default scene (runs/sphere.toml, changed in memory: no
 ``[time] steady`` stop, so every run rolls the scene's whole track and ends at the same body position)

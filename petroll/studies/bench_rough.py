@@ -201,11 +201,13 @@ def master_curve(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, cells: int 
     return rows
 
 
-def sliding(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD) -> None:
-    """``petroll bench sliding``: the closed forms, the 1024^2 solve and the 512^2 master curve."""
+def sliding(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, cells: int = 1024, curve_cells: int = 512,
+            points: int = 20) -> None:
+    """``petroll bench sliding``: the closed forms, the ``cells``^2 solve and the ``curve_cells``^2 master
+    curve over ``points`` speeds."""
     closed_forms(out, comm)
-    rough_sliding(out, comm)
-    master_curve(out, comm)
+    rough_sliding(out, comm, cells)
+    master_curve(out, comm, curve_cells, points)
 
 
 def applications(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, sides=(256, 512, 1024, 2048),
@@ -289,10 +291,13 @@ def tamaas(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, sides=(128, 256, 
     return rows
 
 
-def periodic(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD) -> None:
-    """``petroll bench periodic``: the operator's cost against the non-periodic one, and Tamaas."""
-    applications(out, comm)
-    tamaas(out, comm)
+def periodic(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, sides=(256, 512, 1024, 2048),
+             repeats: int = 20, tamaas_sides=(128, 256, 512)) -> None:
+    """``petroll bench periodic``: the operator's cost against the non-periodic one on ``sides``, and
+    Tamaas on ``tamaas_sides`` (none: Tamaas is not run, nothing installed)."""
+    applications(out, comm, sides, repeats)
+    if tamaas_sides:
+        tamaas(out, comm, tamaas_sides)
 
 
 SCALE_SIDES = (2048, 4096)

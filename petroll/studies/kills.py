@@ -75,7 +75,7 @@ def storm(directory: str | pathlib.Path, trials: int, seed: int = 0, slow: float
           ranks: int = 0, log=None) -> list[Trial]:
     """Run ``trials`` killed runs in ``directory`` (see the module docstring); each trial's directory is
     removed once checked unless something was lost. ``log(trial)`` after each."""
-    directory = pathlib.Path(directory)
+    directory = pathlib.Path(directory).resolve()  # mpirun's runs start in it: their --out must be absolute
     directory.mkdir(parents=True, exist_ok=True)
     scene = parse_scene(SCENE, source="kill-storm.toml", base_dir=directory)
     (directory / "kill-storm.toml").write_text(dumps(SCENE), encoding="utf-8")

@@ -57,7 +57,7 @@ from mpi4py import MPI
 from petroll import __version__
 from petroll.model import motion as motions
 from petroll.errors import PetrollError, SceneError, reason
-from petroll.model.materials import Prony
+from petroll.model.materials import Prony, Tabulated, loss_peak_time
 from petroll.io.results import Results, atomic_write, results_identity
 from petroll.model.scene import DEFAULT_STEADY, SCHEMA, Scene
 
@@ -91,7 +91,8 @@ COLUMNS: dict[str, tuple[str, str]] = {
     "distance": ("m", "path length rolled"),
     "solve_time": ("s", "wall time of the point's steps (their sum; file writes excluded)"),
     "speed": ("m/s", "|V| of a constant velocity (NaN otherwise)"),
-    "tau": ("s", "longest creep (retardation) time of a Prony/SLS material (NaN otherwise)"),
+    "tau": ("s", "characteristic time of the material: 1/omega at the peak of its loss compliance J''(omega) "
+            "(an SLS: its creep time; NaN for an elastic material)"),
     "a_T": ("-", "time-temperature shift factor at the point's [material] temperature (1 without one)"),
     "a": ("m", "Hertz radius of the first step: sqrt(R delta_0) for a sphere, else sqrt(area_0/pi) (line "
           "contact: half the width); a point solved directly has no first step: Hertz with J0 at its "
@@ -430,8 +431,8 @@ def table_row(scene: Scene, results: Results, value: float, estimate_error: bool
     velocity = scene.velocity
     speed = float(np.hypot(*velocity.value)) if isinstance(velocity, motions.Constant) else math.nan
     material = scene.material
-    viscous = isinstance(material, Prony) and len(material.tau) > 0
-    tau = material.longest_time if viscous else math.nan
+    viscous = isinstance(material, Tabulated) or (isinstance(material, Prony) and len(material.tau) > 0)
+    tau = loss_peak_time(material) if viscous else math.nan
     sphere = isinstance(scene.body, Sphere)
     line = scene.grid.line  # plane strain: force per length, area a width, delta relative to the datum
     delta0 = float(s["delta"][0])
@@ -452,7 +453,7 @@ def table_row(scene: Scene, results: Results, value: float, estimate_error: bool
     row.update(mu_r_slow=nan, force_J0=nan, force_Jinf=nan, delta_J0=nan, delta_Jinf=nan)
     if (sphere or isinstance(scene.body, CylinderSection)) and isinstance(material, Prony):
         radius = scene.body.radius
-        if viscous and math.isfinite(speed):  # mu_r -> e/R in 3-D and in plane strain (docs/line-contact.md)
+        if material.tau and math.isfinite(speed):  # mu_r -> e/R in 3-D and in plane strain (docs/line-contact.md)
             creep = sum(d * t for d, t in zip(material.dJ, material.tau))
             row["mu_r_slow"] = speed * creep / (material.Jinf * radius)
         for name, J in (("J0", material.J0), ("Jinf", material.Jinf)):

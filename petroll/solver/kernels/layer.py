@@ -189,15 +189,9 @@ def layer_strip_coefficients(nx: int, dx: float, datum: float, layer: Layer) -> 
 
 TORUS = 1.5
 """A layer's preconditioner: the circulant of its kernel on a torus 1.5 times the QP's window along each
-axis (:meth:`petroll.solver.influence.InfluenceOperator.pc_torus`), not on the window itself. Measured, not
-derived: applications per step of petroll bench layer (docs/layer.md#performance) on the window / at 1.5:
-idler 6 mm and 2 mm bonded, 6 mm frictionless 6.59 / 5.45, 6.47 / 5.47, 5.42 / 4.92 (at 1.25: 5.65,
-5.77, 5.17; at 2: 5.94, 5.50, 4.90); spheres h = 4a, a, a/4 bonded, a frictionless 7.83 / 7.77,
-7.03 / 5.90, 6.22 / 5.43, 5.83 / 5.80. The gain is in the few warm-started iterations of a step: the
-condition number of the preconditioned matrix of the idler's steady contact hardly changes (6 mm bonded
-1.71 -> 1.62, 2 mm 1.30 -> 1.42). The longer transforms cost little on these windows (CPU per step fell
-with the applications, or for h = 4a stayed within the noise). A half-space gains nothing (idler 4.60 ->
-4.57 applications; on a torus twice the window its strip kernel's circulant fails: 124)."""
+axis (:meth:`petroll.solver.influence.InfluenceOperator.pc_torus`), not on the window itself; a half-space
+keeps the window's. The factor is a measured choice, not a derived one: the fewest operator applications
+per step of `petroll bench layer` among the factors tried (docs/layer.md#performance)."""
 
 
 class LayerRectangles(Kernel):

@@ -1,6 +1,5 @@
-"""PNG figures of ``petroll material fit`` (:mod:`petroll.model.dma`): the master curve with the fit, coloured
-by measurement set, and the shift factors found from the data. matplotlib is imported only when drawing
-(as in :mod:`petroll.plot`)."""
+"""The figures of ``petroll material fit`` (:mod:`petroll.model.dma`): the master curve with the fit,
+coloured by measurement set, and the shift factors found from the data."""
 
 from __future__ import annotations
 
@@ -9,7 +8,7 @@ import pathlib
 import numpy as np
 
 from petroll.io.results import atomic_write
-from petroll.plot import new_figure
+from petroll.plot.common import constrained_figure
 
 
 def plot_fit(data, fit, path: str | pathlib.Path) -> pathlib.Path:
@@ -27,7 +26,7 @@ def fit_figure(data, fit):
     from matplotlib.cm import ScalarMappable
     from matplotlib.colors import Normalize
 
-    figure = new_figure(13, 4)
+    figure = constrained_figure(13, 4)
     axes = figure.subplots(1, 3)
     f = np.geomspace(*fit.frequency_range, 400)
     storage, loss = fit.dynamic(f)
@@ -70,7 +69,7 @@ def shift_figure(data):
     against its temperature with the table law through them and the WLF and Arrhenius laws fitted to
     them (left), and each law's difference from the factors (right)."""
     found = data.found
-    figure = new_figure(11, 4.2)
+    figure = constrained_figure(11, 4.2)
     left, right = figure.subplots(1, 2)
     T = np.linspace(found.temperatures[0], found.temperatures[-1], 300)
     left.plot(found.temperatures, found.log10_aT, "o", color="black", markersize=4,
