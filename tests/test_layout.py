@@ -151,8 +151,6 @@ LONG_MODULES = {
                                         "their scene helpers; a few lines over",
 }
 LONG_FUNCTIONS = {
-    ("petroll/model/bodies/mesh.py", "mesh_height_map"): "one scan-conversion loop over a mesh's triangles "
-                                                          "(bodies from data, issue 24)",
     ("petroll/solver/pk.py", "solve"): "the Polonsky-Keer iteration: one loop whose steps (projection, "
                                        "re-entry, conjugate direction, the load's constraint) share a dozen "
                                        "locals",
