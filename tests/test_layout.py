@@ -144,15 +144,12 @@ FUNCTION_LINES, MODULE_LINES = 80, 600
 LONG_MODULES = {
     "petroll/io/checkpoint.py": "checkpoints written, read, verified and checked for a restart (issue 28's "
                                 "journal and identity checks just landed): to be split next",
-    "petroll/model/scene.py": "the schema of every section beside Scene and its parser; several sessions "
-                              "add keys to it now (rough surfaces, accuracy checks): the schema moves to its "
-                              "own module once they have landed",
+    "petroll/model/scene.py": "the schema of every section beside Scene and its parser: the schema is to "
+                              "move to a module of its own (every session of this round added keys to it)",
     "petroll/studies/bench_rolling.py": "four rolling benchmarks (precision, growth, skips, mpi) sharing "
                                         "their scene helpers; a few lines over",
 }
 LONG_FUNCTIONS = {
-    ("petroll/model/bodies/mesh.py", "mesh_height_map"): "one scan-conversion loop over a mesh's triangles "
-                                                          "(bodies from data, issue 24)",
     ("petroll/solver/pk.py", "solve"): "the Polonsky-Keer iteration: one loop whose steps (projection, "
                                        "re-entry, conjugate direction, the load's constraint) share a dozen "
                                        "locals",

@@ -41,6 +41,7 @@ def _read_triangles(path: str | os.PathLike, source: str) -> tuple[np.ndarray, n
 
 
 _RASTER_CHUNK = 2_000_000  # candidate (triangle, grid point) pairs handled at once: bounds the memory
+_TOL = 1e-9  # grid points within this fraction of a cell of a bounding box count as inside it
 
 
 def mesh_height_map(
@@ -73,8 +74,29 @@ def mesh_height_map(
         )
     x, y, z, det = x[keep], y[keep], z[keep], det[keep]
 
-    # grid points at k * h (k integer) around the lowest vertex, covering the x-y bounding box
-    tol = 1e-9
+    kx0, kx1, ky0, ky1 = _grid_range(x, y, hx, hy, source, cell)
+    nx, ny = kx1 - kx0 + 1, ky1 - ky0 + 1
+    grid = _lowest_z(x, y, z, det, (kx0, ky0), (nx, ny), (hx, hy))
+
+    heights = grid.reshape(nx, ny)
+    center = (0.5 * (kx0 + kx1) * hx, 0.5 * (ky0 + ky1) * hy)
+    finite = np.isfinite(heights)
+    if not (finite[:-1, :-1] & finite[1:, :-1] & finite[:-1, 1:] & finite[1:, 1:]).any():
+        raise SceneError(
+            source,
+            "[body] cell",
+            cell,
+            "cell too large for the mesh: no grid cell lies fully on the mesh surface",
+        )
+    return HeightMap(heights, (hx, hy), center, source=source)
+
+
+def _grid_range(x: np.ndarray, y: np.ndarray, hx: float, hy: float, source: str,
+                cell) -> tuple[int, int, int, int]:
+    """Grid points k * h (k integer, m) around the lowest vertex (the origin of ``x``, ``y``) covering the
+    triangles' x-y bounding box: the index ranges kx0..kx1, ky0..ky1 (inclusive); SceneError naming
+    ``cell`` where the grid would be smaller than 2 x 2 or larger than 5e7 points."""
+    tol = _TOL
     kx0 = math.ceil(x.min() / hx - tol)
     kx1 = math.floor(x.max() / hx + tol)
     ky0 = math.ceil(y.min() / hy - tol)
@@ -92,7 +114,17 @@ def mesh_height_map(
             source, "[body] cell", cell,
             f"cell too small for the mesh: the grid would have {nx} x {ny} points",
         )
+    return kx0, kx1, ky0, ky1
 
+
+def _lowest_z(x: np.ndarray, y: np.ndarray, z: np.ndarray, det: np.ndarray, k0: tuple[int, int],
+              shape: tuple[int, int], h: tuple[float, float]) -> np.ndarray:
+    """The lowest barycentric z (m) of the triangles (vertex coordinates ``x``, ``y``, ``z``: (m, 3);
+    ``det``: twice their signed x-y areas) at each grid point (k0 + index) * h, flattened (nx * ny,
+    +inf where no triangle covers it). Scan-converted by chunks of about _RASTER_CHUNK candidate points:
+    every grid point of each triangle's bounding box is tested by its barycentric coordinates."""
+    (kx0, ky0), (nx, ny), (hx, hy) = k0, shape, h
+    tol = _TOL
     # index ranges (relative to the grid) of the grid points in each triangle's bounding box
     i0 = np.clip(np.ceil(x.min(axis=1) / hx - tol).astype(np.int64) - kx0, 0, nx - 1)
     i1 = np.clip(np.floor(x.max(axis=1) / hx + tol).astype(np.int64) - kx0, 0, nx - 1)
@@ -143,14 +175,4 @@ def mesh_height_map(
         flat, zz = flat[head], zz[head]
         grid[flat] = np.minimum(grid[flat], zz)
 
-    heights = grid.reshape(nx, ny)
-    center = (0.5 * (kx0 + kx1) * hx, 0.5 * (ky0 + ky1) * hy)
-    finite = np.isfinite(heights)
-    if not (finite[:-1, :-1] & finite[1:, :-1] & finite[:-1, 1:] & finite[1:, 1:]).any():
-        raise SceneError(
-            source,
-            "[body] cell",
-            cell,
-            "cell too large for the mesh: no grid cell lies fully on the mesh surface",
-        )
-    return HeightMap(heights, (hx, hy), center, source=source)
+    return grid
