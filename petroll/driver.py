@@ -60,7 +60,8 @@ def run(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, out: str | pathlib.Path |
     raises :class:`RunFailed` naming the scene file, the step, its time and the distance rolled, after
     every step solved before it is written to results.h5 (complete = false).
 
-    ``out`` is held by this run alone (``out/petroll.lock``; OutputError if another process holds it), and
+    ``out`` is held by this run alone (``out/petroll.lock``, released on every rank when run returns or raises
+    an error of the run; OutputError if another process holds it), and
     results of another scene there (another run's, for a restart into another directory) are refused with
     OutputError unless ``overwrite``. A results file that cannot be written stops the run with OutputError
     on every rank, results.h5 holding the steps of its last complete append.
@@ -70,12 +71,18 @@ def run(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, out: str | pathlib.Path |
         check_run(scene)  # before anything is written: touching, path, resolution (petroll.model.preflight)
     lock = claim_output(out, comm, f"petroll run {scene.source}" if restart is None else
                         f"petroll restart {restart.path}")
+    collective = True  # raised on every rank alike (or returned): the ranks wait for the lock's release
     try:
         run_id = _run_identity(out, scene, comm, restart, overwrite)
         return _run(scene, comm, out, run_id, progress, restart, stop, on_step, steady_start, estimate_error)
+    except BaseException as exc:
+        collective = isinstance(exc, (PetrollError, RunInterrupted))
+        raise
     finally:
         if lock is not None:
             lock.release()
+        if collective:  # so that on return ``out`` is free (no petroll.lock) on every rank
+            comm.Barrier()
 
 
 def _run(scene: Scene, comm: MPI.Comm, out: pathlib.Path, run_id: str, progress: bool, restart, stop,

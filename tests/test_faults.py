@@ -18,6 +18,7 @@ import shutil
 import signal
 import subprocess
 import sys
+import time
 
 import h5py
 import numpy as np
@@ -309,6 +310,24 @@ def test_a_directory_in_use_is_refused_naming_its_holder_and_a_stale_lock_is_tak
     results = run(make_scene(raw), comm, out)
     comm.Barrier()  # rank 0 holds the lock and releases it on its way out of run
     assert results.complete and not (out / LOCK_NAME).exists()
+
+
+def test_on_every_rank_run_returns_or_refuses_only_once_the_directory_is_free(comm, shared_dir, monkeypatch):
+    """Rank 0 releases the lock slowly: no rank returns from a run, or from its refusal of another scene's
+    results, while petroll.lock is still there (a script's next step on that directory sees it free)."""
+    release = RunLock.release
+
+    def slow(self):
+        time.sleep(0.5)
+        release(self)
+
+    monkeypatch.setattr(RunLock, "release", slow)
+    out = shared_dir / "run"
+    run(make_scene(raw_scene(SLS)), comm, out)
+    free_after_run = not (out / LOCK_NAME).exists()
+    with pytest.raises(OutputError, match="another scene"):
+        run(make_scene(raw_scene(PRONY)), comm, out)
+    assert free_after_run and not (out / LOCK_NAME).exists()
 
 
 @pytest.mark.serial
