@@ -25,7 +25,7 @@ from petroll.io import checkpoint_writer as ckpt_writer
 from petroll.io.checkpoint import (CheckpointError, RunInterrupted, StopRequest, latest_checkpoint,
                                 list_checkpoints, read_checkpoint, restart_scene)
 from petroll.cli import main
-from petroll.model.schema import DEFAULT_TAO_TYPE
+from petroll.model.tao import DEFAULT_TAO_TYPE
 from petroll.errors import SceneError
 from petroll.io.results import OutputError, Results
 from petroll.model.scene import dumps, parse_scene

@@ -18,7 +18,8 @@ import pytest
 
 from petroll.model.bodies import Sphere
 from petroll.errors import MISSING, PetrollError, SceneError
-from petroll.model.schema import DEFAULT_TAO_TYPE, SCHEMA
+from petroll.model.schema import SCHEMA
+from petroll.model.tao import DEFAULT_TAO_TYPE
 from petroll.model.scene import Scene, load_scene, parse_scene
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
