@@ -23,13 +23,7 @@ from petroll.model.bodies import BODY_KEYS, Body, HeightMap, HeightProfile, make
 from petroll.errors import MISSING, SceneError
 from petroll.model.grid import Grid, line_grid
 from petroll.model.bodies.rough import PeriodicSurface
-
-TAO_TYPES = ("tron", "pk", "gpcg", "bntr", "bncg", "blmvm", "bqnls", "bnls", "bntl")
-"""TAO's bound-constrained solvers that handle this QP (bqpip is left out: it needs finite upper bounds),
-and ``pk``, petroll's Polonsky-Keer conjugate gradient as a TAO Python type (petroll/solver/pk.py)."""
-
-DEFAULT_TAO_TYPE = "pk"
-"""Chosen by measurement: see docs/benchmarks.md."""
+from petroll.model.tao import DEFAULT_TAO_TYPE, TAO_TYPES
 
 DEFAULT_STEADY = 1e-3
 """The [time] steady tolerance a sweep gives a scene that has none (docs/sweep.md)."""

@@ -30,7 +30,7 @@ from mpi4py import MPI
 
 from petroll.errors import SolverError
 from petroll.model.grid import Grid
-from petroll.model.scene import DEFAULT_TAO_TYPE, TAO_TYPES
+from petroll.model.tao import DEFAULT_TAO_TYPE, TAO_TYPES
 from petroll.solver.partition import RowPartition, move_rows
 from petroll.solver.influence import InfluenceOperator, influence_operator, spare_cores
 from petroll.solver.pk import PK_PYTHON_TYPE

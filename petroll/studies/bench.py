@@ -29,7 +29,7 @@ import numpy as np
 from mpi4py import MPI
 
 from petroll.model.bodies import Sphere
-from petroll.model.scene import TAO_TYPES
+from petroll.model.tao import TAO_TYPES
 from petroll.solver.contact import ContactSolver
 from petroll.solver.window_qp import KRYLOV_TYPES
 from petroll.errors import PetrollError

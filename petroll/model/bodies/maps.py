@@ -8,8 +8,6 @@ import os
 from dataclasses import KW_ONLY, InitVar, dataclass, field
 
 import numpy as np
-from scipy import ndimage, optimize
-from scipy.interpolate import RectBivariateSpline
 
 from petroll.errors import SceneError
 from petroll.model.bodies.base import PYTHON_SOURCE, Body, cell_pair, point_pair, positive, type_name
@@ -72,13 +70,16 @@ class HeightMap(Body):
     center: tuple[float, float] = (0.0, 0.0)
     _: KW_ONLY
     source: InitVar[str] = PYTHON_SOURCE
-    _spline: RectBivariateSpline = field(init=False, repr=False)
+    _spline: object = field(init=False, repr=False)  # scipy.interpolate.RectBivariateSpline
     _lowest: float = field(init=False, repr=False)
     _ok: np.ndarray = field(init=False, repr=False)
     _origin: tuple[float, float] = field(init=False, repr=False)
     _radius_hint: float = field(init=False, repr=False)
 
     def __post_init__(self, source: str) -> None:
+        from scipy import ndimage  # here, not at the top: a scene without a map never imports them
+        from scipy.interpolate import RectBivariateSpline
+
         shape = getattr(self.heights, "shape", None)
         if shape is not None:
             label = f"<heights array of shape {tuple(shape)}>"
@@ -176,6 +177,8 @@ class HeightMap(Body):
         """min S over the cells with a surface: a bounded minimisation (L-BFGS-B, in cell units, heights
         scaled by their spread around the start) from each of the lowest ``candidates`` samples that are
         corners of such a cell, within the cells around it; the lowest sample if lower."""
+        from scipy import optimize
+
         heights, (hx, hy) = self.heights, self.cell
         nx, ny = heights.shape
         corner = np.zeros(heights.shape, dtype=bool)

@@ -18,7 +18,6 @@ from dataclasses import KW_ONLY, InitVar, dataclass, field
 
 import numpy as np
 import scipy.fft
-from scipy import ndimage
 
 from petroll.errors import SceneError
 from petroll.model.bodies.base import PYTHON_SOURCE, Body
@@ -45,6 +44,8 @@ def _spectral_slopes(heights: np.ndarray, cell: tuple[float, float]) -> tuple[np
 def _spline_minimum(samples: np.ndarray, coefficients: np.ndarray, candidates: int = 8) -> float:
     """The lowest value of the periodic cubic spline (its B-spline ``coefficients``) on a lattice of 1/16
     of a cell within a cell of each of the ``candidates`` lowest samples."""
+    from scipy import ndimage  # here, not at the top: a scene without a periodic surface never imports it
+
     lowest = np.unravel_index(np.argsort(samples, axis=None)[:candidates], samples.shape)
     offsets = np.linspace(-1.0, 1.0, 33)
     u, v = np.broadcast_arrays(lowest[0][:, None, None] + offsets[None, :, None],
@@ -78,6 +79,8 @@ class PeriodicSurface(Body):
         if heights.ndim != 2 or min(heights.shape) < 4 or not np.isfinite(heights).all():
             raise SceneError(source, "[body] heights", f"<array of shape {heights.shape}>",
                              "a periodic surface needs a 2-D array of at least 4 x 4 finite heights (m)")
+        from scipy import ndimage
+
         cell = (float(self.cell[0]), float(self.cell[1]))
         slopes = _spectral_slopes(heights, cell)
         surface, *gradient = (ndimage.spline_filter(f, order=3, mode="grid-wrap") for f in (heights, *slopes))
@@ -106,6 +109,8 @@ class PeriodicSurface(Body):
         return (self.heights.shape[0] * self.cell[0], self.heights.shape[1] * self.cell[1])
 
     def _interpolate(self, which: int, x, y) -> np.ndarray:
+        from scipy import ndimage
+
         x, y = np.broadcast_arrays(np.asarray(x, dtype=float), np.asarray(y, dtype=float))
         coordinates = np.stack([(x - self.origin[0]) / self.cell[0], (y - self.origin[1]) / self.cell[1]])
         return ndimage.map_coordinates(self._coefficients[which], coordinates.reshape(2, -1), order=3,
