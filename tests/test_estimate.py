@@ -6,6 +6,7 @@ roller, a roller given as a 1-D profile and a layer (docs/verification.md has th
 import math
 
 import pytest
+from mpi4py import MPI
 
 import petroll
 from petroll.model.scene import load_scene, shipped_scene
@@ -238,3 +239,23 @@ def test_the_cost_bench_times_the_run_and_its_estimate_as_results_h5_records_the
     group = petroll.Results.open(shared_dir / "cost" / "results.h5").error_estimate[""]
     assert found["fine_s"] == group["run_wall_s"] > 0 and found["estimate_s"] == group["wall_s"] > 0
     assert found["ratio"] == found["estimate_s"] / found["fine_s"]
+
+
+def test_the_run_s_wall_time_leaves_its_estimate_out(comm, shared_dir, monkeypatch):
+    """results.h5's run_wall_s is the run's alone: an estimate made to last 1 s longer (a pause before the
+    real one) leaves it at least 1 s below the whole call's wall time."""
+    import time
+
+    import petroll.solver.estimate as estimate
+
+    real = estimate.estimate_error
+
+    def slow(*args, **kwargs):
+        time.sleep(1.0)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(estimate, "estimate_error", slow)
+    began = time.perf_counter()
+    results = petroll.run(roller(), comm, shared_dir / "slow", estimate_error=True)
+    elapsed = comm.allreduce(time.perf_counter() - began, op=MPI.MAX)
+    assert 0 < results.error_estimate[""]["run_wall_s"] <= elapsed - 1.0
