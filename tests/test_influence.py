@@ -41,10 +41,14 @@ def dense_reference(nx, ny, dx, dy, x):
 @pytest.mark.ranks4
 @pytest.mark.parametrize("nx,ny,workers", [(1, 1, 1), (2, 9, 1), (13, 7, 1), (16, 16, 1), (5, 24, 1), (16, 16, 2),
                                            (37, 11, 3)])
-def test_convolution_equals_dense_matrix(comm, nx, ny, workers):
+def test_convolution_equals_dense_matrix(comm, nx, ny, workers, monkeypatch):
+    """On ``workers`` threads even where the transforms are small (Convolution.THREADED lowered: below it
+    they run on one)."""
+    monkeypatch.setattr(Convolution, "THREADED", 1)
     dx, dy = 0.3, 0.2
     x = np.random.default_rng(nx * 100 + ny).random((nx, ny))
     conv = Convolution(love_coefficients(nx, ny, dx, dy), nx, ny, comm, workers=workers)
+    assert conv.workers == workers
     ref = dense_reference(nx, ny, dx, dy, x)
     y = conv(x[conv.r0 : conv.r1])
     assert np.abs(y - ref[conv.r0 : conv.r1]).max(initial=0.0) <= 1e-12 * np.abs(ref).max()
