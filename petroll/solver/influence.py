@@ -147,18 +147,23 @@ class Convolution:
         rows = np.arange(k1 - k0) if fourier[0] else np.flatnonzero(np.abs(offsets_x) < self.kx)
         cols = np.arange(len(offsets_y)) if fourier[1] else np.flatnonzero(np.abs(offsets_y) < self.ky)
         inside = np.asarray(kernel(offsets_x[rows, None], offsets_y[None, cols]))
-        inside = inside.astype(complex if np.iscomplexobj(inside) else float)
+        inside = inside.astype(complex if np.iscomplexobj(inside) else float, copy=False)
         lead = inside.shape[:-2]
         stack = inside.reshape((int(np.prod(lead)), len(rows), len(cols)))
         spectra = []
         for block in stack:
-            values = np.zeros((k1 - k0, len(offsets_y)), dtype=block.dtype)
-            values[np.ix_(rows, cols)] = block
-            half = values if fourier[1] else _half_transform(values, self.workers)
+            if fourier[1]:
+                half = np.zeros((k1 - k0, len(offsets_y)), dtype=block.dtype)
+                half[np.ix_(rows, cols)] = block
+            else:  # the kernel's rows transformed alone: the others are zero, and so are their transforms
+                values = np.zeros((len(rows), self.ly), dtype=block.dtype)
+                values[:, cols] = block
+                half = np.zeros((k1 - k0, self.ly // 2 + 1), dtype=complex)
+                half[rows] = _half_transform(values, self.workers)
             columns = rows_to_columns(half, padded_rows, self.freqs, self.comm)
             spectra.append(columns if fourier[0] else
                            scipy.fft.fft(columns, axis=0, overwrite_x=True, workers=self.workers))
-        return np.stack(spectra).reshape(lead + spectra[0].shape)
+        return spectra[0] if not lead else np.stack(spectra).reshape(lead + spectra[0].shape)
 
     def forward(self, x: np.ndarray) -> np.ndarray:
         """The padded DFT of a field's local rows ``x`` (local rows, ny): this rank's Y-frequencies."""
