@@ -95,51 +95,50 @@ class SlidingKernel(Spectral):
 
 class ContactSystem:
     """Context of a PETSc Python Mat and of its Python PC: the steady contact's linear equations on a
-    contact set C, K_CC p_C - delta 1 = -Z_C (the gap closed on C) and p = 0 off C (the identity there),
-    bordered under load control by the force's row sum p_C = the held pressures' sum (Pa). The last
-    unknown (rank 0's) is then delta / c (Pa), c the operator's diagonal (m/Pa), and the force's row is
-    scaled by c / |C|. The PC applies R P R^T on C, P = ``inverse`` an approximate inverse of K (m -> Pa),
-    and 1 / c to the force's row."""
+    contact set C, K_CC p_C - delta 1 = -Z_C (the gap closed on C), the unknowns the pressures on C
+    (this rank's cells of C in order), bordered under load control by the force's row sum p_C = the held
+    pressures' sum (Pa). The last unknown (rank 0's) is then delta / c (Pa), c the operator's diagonal
+    (m/Pa), and the force's row is scaled by c / |C|. The PC applies R P R^T on C, P = ``inverse`` an
+    approximate inverse of K (m -> Pa), and 1 / c to the force's row."""
 
     def __init__(self, operator, inverse, shape: tuple[int, int], comm, border: bool):
         self.operator, self.inverse, self.shape, self.comm = operator, inverse, shape, comm
-        self.border, self.cells = border, shape[0] * shape[1]
-        self.c = float(operator.diagonal)
-        self.contact, self.weight = np.zeros(shape, dtype=bool), 1.0
+        self.border, self.c = border, float(operator.diagonal)
+        self.cells, self.weight = np.zeros(0, dtype=np.intp), 1.0
         self.applications = 0  # of the operator
 
-    def sizes(self) -> tuple[int, int]:
-        """(this rank's, the global) number of unknowns."""
-        local = self.cells + int(self.border and self.comm.rank == 0)
-        return local, self.comm.allreduce(local)
+    def set_contact(self, contact: np.ndarray) -> tuple[int, int]:
+        """Pose the equations on ``contact`` (this rank's cells): (this rank's, the global) number of
+        unknowns."""
+        self.cells = np.flatnonzero(contact)
+        local = len(self.cells) + int(self.border and self.comm.rank == 0)
+        total = self.comm.allreduce(local)
+        self.weight = self.c / max(1, total - int(self.border))
+        return local, total
 
-    def set_contact(self, contact: np.ndarray) -> None:
-        self.contact = contact
-        self.weight = self.c / max(1, self.comm.allreduce(int(np.count_nonzero(contact))))
-
-    def _split(self, x):
-        a = x.array_r
-        whole = a[: self.cells].reshape(self.shape)
-        return whole, np.where(self.contact, whole, 0.0), a[self.cells] if len(a) > self.cells else 0.0
+    def field(self, values: np.ndarray) -> np.ndarray:
+        """The grid field (this rank's rows) that is ``values`` on C and 0 elsewhere."""
+        out = np.zeros(self.shape)
+        out.ravel()[self.cells] = values[: len(self.cells)]
+        return out
 
     def mult(self, mat, x, y) -> None:
-        whole, field, last = self._split(x)
+        a, n = x.array_r, len(self.cells)
         self.applications += 1
-        image = np.where(self.contact, self.operator(field), whole)
         out = y.array
+        out[:n] = self.operator(self.field(a)).ravel()[self.cells]
         if self.border:
-            delta, total = self.comm.allreduce(np.array([last, field.sum()]))
-            image -= np.where(self.contact, self.c * delta, 0.0)
-            if len(out) > self.cells:
-                out[self.cells] = self.weight * total
-        out[: self.cells] = image.ravel()
+            delta, total = self.comm.allreduce(np.array([a[n] if len(a) > n else 0.0, a[:n].sum()]))
+            out[:n] -= self.c * delta
+            if len(out) > n:
+                out[n] = self.weight * total
 
     def apply(self, pc, x, y) -> None:
-        whole, field, last = self._split(x)
+        a, n = x.array_r, len(self.cells)
         out = y.array
-        out[: self.cells] = np.where(self.contact, self.inverse(field), whole).ravel()
-        if len(out) > self.cells:
-            out[self.cells] = last / self.c
+        out[:n] = self.inverse(self.field(a)).ravel()[self.cells]
+        if len(out) > n:
+            out[n] = a[n] / self.c
 
 
 class SteadySliding:
@@ -167,7 +166,7 @@ class SteadySliding:
         newton = Convolution(make("newton"), g.nx, g.ny, comm, workers=self.qp.workers)
         self.system = ContactSystem(self.operator, self._inverse(newton), self.qp.local_shape, comm,
                                     scene.penetration is None)
-        self.ksp = self._krylov()
+        self.target, self.first, self.gmres_iterations = (0.0, 0.0), 0.0, 0
         self.iterations = 0  # fixed-point steps (QPs) of the last solve
 
     def _inverse(self, newton: Convolution):
@@ -181,26 +180,25 @@ class SteadySliding:
             return fused
         return lambda x: newton(m_inverse(x))
 
-    def _krylov(self):
+    def _krylov(self, sizes: tuple[int, int]):
         """GMRES (restarted every 30 iterations, right-preconditioned: its residual is the equations') on
-        :attr:`system`, stopped by :meth:`_converged`."""
+        :attr:`system` of ``sizes`` unknowns (this rank's, all), stopped by :meth:`_converged`, and its
+        vectors (x, b)."""
         from petsc4py import PETSc
 
-        sizes = self.system.sizes()
         mat = PETSc.Mat().createPython([sizes, sizes], self.system, comm=self.comm)
         mat.setUp()
         ksp = PETSc.KSP().create(comm=self.comm)
         ksp.setOperators(mat)
         ksp.setType("gmres")
-        ksp.setGMRESRestart(30)  # 31 grid-sized vectors at most (restarting costs ~10 % more applications)
+        ksp.setGMRESRestart(30)
         ksp.setPCSide(PETSc.PC.Side.RIGHT)
         ksp.getPC().setType("python")
         ksp.getPC().setPythonContext(self.system)
         ksp.setInitialGuessNonzero(True)
         ksp.setTolerances(max_it=1000)
         ksp.setConvergenceTest(self._converged)
-        self.vectors, self.target, self.first = mat.createVecs(), (0.0, 0.0), 0.0
-        return ksp
+        return ksp, mat.createVecs()
 
     def _converged(self, ksp, its, rnorm):
         """GMRES's stop: the residual (m) below max(target[0] times the first, target[1])."""
@@ -217,24 +215,29 @@ class SteadySliding:
     def _closed(self, profile, pressure, delta, total, contact, target):
         """The pressure (Pa) and penetration (m) that close the gap on ``contact`` (under load control the
         pressures summing to ``total``, Pa), by GMRES from ``pressure`` and ``delta`` to ``target``
-        (:meth:`_converged`)."""
-        system, (x, b) = self.system, self.vectors
-        system.set_contact(contact)
-        cells, penetration = system.cells, self.scene.penetration
-        fixed = float(penetration(0.0)) if penetration is not None else 0.0
-        x.array[:cells] = np.where(contact, pressure, 0.0).ravel()
-        b.array[:cells] = np.where(contact, fixed - profile, 0.0).ravel()
-        if len(x.array) > cells:
-            x.array[cells], b.array[cells] = delta / system.c, system.weight * total
-        self.target = target
-        self.ksp.solve(b, x)
-        if self.ksp.getConvergedReason() < 0:
-            ksp = self.ksp
-            raise SolverError(f"GMRES on the steady sliding contact's equations did not converge (reason "
-                              f"{ksp.getConvergedReason()} after {ksp.getIterationNumber()} iterations)")
-        if penetration is None:
-            fixed = self.comm.bcast(x.array_r[cells] * system.c if len(x.array_r) > cells else None, root=0)
-        return np.where(contact, x.array_r[:cells].reshape(contact.shape), 0.0), fixed
+        (:meth:`_converged`; ``target`` gives it from the right-hand side's norm, m)."""
+        system, penetration = self.system, self.scene.penetration
+        ksp, (x, b) = self._krylov(system.set_contact(contact))
+        try:
+            n = len(system.cells)
+            fixed = float(penetration(0.0)) if penetration is not None else 0.0
+            x.array[:n] = pressure.ravel()[system.cells]
+            b.array[:n] = fixed - profile.ravel()[system.cells]
+            if len(x.array) > n:
+                x.array[n], b.array[n] = delta / system.c, system.weight * total
+            norm = b.norm()
+            self.target = target(norm)
+            ksp.solve(b, x)
+            if ksp.getConvergedReason() < 0:
+                raise SolverError(f"GMRES on the steady sliding contact's equations did not converge (reason "
+                                  f"{ksp.getConvergedReason()} after {ksp.getIterationNumber()} iterations)")
+            self.gmres_iterations = ksp.getIterationNumber()
+            if penetration is None:
+                fixed = self.comm.bcast(x.array_r[n] * system.c if len(x.array_r) > n else None, root=0)
+            return system.field(x.array_r), fixed
+        finally:
+            for obj in (ksp, x, b):
+                obj.destroy()
 
     def _active_set(self, profile, pressure, delta, total, gap_tol, tol):
         """The contact pressure (Pa) and penetration (m) by a primal-dual active set method from the
@@ -245,7 +248,7 @@ class SteadySliding:
         contact, x, tight = pressure > 0, pressure, False
         for _ in range(self.SWEEPS):
             x, delta = self._closed(profile, x, delta, total, contact,
-                                    (0.0, tol * self.vectors[1].norm()) if tight else (1e-3, 0.0))
+                                    (lambda norm: (0.0, tol * norm)) if tight else (lambda norm: (1e-3, 0.0)))
             gap = self.operator(x) + profile - delta
             self.system.applications += 1
             new = (contact & (x > 0)) | (~contact & (gap < -gap_tol))
