@@ -108,7 +108,7 @@ def _rows(out: pathlib.Path, problems, cells, repeats: int, target: float, solve
     """The rows (rank 0). petroll's modules are byte-compiled first, as an install leaves them (pip
     compiles the peers' in .venv-peers; a checkout run with PYTHONDONTWRITEBYTECODE set, as on the
     project's machine, would otherwise compile every petroll module in every timed process)."""
-    compileall.compile_dir(pathlib.Path(__file__).parents[2], quiet=1)
+    compileall.compile_dir(pathlib.Path(__file__).parents[2], quiet=2)  # unwritable (an install): silent
     runs = [(name, "zero") for name in solvers if name != "petroll"]
     if "petroll" in solvers:
         runs = [*runs, ("petroll", "zero"), ("petroll", "hertz")]  # after the peers: held to their error
