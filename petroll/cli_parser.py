@@ -52,6 +52,8 @@ def _run_verbs(verbs) -> None:
                          "terminal)")
     restart.add_argument("--overwrite", action="store_true", help="with --out: replace the results of another "
                          "run there (refused without it)")
+    restart.add_argument("--estimate-error", action="store_true", help="as for run: at the end, the "
+                         "discretisation error of the last step's values (docs/accuracy.md)")
     launch = verbs.add_parser("launch", help="run an MPI launch line (e.g. mpirun -n 4 petroll run ...) so "
                               "that SIGTERM/SIGINT reach the ranks and its exit status is theirs (143/130; "
                               "docs/cluster.md)")

@@ -67,14 +67,15 @@ def run(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, out: str | pathlib.Path |
     on every rank, results.h5 holding the steps of its last complete append.
     """
     out = pathlib.Path(out) if out is not None else scene.output_dir
-    if restart is None:
-        check_run(scene)  # before anything is written: touching, path, resolution (petroll.model.preflight)
+    # before anything is written: touching, path, resolution (petroll.model.preflight); kept for the estimate
+    preflight = check_run(scene) if restart is None else None
     lock = claim_output(out, comm, f"petroll run {scene.source}" if restart is None else
                         f"petroll restart {restart.path}")
     collective = True  # raised on every rank alike (or returned): the ranks wait for the lock's release
     try:
         run_id = _run_identity(out, scene, comm, restart, overwrite)
-        return _run(scene, comm, out, run_id, progress, restart, stop, on_step, steady_start, estimate_error)
+        return _run(scene, comm, out, run_id, progress, restart, stop, on_step, steady_start, preflight,
+                    estimate_error)
     except BaseException as exc:
         collective = isinstance(exc, (PetrollError, RunInterrupted))
         raise
@@ -86,8 +87,9 @@ def run(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, out: str | pathlib.Path |
 
 
 def _run(scene: Scene, comm: MPI.Comm, out: pathlib.Path, run_id: str, progress: bool, restart, stop,
-         on_step, steady_start, estimate_error: bool) -> Results:
-    """The time loop of :func:`run`, its output directory claimed."""
+         on_step, steady_start, preflight, estimate_error: bool) -> Results:
+    """The time loop of :func:`run`, its output directory claimed; ``preflight``: the scene's checks
+    (petroll.model.preflight.Preflight) where the run made them, for the error estimate."""
     sim = Simulation(scene, comm)
     sim.steady_start = steady_start
     g = scene.grid
@@ -141,8 +143,9 @@ def _run(scene: Scene, comm: MPI.Comm, out: pathlib.Path, run_id: str, progress:
         from petroll.solver.estimate import as_attributes
         from petroll.solver.estimate import estimate_error as estimate
 
-        per, attrs = as_attributes(estimate(scene, sim.records[-1], comm))
-        results.write_error_estimate(per, {**attrs, "run_wall_s": clock.perf_counter() - wall})
+        run_wall = clock.perf_counter() - wall  # the run alone: its steps and output, not the estimate
+        per, attrs = as_attributes(estimate(scene, sim.records[-1], comm, preflight))
+        results.write_error_estimate(per, {**attrs, "run_wall_s": run_wall})
     return Results.open(results.path)
 
 

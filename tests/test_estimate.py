@@ -6,6 +6,7 @@ roller, a roller given as a 1-D profile and a layer (docs/verification.md has th
 import math
 
 import pytest
+from mpi4py import MPI
 
 import petroll
 from petroll.model.scene import load_scene, shipped_scene
@@ -123,6 +124,23 @@ def test_a_run_with_its_estimate_writes_the_group_and_the_summary_lines(comm, sh
         assert "error estimate of the last step (grids 184 x 1, 92 x 1, 46 x 1; orders the method's" in out
 
 
+def test_a_restart_with_the_estimate_gives_the_uninterrupted_runs(comm, shared_dir, cli_main):
+    """``petroll restart --estimate-error`` from a checkpoint halfway through runs/roller-2d.toml writes the
+    error_estimate group of the same run made in one go with its estimate."""
+    scene = roller().replace({"output.checkpoint_every": 10, "output.keep": 100})
+    whole = petroll.run(scene, comm, out=shared_dir / "whole", estimate_error=True).error_estimate
+    steps = len(petroll.Results.open(shared_dir / "whole" / "results.h5").series["t"])
+    halfway = shared_dir / "whole" / "checkpoints" / f"step-{10 * (steps // 20):08d}.h5"
+    code, _, err = cli_main(["restart", str(halfway), "--out", str(shared_dir / "again"), "--quiet",
+                             "--estimate-error"])
+    assert code == 0, err
+    again = petroll.Results.open(shared_dir / "again" / "results.h5").error_estimate
+    assert [tuple(g) for g in again[""]["grids"]] == [tuple(g) for g in whole[""]["grids"]]
+    for name in ("force", "delta", "mu_r", "p_max", "area", "lead", "trail"):
+        for key in ("value", "extrapolated", "error"):
+            assert again[name][key] == pytest.approx(whole[name][key], rel=1e-9, abs=1e-15), (name, key)
+
+
 def test_where_the_4x_grid_resolves_the_contact_its_order_is_observed(comm, shared_dir):
     """runs/roller-2d.toml at 2x its strips (17.5 cells per half-width; the 4x grid 4.4): the penetration's,
     mu_r's and the peak pressure's orders are observed, log2(d2 / d1) from the coarser grids' values,
@@ -238,3 +256,23 @@ def test_the_cost_bench_times_the_run_and_its_estimate_as_results_h5_records_the
     group = petroll.Results.open(shared_dir / "cost" / "results.h5").error_estimate[""]
     assert found["fine_s"] == group["run_wall_s"] > 0 and found["estimate_s"] == group["wall_s"] > 0
     assert found["ratio"] == found["estimate_s"] / found["fine_s"]
+
+
+def test_the_run_s_wall_time_leaves_its_estimate_out(comm, shared_dir, monkeypatch):
+    """results.h5's run_wall_s is the run's alone: an estimate made to last 1 s longer (a pause before the
+    real one) leaves it at least 1 s below the whole call's wall time."""
+    import time
+
+    import petroll.solver.estimate as estimate
+
+    real = estimate.estimate_error
+
+    def slow(*args, **kwargs):
+        time.sleep(1.0)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(estimate, "estimate_error", slow)
+    began = time.perf_counter()
+    results = petroll.run(roller(), comm, shared_dir / "slow", estimate_error=True)
+    elapsed = comm.allreduce(time.perf_counter() - began, op=MPI.MAX)
+    assert 0 < results.error_estimate[""]["run_wall_s"] <= elapsed - 1.0

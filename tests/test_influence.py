@@ -6,13 +6,25 @@ from mpi4py import MPI
 
 from petroll.solver.partition import RowPartition, move_rows
 from petroll.solver.influence import Convolution, InfluenceOperator, dense_influence, shell_matrix
-from petroll.solver.kernels.love import Rectangles, love_coefficients
+from petroll.solver.kernels.love import Rectangles, love_coefficients, rectangle_displacement
 
 
 def test_centre_of_a_square_cell():
     h = 0.37
     assert love_coefficients(1, 1, 2 * h, 2 * h)[0, 0] == pytest.approx(8 * h * np.arcsinh(1) / np.pi, rel=1e-14)
     assert love_coefficients(1, 1, 2 * h, 2 * h)[0, 0] == pytest.approx(2.2444 * h, rel=1e-4)
+
+
+def test_the_table_is_loves_formula_at_every_cell():
+    """love_coefficients (each corner term evaluated once, shared by neighbouring cells) equals Love's
+    four-term formula evaluated cell by cell (rectangle_displacement), for a whole table and for rows."""
+    dx, dy = 0.3, 0.7
+    ix, iy = np.arange(37)[:, None], np.arange(23)[None, :]
+    direct = rectangle_displacement(ix * dx, iy * dy, dx / 2, dy / 2)
+    scale = direct[0, 0]
+    assert np.abs(love_coefficients(37, 23, dx, dy) - direct).max() <= 1e-13 * scale
+    rows = np.array([36, 0, 5, 5])
+    assert np.abs(love_coefficients(37, 23, dx, dy, rows=rows) - direct[rows]).max() <= 1e-13 * scale
 
 
 def test_far_field_is_a_point_load():
@@ -41,10 +53,14 @@ def dense_reference(nx, ny, dx, dy, x):
 @pytest.mark.ranks4
 @pytest.mark.parametrize("nx,ny,workers", [(1, 1, 1), (2, 9, 1), (13, 7, 1), (16, 16, 1), (5, 24, 1), (16, 16, 2),
                                            (37, 11, 3)])
-def test_convolution_equals_dense_matrix(comm, nx, ny, workers):
+def test_convolution_equals_dense_matrix(comm, nx, ny, workers, monkeypatch):
+    """On ``workers`` threads even where the transforms are small (Convolution.THREADED lowered: below it
+    they run on one)."""
+    monkeypatch.setattr(Convolution, "THREADED", 1)
     dx, dy = 0.3, 0.2
     x = np.random.default_rng(nx * 100 + ny).random((nx, ny))
     conv = Convolution(love_coefficients(nx, ny, dx, dy), nx, ny, comm, workers=workers)
+    assert conv.workers == workers
     ref = dense_reference(nx, ny, dx, dy, x)
     y = conv(x[conv.r0 : conv.r1])
     assert np.abs(y - ref[conv.r0 : conv.r1]).max(initial=0.0) <= 1e-12 * np.abs(ref).max()

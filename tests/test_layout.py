@@ -82,22 +82,24 @@ def test_importing_petroll_and_its_model_starts_neither_mpi_nor_petsc():
 @pytest.mark.serial
 @pytest.mark.parametrize("launched", [False, True])
 def test_a_process_no_launcher_started_starts_open_mpi_without_its_helper_daemon(launched):
-    """petroll.solver, imported before MPI starts, asks Open MPI for an isolated singleton with the ob1
+    """petroll.solver, imported before MPI starts, starts Open MPI as an isolated singleton with the ob1
     messaging layer unless a launcher (mpirun: OMPI_COMM_WORLD_SIZE) started the process; the process then
-    runs MPI (one rank) as before."""
+    runs MPI (one rank) as before, and the processes it starts inherit none of these settings."""
     import os
 
-    ours = ("OMPI_MCA_ess_singleton_isolated", "OMPI_MCA_pml")
+    from petroll.solver import SINGLETON
+
     env = {k: v for k, v in os.environ.items()
-           if k not in ("OMPI_COMM_WORLD_SIZE", "PMIX_RANK", "PMI_RANK", *ours)}
+           if k not in ("OMPI_COMM_WORLD_SIZE", "PMIX_RANK", "PMI_RANK", *SINGLETON)}
     if launched:
         env["OMPI_COMM_WORLD_SIZE"] = "1"
-    shown = f"import os, petroll.solver; print(*(os.environ.get(k) for k in {ours!r})); "
-    started = "from mpi4py import MPI; print(MPI.COMM_WORLD.allreduce(MPI.COMM_WORLD.size))"
-    code = shown + ("" if launched else started)
+    code = (f"import os, petroll.solver as s; print(s.MPI_SETTINGS == ({{}} if {launched} else s.SINGLETON), "
+            f"*(k in os.environ for k in {tuple(SINGLETON)!r}))")
+    if not launched:
+        code += "; from mpi4py import MPI; w = MPI.COMM_WORLD; print(MPI.Is_initialized(), w.allreduce(w.size))"
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, env=env)
     assert done.returncode == 0, done.stderr
-    assert done.stdout.split() == (["None", "None"] if launched else ["1", "ob1", "1"])
+    assert done.stdout.split() == ["True", "False", "False"] + ([] if launched else ["True", "1"])
 
 
 def private(name: str) -> bool:

@@ -8,11 +8,21 @@ only, never ``petroll.io``, ``petroll.studies`` or the faces.
 
 import os as _os
 
+SINGLETON = {"OMPI_MCA_ess_singleton_isolated": "1", "OMPI_MCA_pml": "ob1"}
+"""Open MPI's settings for a process that no launcher started (one rank): a singleton without the helper
+daemon MPI_Init otherwise forks for it (petroll never spawns processes), with the ob1 messaging layer (a
+lone process talks only to itself) instead of the default pick's probe of UCX's transports: MPI_Init in
+about 0.07 s instead of 0.27 s (docs/benchmarks.md, peers)."""
+
+MPI_SETTINGS: dict[str, str] = {}
+"""Those of :data:`SINGLETON` this process started MPI with (none under a launcher, nor where the
+environment already gave a value)."""
+
 if not any(key in _os.environ for key in ("OMPI_COMM_WORLD_SIZE", "PMIX_RANK", "PMI_RANK")):
-    # a process that no launcher started (one rank): Open MPI then starts it as a singleton without the
-    # helper daemon MPI_Init otherwise forks for it (petroll never spawns processes), and with the ob1
-    # messaging layer (a lone process talks only to itself), not the default pick's probe of UCX's
-    # transports: MPI_Init in about 0.07 s instead of 0.27 s (docs/benchmarks.md, peers). Set before MPI
-    # starts, i.e. before mpi4py or petsc4py is initialised; a value already in the environment is kept.
-    _os.environ.setdefault("OMPI_MCA_ess_singleton_isolated", "1")
-    _os.environ.setdefault("OMPI_MCA_pml", "ob1")
+    MPI_SETTINGS.update({key: value for key, value in SINGLETON.items() if key not in _os.environ})
+    _os.environ.update(MPI_SETTINGS)
+    try:
+        from mpi4py import MPI as _MPI  # noqa: F401 (MPI starts here, with those settings)
+    finally:  # MPI_Init has read them: the processes this one starts (mpirun's ranks) do not inherit them
+        for _key in MPI_SETTINGS:
+            _os.environ.pop(_key, None)

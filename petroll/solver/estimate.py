@@ -37,7 +37,7 @@ import numpy as np
 from mpi4py import MPI
 
 from petroll.errors import PetrollError
-from petroll.model.preflight import check
+from petroll.model.preflight import Preflight, check
 from petroll.model.scene import Scene
 from petroll.solver.simulation import Simulation, StepRecord
 
@@ -208,16 +208,18 @@ class ErrorEstimate:
     failed: str | None = None
 
 
-def estimate_error(scene: Scene, fine: StepRecord, comm: MPI.Comm = MPI.COMM_WORLD) -> ErrorEstimate:
+def estimate_error(scene: Scene, fine: StepRecord, comm: MPI.Comm = MPI.COMM_WORLD,
+                   preflight: Preflight | None = None) -> ErrorEstimate:
     """Solve ``scene`` on the 2x (and, where it still has THIRD_GRID_CELLS cells per contact half-width,
     in line contact SIGN_CELLS, 4x) coarser grids to the time of the fine run's last record ``fine`` and
-    estimate the error of that
-    record's values (collective). A 2x run that fails (its contact at the coarser grid's edge) leaves
-    ``failed`` set and no quantities; a 4x run that fails is left out."""
+    estimate the error of that record's values (collective). ``preflight``: the scene's checks
+    (:func:`petroll.model.preflight.check`) where the run made them (else made here). A 2x run that fails
+    (its contact at the coarser grid's edge) leaves ``failed`` set and no quantities; a 4x run that fails
+    is left out."""
     began = clock.perf_counter()
     g = scene.grid
     end = end_time(scene, fine)
-    cells = min(check(scene).cells) / 4  # on the 4x grid
+    cells = min((preflight or check(scene)).cells) / 4  # on the 4x grid
     names = QUANTITIES + (("delta",) if scene.penetration is None else ())
     found = ErrorEstimate(grids=[(g.nx, g.ny)])
     solved: dict[tuple[int, float], dict[str, float]] = {}

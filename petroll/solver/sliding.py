@@ -14,23 +14,26 @@ steady state the transient run converges to (the DFT shifts samples by whole cel
 
 S is not even (Im H is odd in k: the displacement lags the pressure), so the contact conditions p >= 0,
 g = K p + Z - delta >= 0, p g = 0 (K = F^-1 diag(S) F) are a linear complementarity problem that no QP
-states. They are solved by the fixed point
+states. Its solution is the fixed point of
 
     p <- QP_M(Z + (K - M) p),      M = F^-1 diag(|S|^2 / Re S) F,
 
 each step a contact QP with the symmetric positive definite Hessian M (petroll's contact solver: pk, the
 exact inverse of M as its preconditioner, load control inside it). Since S / m = cos(phi) e^{i phi}
 (phi_k the loss angle of mode k), |S - m| / m = |sin phi| < 1 for every mode: the map is a contraction in
-the M norm (a projection onto the constraints and a linear map of norm max |sin phi_k|). Its residual r
-is mapped by the Newton-like step N r = R F^-1 diag(conj(S) / Re S) F R^T r on the contact cells (R the
-restriction to them: the exact inverse of I - the map's Jacobian, M^-1 K, were every cell in contact) and
-kept elsewhere, then Anderson-mixed. The QPs are solved inexactly (to 30 % of the last change of the
-pressure: cheaper than tighter QPs over the whole solve, measured) until the change is below the
-tolerance, then once more to 1 % of it.
+the M norm (a projection onto the constraints and a linear map of norm max |sin phi_k|). It is not
+iterated to convergence: a first QP (to 0.1) gives a contact set, from which a primal-dual active set
+method finds the complementarity solution directly (:meth:`SteadySliding._active_set`: each contact set's
+equations K_CC p_C = delta - Z_C, with the force's row under load control, solved by GMRES preconditioned
+by R K^-1 R^T; the set then loses its cells of negative pressure and gains those of negative gap, until it
+holds). A step of the fixed point, its QP solved to 1 % of the tolerance, confirms the answer: the solve
+ends when that step changes the pressure by less than the tolerance (else the active set method starts
+again from the QP's contact).
 """
 
 from __future__ import annotations
 
+import copy
 import math
 
 import numpy as np
@@ -41,7 +44,6 @@ from petroll.solver.contact import ContactSolver
 from petroll.solver.history import transfer
 from petroll.solver.influence import Convolution
 from petroll.solver.kernels.periodic import Spectral
-from petroll.solver.steady import Anderson
 
 FORMS = ("operator", "modulus", "lag", "newton")
 """The kernels of the steady sliding solve, each A_k times a factor of H (class SlidingKernel)."""
@@ -52,8 +54,9 @@ class SlidingKernel(Spectral):
     ``velocity`` (m/s, along the base's Fourier axes only) and the material's integrator at steps of dt:
     with S = A H, ``form`` "operator": S; "modulus": |S|^2 / Re S = A |H|^2 / Re H (symmetric positive
     definite, real); "lag": S - modulus; "newton": conj(H) / Re H alone (no A: a multiplier of the modes,
-    identity in real space along a non-Fourier axis). Where a mode is its own conjugate (2 m = 0 mod n
-    along every Fourier axis) the real part is taken (a real field's transform is real there)."""
+    identity in real space along a non-Fourier axis; after M^-1 it gives K^-1). Where a mode is its own
+    conjugate (2 m = 0 mod n along every Fourier axis) the real part is taken (a real field's transform
+    is real there)."""
 
     def __init__(self, base: Spectral, material, integrator: str, velocity, dt: float, form: str):
         super().__init__(base.dx, base.dy, base.nx, base.ny, base.fourier)
@@ -90,12 +93,64 @@ class SlidingKernel(Spectral):
         return self.base.values(ax, ay) * factor
 
 
+class ContactSystem:
+    """Context of a PETSc Python Mat and of its Python PC: the steady contact's linear equations on a
+    contact set C, K_CC p_C - delta 1 = -Z_C (the gap closed on C), the unknowns the pressures on C
+    (this rank's cells of C in order), bordered under load control by the force's row sum p_C = the held
+    pressures' sum (Pa). The last unknown (rank 0's) is then delta / c (Pa), c the operator's diagonal
+    (m/Pa), and the force's row is scaled by c / |C|. The PC applies R P R^T on C, P = ``inverse`` an
+    approximate inverse of K (m -> Pa), and 1 / c to the force's row."""
+
+    def __init__(self, operator, inverse, shape: tuple[int, int], comm, border: bool):
+        self.operator, self.inverse, self.shape, self.comm = operator, inverse, shape, comm
+        self.border, self.c = border, float(operator.diagonal)
+        self.cells, self.weight = np.zeros(0, dtype=np.intp), 1.0
+        self.applications = 0  # of the operator
+
+    def set_contact(self, contact: np.ndarray) -> tuple[int, int]:
+        """Pose the equations on ``contact`` (this rank's cells): (this rank's, the global) number of
+        unknowns."""
+        self.cells = np.flatnonzero(contact)
+        local = len(self.cells) + int(self.border and self.comm.rank == 0)
+        total = self.comm.allreduce(local)
+        self.weight = self.c / max(1, total - int(self.border))
+        return local, total
+
+    def field(self, values: np.ndarray) -> np.ndarray:
+        """The grid field (this rank's rows) that is ``values`` on C and 0 elsewhere."""
+        out = np.zeros(self.shape)
+        out.ravel()[self.cells] = values[: len(self.cells)]
+        return out
+
+    def mult(self, mat, x, y) -> None:
+        a, n = x.array_r, len(self.cells)
+        self.applications += 1
+        out = y.array
+        out[:n] = self.operator(self.field(a)).ravel()[self.cells]
+        if self.border:
+            delta, total = self.comm.allreduce(np.array([a[n] if len(a) > n else 0.0, a[:n].sum()]))
+            out[:n] -= self.c * delta
+            if len(out) > n:
+                out[n] = self.weight * total
+
+    def apply(self, pc, x, y) -> None:
+        a, n = x.array_r, len(self.cells)
+        out = y.array
+        out[:n] = self.inverse(self.field(a)).ravel()[self.cells]
+        if len(out) > n:
+            out[n] = a[n] / self.c
+
+
 class SteadySliding:
     """The steady sliding state of one scene on ``comm``: ``solve(profile, ...)`` (collective).
 
     ``kernel``: the grid's periodic kernel (A_k); ``velocity`` (m/s) constant; ``dt`` the integrator's
     step (s); ``tol`` the solver's contact tolerance for the QPs. The QPs are solved by a ContactSolver on
-    the modulus kernel M (compliance 1: the kernel holds the material's)."""
+    the modulus kernel M (compliance 1: the kernel holds the material's); the active set method's
+    equations by GMRES (PETSc KSP) on a :class:`ContactSystem`."""
+
+    SWEEPS = 30
+    """Contact sets one active set solve (:meth:`_active_set`) tries before the fixed point's QP resumes."""
 
     def __init__(self, scene, comm, kernel: Spectral, velocity, dt: float):
         self.scene, self.comm = scene, comm
@@ -108,54 +163,147 @@ class SteadySliding:
                                 kernel=make("modulus"))
         self.operator = Convolution(make("operator"), g.nx, g.ny, comm, workers=self.qp.workers)
         self.lag = Convolution(make("lag"), g.nx, g.ny, comm, workers=self.qp.workers)
-        self.newton = Convolution(make("newton"), g.nx, g.ny, comm, workers=self.qp.workers)
-        self.iterations = 0  # fixed-point iterations of the last solve
+        newton = Convolution(make("newton"), g.nx, g.ny, comm, workers=self.qp.workers)
+        self.system = ContactSystem(self.operator, self._inverse(newton), self.qp.local_shape, comm,
+                                    scene.penetration is None)
+        self.target, self.first, self.gmres_iterations = (0.0, 0.0), 0.0, 0
+        self.iterations = 0  # fixed-point steps (QPs) of the last solve
 
-    def solve(self, profile: np.ndarray, tol: float, max_iterations: int = 500,
+    def _inverse(self, newton: Convolution):
+        """K^-1 (Pa per m): the ``newton`` multiplier M / S after the QP's inverse of M, one multiplier
+        where both transform alike (a grid periodic along both axes)."""
+        g = self.scene.grid
+        m_inverse = self.qp.influence.window(g.nx, g.ny, inverse=True)
+        if (m_inverse.lx, m_inverse.ly) == (newton.lx, newton.ly):
+            fused = copy.copy(newton)
+            fused.spectrum = newton.spectrum * m_inverse.spectrum
+            return fused
+        return lambda x: newton(m_inverse(x))
+
+    def _krylov(self, sizes: tuple[int, int]):
+        """GMRES (restarted every 30 iterations, right-preconditioned: its residual is the equations') on
+        :attr:`system` of ``sizes`` unknowns (this rank's, all), stopped by :meth:`_converged`, and its
+        vectors (x, b)."""
+        from petsc4py import PETSc
+
+        mat = PETSc.Mat().createPython([sizes, sizes], self.system, comm=self.comm)
+        mat.setUp()
+        ksp = PETSc.KSP().create(comm=self.comm)
+        ksp.setOperators(mat)
+        ksp.setType("gmres")
+        ksp.setGMRESRestart(30)
+        ksp.setPCSide(PETSc.PC.Side.RIGHT)
+        ksp.getPC().setType("python")
+        ksp.getPC().setPythonContext(self.system)
+        ksp.setInitialGuessNonzero(True)
+        ksp.setTolerances(max_it=1000)
+        ksp.setConvergenceTest(self._converged)
+        return ksp, mat.createVecs()
+
+    def _converged(self, ksp, its, rnorm):
+        """GMRES's stop: the residual (m) below max(target[0] times the first, target[1])."""
+        from petsc4py import PETSc
+
+        if its == 0:
+            self.first = rnorm
+        if rnorm <= max(self.target[0] * self.first, self.target[1]):
+            return PETSc.KSP.ConvergedReason.CONVERGED_ATOL
+        if its >= ksp.getTolerances()[3]:
+            return PETSc.KSP.ConvergedReason.DIVERGED_ITS
+        return PETSc.KSP.ConvergedReason.ITERATING
+
+    def _closed(self, profile, pressure, delta, total, contact, target):
+        """The pressure (Pa) and penetration (m) that close the gap on ``contact`` (under load control the
+        pressures summing to ``total``, Pa), by GMRES from ``pressure`` and ``delta`` to ``target``
+        (:meth:`_converged`; ``target`` gives it from the right-hand side's norm, m)."""
+        system, penetration = self.system, self.scene.penetration
+        ksp, (x, b) = self._krylov(system.set_contact(contact))
+        try:
+            n = len(system.cells)
+            fixed = float(penetration(0.0)) if penetration is not None else 0.0
+            x.array[:n] = pressure.ravel()[system.cells]
+            b.array[:n] = fixed - profile.ravel()[system.cells]
+            if len(x.array) > n:
+                x.array[n], b.array[n] = delta / system.c, system.weight * total
+            norm = b.norm()
+            self.target = target(norm)
+            ksp.solve(b, x)
+            if ksp.getConvergedReason() < 0:
+                raise SolverError(f"GMRES on the steady sliding contact's equations did not converge (reason "
+                                  f"{ksp.getConvergedReason()} after {ksp.getIterationNumber()} iterations)")
+            self.gmres_iterations = ksp.getIterationNumber()
+            if penetration is None:
+                fixed = self.comm.bcast(x.array_r[n] * system.c if len(x.array_r) > n else None, root=0)
+            return system.field(x.array_r), fixed
+        finally:
+            for obj in (ksp, x, b):
+                obj.destroy()
+
+    def _active_set(self, profile, pressure, delta, total, gap_tol, tol):
+        """The contact pressure (Pa) and penetration (m) by a primal-dual active set method from the
+        contact of ``pressure``: on a contact set C the gap is closed (:meth:`_closed`, to 1e-3 of its first
+        residual); then C loses its cells of negative pressure and gains those of gap below -``gap_tol``
+        (m), until it holds; the last set's equations are then solved to ``tol`` times the right-hand
+        side's norm. After :attr:`SWEEPS` sets, the last one's answer (the caller's QP goes on)."""
+        contact, x, tight = pressure > 0, pressure, False
+        for _ in range(self.SWEEPS):
+            x, delta = self._closed(profile, x, delta, total, contact,
+                                    (lambda norm: (0.0, tol * norm)) if tight else (lambda norm: (1e-3, 0.0)))
+            gap = self.operator(x) + profile - delta
+            self.system.applications += 1
+            new = (contact & (x > 0)) | (~contact & (gap < -gap_tol))
+            changed = self.comm.allreduce(int(np.count_nonzero(new != contact)))
+            if changed == 0 and tight:
+                break
+            tight, contact = changed == 0, new
+        return np.where(contact, np.maximum(x, 0.0), 0.0), delta
+
+    def solve(self, profile: np.ndarray, tol: float, max_iterations: int = 100,
               start: tuple[np.ndarray, float | None] | None = None):
         """The steady pressure (Pa, this rank's rows) for the body's heights ``profile`` (m, this rank's
         rows), under the scene's constant load or penetration: a StepSolution of the last QP, whose
-        pressure is the fixed point's to ``tol`` (the largest change of the pressure between iterations,
-        relative to its peak), and the surface displacement w = K p (m). ``start``: a first guess
-        (this rank's rows of a pressure, Pa, and its penetration, m, or None), e.g. a neighbouring speed's
-        steady state."""
+        pressure is the fixed point's to ``tol`` (its largest change over a fixed-point step, relative to
+        its peak), and the surface displacement w = K p (m). ``start``: a first guess (this rank's rows of
+        a pressure, Pa, and its penetration, m, or None), e.g. a neighbouring speed's steady state. Its
+        ``applications`` count the QPs' and the active set solves' operator applications."""
         scene, solver, comm = self.scene, self.qp, self.comm
         x = np.zeros(solver.local_shape) if start is None else np.array(start[0], dtype=float)
         delta = None if start is None else start[1]
-        mixer, work = Anderson(comm, depth=8), list(solver.work)
-        change, solution, scale, last = math.inf, None, 1.0, False
+        work, applications = list(solver.work), self.system.applications
+        solution, scale, change = None, 1.0, math.inf
         try:
             for self.iterations in range(1, max_iterations + 1):
                 # the QPs' tolerance is in units of the scaled pressure p_hat = p A_00 / w_ref (w_ref: the
-                # heights' range), whose peak is ``scale``: 30 % of the last change of the pressure, relative
-                # to its peak, then 1 % of tol (at least as tight as [solver] tol) for the last one
+                # heights' range), whose peak is ``scale``: 1 % of tol (at least as tight as [solver] tol);
+                # the first QP, which only finds a contact to start from, to 0.1
                 final = min(scene.solver.tol, max(0.01 * tol * scale, 1e-13))
-                solver.tol = final if last else max(final, min(1e-1, 0.3 * change * scale))
-                height = profile + self.lag(x)
-                warm = solution.pressure if solution is not None else None if start is None else x
-                if scene.penetration is not None:
-                    solution = solver.solve_penetration(height, 1.0, float(scene.penetration(0.0)), warm)
-                else:
-                    solution = solver.solve_load(height, 1.0, float(scene.load(0.0)), scene.body.radius_hint,
-                                                 delta, warm)
+                solver.tol = final if solution is not None else max(final, 0.1)
+                solution = self._qp(profile + self.lag(x), delta,
+                                    x if solution is not None or start is not None else None)
                 delta, p = solution.delta, solution.pressure
                 extremes = np.array([np.abs(p - x).max(initial=0.0), p.max(initial=0.0),
-                                     height.max(initial=-np.inf), -height.min(initial=np.inf)])
+                                     profile.max(initial=-np.inf), -profile.min(initial=np.inf)])
                 comm.Allreduce(MPI.IN_PLACE, extremes, op=MPI.MAX)
                 change = extremes[0] / extremes[1] if extremes[1] > 0 else 0.0
                 spread = extremes[2] + extremes[3]
                 scale = extremes[1] * solver.influence.diagonal / spread if spread > 0 else 1.0
-                if change <= tol and last:
+                if change <= tol and self.iterations > 1:
                     break
-                last = change <= tol  # confirmed by a QP solved to the final tolerance
-                contact = p > 0
-                step = np.where(contact, self.newton(np.where(contact, p - x, 0.0)), p - x)
-                x = mixer.next(x, x + step)
+                x, delta = self._active_set(profile, p, delta, comm.allreduce(float(p.sum())),
+                                            0.01 * tol * scale * spread, 1e-3 * tol)
             else:
                 raise SolverError(f"the steady sliding solve did not converge within {max_iterations} "
                                   f"iterations (last change {change:.3g} of the peak pressure)")
         finally:
             solver.tol = scene.solver.tol
         solution.iterations = solver.work[0] - work[0]
-        solution.applications = solver.work[1] - work[1]
+        solution.applications = solver.work[1] - work[1] + self.system.applications - applications
         return solution, self.operator(solution.pressure)
+
+    def _qp(self, height, delta, warm):
+        """A fixed-point step's contact QP on the modulus kernel for ``height`` (m), warm from ``warm`` (Pa,
+        or None), its penetration from ``delta`` (m) under load control."""
+        scene, solver = self.scene, self.qp
+        if scene.penetration is not None:
+            return solver.solve_penetration(height, 1.0, float(scene.penetration(0.0)), warm)
+        return solver.solve_load(height, 1.0, float(scene.load(0.0)), scene.body.radius_hint, delta, warm)

@@ -126,12 +126,13 @@ def closed_forms(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD) -> list[dic
 def rough_raw(heights_file: pathlib.Path, n: int, comm: MPI.Comm, speed: float | None = None,
               seed: int = 1) -> dict:
     """The rough sliding benchmark's scene (dict): a 1 mm periodic cell of n x n cells, a self-affine
-    surface (Hurst 0.8, rolloff 0.25 mm, cut-off 4 cells, rms slope 0.3) written to ``heights_file``, the
-    RUBBER SLS, nominal pressure 0.5 MPa, sliding along X at ``speed`` (default: rolloff / (2 pi tau),
-    near the friction peak), steady state solved directly at one step per cell."""
+    surface (Hurst 0.8, rolloff 0.25 mm, cut-off 4 cells, rms slope 0.3) made and written to
+    ``heights_file`` by rank 0 alone, the RUBBER SLS, nominal pressure 0.5 MPa, sliding along X at
+    ``speed`` (default: rolloff / (2 pi tau), near the friction peak), steady state solved directly at one
+    step per cell."""
     length, dx = 1e-3, 1e-3 / n
-    z = self_affine_heights({"hurst": 0.8, "rolloff": length / 4, "cutoff": 4 * dx, "rms_slope": 0.3,
-                             "seed": seed}, (n, n), (dx, dx))
+    keys = {"hurst": 0.8, "rolloff": length / 4, "cutoff": 4 * dx, "rms_slope": 0.3, "seed": seed}
+    z = self_affine_heights(keys, (n, n), (dx, dx)) if comm.rank == 0 else None  # rank 0 writes it
     speed = speed if speed is not None else length / 4 / (2 * np.pi * RUBBER["tau_relax"])
     return {"grid": {"nx": n, "ny": n, "x": [0, length], "y": [0, length], "periodic": True},
             "material": RUBBER,

@@ -14,9 +14,17 @@ def love_coefficients(nx: int, ny: int, dx: float, dy: float, rows: np.ndarray |
 
     The displacement at a cell centre offset by (ix dx, iy dy) from a dx x dy cell carrying unit pressure,
     for unit surface compliance. A is even in both offsets, so these values give every pair of cells.
+    Computed as :func:`rectangle_displacement` is, from its four corner terms, each evaluated once: a
+    cell's edge is its neighbour's (the table's edges along Y, and along X without ``rows``).
     """
-    ix = np.arange(nx) if rows is None else np.asarray(rows)
-    return rectangle_displacement(ix[:, None] * dx, np.arange(ny)[None, :] * dy, dx / 2, dy / 2)
+    v = (np.arange(ny + 1) - 0.5) * dy  # the edges along Y: y - b of offset iy is y + b of offset iy - 1
+    if rows is None:
+        corners = _f((np.arange(nx + 1) - 0.5)[:, None] * dx, v[None, :])
+        lo, hi = corners[:-1], corners[1:]  # at x - a and x + a
+    else:
+        ix = np.asarray(rows)[:, None]
+        lo, hi = (_f((ix + side) * dx, v[None, :]) for side in (-0.5, 0.5))
+    return (hi[:, 1:] - hi[:, :-1] - lo[:, 1:] + lo[:, :-1]) / np.pi
 
 
 def rectangle_displacement(x, y, a: float, b: float):

@@ -26,6 +26,7 @@ pip: they need numpy 2, which must not enter petroll's environment).
 
 from __future__ import annotations
 
+import compileall
 import importlib.resources
 import json
 import math
@@ -104,6 +105,10 @@ def peers(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, problems=PROBLEMS,
 
 
 def _rows(out: pathlib.Path, problems, cells, repeats: int, target: float, solvers) -> list[dict]:
+    """The rows (rank 0). petroll's modules are byte-compiled first, as an install leaves them (pip
+    compiles the peers' in .venv-peers; a checkout run with PYTHONDONTWRITEBYTECODE set, as on the
+    project's machine, would otherwise compile every petroll module in every timed process)."""
+    compileall.compile_dir(pathlib.Path(__file__).parents[2], quiet=2)  # unwritable (an install): silent
     runs = [(name, "zero") for name in solvers if name != "petroll"]
     if "petroll" in solvers:
         runs = [*runs, ("petroll", "zero"), ("petroll", "hertz")]  # after the peers: held to their error
