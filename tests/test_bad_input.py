@@ -20,7 +20,8 @@ from hypothesis import strategies as st
 from petroll.model.bodies import BODY_KEYS
 from petroll.errors import SceneError
 from petroll.model.limits import PetrollWarning
-from petroll.model.scene import SCHEMA, dumps, parse_scene
+from petroll.model.schema import SCHEMA
+from petroll.model.scene import dumps, parse_scene
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 FUZZ = settings(max_examples=300, deadline=None, derandomize=True,

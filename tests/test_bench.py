@@ -1,4 +1,4 @@
-"""The rolling benchmarks (petroll.studies.bench_rolling) on tiny sizes: what they measure, never how fast.
+"""The rolling benchmarks (petroll.studies.bench_rolling, bench_mpi) on tiny sizes: what they measure, never how fast.
 
 Serial only: the MPI benchmark starts its own mpirun children (ranks 1 and 2, compared inside the test).
 """
@@ -8,7 +8,8 @@ import math
 
 import pytest
 
-from petroll.studies.bench_rolling import growth, mpi_scaling, precision
+from petroll.studies.bench_mpi import mpi_scaling
+from petroll.studies.bench_rolling import growth, precision
 
 pytestmark = pytest.mark.serial
 

@@ -21,11 +21,11 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from petroll.io import checkpoint as ckpt
+from petroll.io import checkpoint_writer as ckpt_writer
 from petroll.io.checkpoint import (CheckpointError, RunInterrupted, StopRequest, latest_checkpoint,
                                 list_checkpoints, read_checkpoint, restart_scene)
 from petroll.cli import main
-from petroll.model.scene import DEFAULT_TAO_TYPE
+from petroll.model.tao import DEFAULT_TAO_TYPE
 from petroll.errors import SceneError
 from petroll.io.results import OutputError, Results
 from petroll.model.scene import dumps, parse_scene
@@ -458,7 +458,7 @@ def test_disk_full_during_a_checkpoint_is_a_clear_error_and_the_last_one_stays_u
                                                                                       monkeypatch):
     scene = make_scene(raw_scene())
     reference = run(scene, comm, shared_dir / "reference")
-    real, calls = ckpt._write_dataset, []
+    real, calls = ckpt_writer._write_dataset, []
 
     def full(f, name, data):
         calls.append(name)
@@ -466,7 +466,7 @@ def test_disk_full_during_a_checkpoint_is_a_clear_error_and_the_last_one_stays_u
             raise OSError(errno.ENOSPC, "No space left on device")
         return real(f, name, data)
 
-    monkeypatch.setattr(ckpt, "_write_dataset", full)
+    monkeypatch.setattr(ckpt_writer, "_write_dataset", full)
     with pytest.raises(CheckpointError) as info:
         run(scene, comm, shared_dir / "full")
     monkeypatch.undo()
@@ -539,11 +539,11 @@ def test_sigterm_during_a_cli_run_leaves_a_checkpoint_that_restart_finishes_iden
 
 KILLER = """
 import os, signal, sys
-from petroll.io import checkpoint
+from petroll.io import checkpoint_writer
 from petroll.model.scene import load_scene
 from petroll.driver import run
 
-real, calls = checkpoint._write_dataset, []
+real, calls = checkpoint_writer._write_dataset, []
 
 def write_then_die(f, name, data):
     calls.append(name)
@@ -552,7 +552,7 @@ def write_then_die(f, name, data):
         os.kill(os.getpid(), signal.SIGKILL)
     return real(f, name, data)
 
-checkpoint._write_dataset = write_then_die
+checkpoint_writer._write_dataset = write_then_die
 run(load_scene(sys.argv[1]), out="killed")
 """
 

@@ -10,7 +10,7 @@ from petroll.model.bodies import Cylinder, Sphere
 from petroll.solver.contact import ContactSolver
 from petroll.errors import SolverError
 from petroll.model.grid import Grid
-from petroll.model.scene import DEFAULT_TAO_TYPE
+from petroll.model.tao import DEFAULT_TAO_TYPE
 from petroll.solver.influence import dense_influence
 from petroll.solver.kernels.love import love_coefficients
 from petroll.solver.partition import gather_field

@@ -425,7 +425,7 @@ def test_a_restart_refuses_the_results_of_another_run_and_touches_nothing(change
 
 def strip_run_id(path: pathlib.Path) -> None:
     """A checkpoint as written before run ids: the attribute removed, the file's digest made again."""
-    from petroll.io.checkpoint import _plain, _root_digest
+    from petroll.io.checkpoint import _plain, root_digest
 
     with h5py.File(path, "r+") as f:
         del f.attrs["run_id"]
@@ -433,7 +433,7 @@ def strip_run_id(path: pathlib.Path) -> None:
         digests = {}
         f.visititems(lambda name, item: digests.__setitem__(name, _plain(item.attrs["sha256"]))
                      if isinstance(item, h5py.Dataset) else None)
-        f.attrs["sha256"] = _root_digest(attrs, digests)
+        f.attrs["sha256"] = root_digest(attrs, digests)
 
 
 def test_a_foreign_checkpoint_among_a_runs_checkpoints_is_refused_and_the_run_restarts_from_its_own(

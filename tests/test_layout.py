@@ -145,14 +145,7 @@ def test_no_private_name_is_imported_across_modules():
 FUNCTION_LINES, MODULE_LINES = 80, 600
 """Rooms a reader can take in: no function longer, no module longer, but for the exceptions below."""
 
-LONG_MODULES = {
-    "petroll/io/checkpoint.py": "checkpoints written, read, verified and checked for a restart (issue 28's "
-                                "journal and identity checks just landed): to be split next",
-    "petroll/model/scene.py": "the schema of every section beside Scene and its parser: the schema is to "
-                              "move to a module of its own (every session of this round added keys to it)",
-    "petroll/studies/bench_rolling.py": "four rolling benchmarks (precision, growth, skips, mpi) sharing "
-                                        "their scene helpers; a few lines over",
-}
+LONG_MODULES: dict[str, str] = {}
 LONG_FUNCTIONS = {
     ("petroll/solver/pk.py", "solve"): "the Polonsky-Keer iteration: one loop whose steps (projection, "
                                        "re-entry, conjugate direction, the load's constraint) share a dozen "

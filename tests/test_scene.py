@@ -17,9 +17,10 @@ import numpy as np
 import pytest
 
 from petroll.model.bodies import Sphere
-from petroll.model.scene import DEFAULT_TAO_TYPE
 from petroll.errors import MISSING, PetrollError, SceneError
-from petroll.model.scene import SCHEMA, Scene, load_scene, parse_scene
+from petroll.model.schema import SCHEMA
+from petroll.model.tao import DEFAULT_TAO_TYPE
+from petroll.model.scene import Scene, load_scene, parse_scene
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 SPHERE = ROOT / "runs" / "hertz.toml"

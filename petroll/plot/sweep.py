@@ -46,7 +46,7 @@ class SweepData:
                                                       and table.key != "motion.penetration")
         tol = raw.get("time", {}).get("steady")
         if tol is None and "time" in raw:
-            from petroll.model.scene import DEFAULT_STEADY
+            from petroll.model.schema import DEFAULT_STEADY
 
             tol = DEFAULT_STEADY
         unit = "" if table.unit == "-" else f" ({table.unit})"

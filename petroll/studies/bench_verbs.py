@@ -85,10 +85,10 @@ def _function(which: str):
 
         return {"estimate": accuracy.bench_cost, "accuracy": accuracy.bench}[which]
     if which in ("precision", "growth", "skips", "mpi"):
-        from petroll.studies import bench_rolling
+        from petroll.studies import bench_mpi, bench_rolling
 
         return {"precision": bench_rolling.precision, "growth": bench_rolling.growth,
-                "skips": bench_rolling.skips, "mpi": bench_rolling.mpi_scaling}[which]
+                "skips": bench_rolling.skips, "mpi": bench_mpi.mpi_scaling}[which]
     if which in ("memory", "append"):
         from petroll.studies import bench_memory
 

@@ -59,7 +59,8 @@ from petroll.model import motion as motions
 from petroll.errors import PetrollError, SceneError, reason
 from petroll.model.materials import Prony, Tabulated, loss_peak_time
 from petroll.io.results import Results, atomic_write, results_identity
-from petroll.model.scene import DEFAULT_STEADY, SCHEMA, Scene
+from petroll.model.schema import DEFAULT_STEADY, SCHEMA
+from petroll.model.scene import Scene
 
 """[time] steady given to every point of a sweep whose scene has a [time] table without one."""
 
