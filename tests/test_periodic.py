@@ -243,6 +243,31 @@ def test_a_sliding_body_wraps_around_the_cell(comm, shared_dir):
     assert record.step == 40
 
 
+def test_a_rough_surface_sliding_by_fractions_of_a_cell_is_the_same_on_every_rank_count(comm, shared_dir):
+    """A generated rough surface on an SLS sliding 0.4 cell per step along X across the cell's end, so
+    that every rank's rows need the surface's samples from around the period: each step's pressure on
+    ``comm`` is the one of the same run on a single rank (the oracle), and each rank holds the spline
+    coefficients of its rows (and the stencils' and the margin's), not the whole surface's."""
+    from petroll.model.bodies.rough import ROWS_MARGIN
+
+    n, length = 128, 1e-3
+    raw = {"grid": {"nx": n, "ny": 16, "x": [0, length], "y": [0, length / 8], "periodic": True},
+           "material": {"model": "sls", "E0": 10e6, "Einf": 2e6, "nu": 0.5, "tau_relax": 1e-3},
+           "body": {"shape": "rough", "hurst": 0.8, "rolloff": length / 4, "cutoff": 4 * length / n,
+                    "rms_slope": 0.1, "seed": 5, "position": [0.99 * length, 0.0]},
+           "motion": {"load": 0.3e6 * length * length / 8, "velocity": [0.4 * length / n / 1e-4, 0.0]},
+           "time": {"dt": 1e-4, "end": 6e-4}, "solver": {"tol": 1e-12}}
+    ours, alone = Simulation(parse_scene(raw), comm), Simulation(parse_scene(raw), MPI.COMM_SELF)
+    for mine, oracle in zip(ours.steps(), alone.steps()):
+        p = gathered(comm, ours.pressure)
+        assert np.abs(p - alone.pressure).max() <= 1e-8 * alone.pressure.max()
+        assert mine.force_x == pytest.approx(oracle.force_x, rel=1e-8)
+    assert mine.step == 6 and mine.sx > length  # the body has crossed the cell's end
+    rows = ours.solver.r1 - ours.solver.r0
+    assert ours.scene.body.rows_held <= rows + 3 + 2 * ROWS_MARGIN
+    assert alone.scene.body.rows_held == n
+
+
 @pytest.mark.ranks4
 @pytest.mark.parametrize("di,dj", [(0, 0), (1, 0), (3, -2), (-4, 1), (12, 0), (0, -7), (-23, -3)])
 def test_roll_field_moves_a_distributed_field_around(comm, di, dj):

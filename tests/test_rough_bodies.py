@@ -101,6 +101,53 @@ def test_a_periodic_grid_surface_puts_its_samples_on_the_cell_centres():
         grid_surface(heights, (1e-6, 1e-6), grid)
 
 
+def whole_spline(heights, cell, origin):
+    """The oracle: the spline through all samples, its coefficients by scipy's recursive periodic
+    prefilter (ndimage.spline_filter) of the heights and of their spectral slopes (numpy's FFT)."""
+    from scipy import ndimage
+
+    nx, ny = heights.shape
+    kx = 2 * np.pi * np.fft.fftfreq(nx, cell[0]) * (np.arange(nx) != nx // 2)
+    ky = 2 * np.pi * np.fft.fftfreq(ny, cell[1]) * (np.arange(ny) != ny // 2)
+    spectrum = np.fft.fft2(heights)
+    fields = (heights, np.fft.ifft2(1j * kx[:, None] * spectrum).real,
+              np.fft.ifft2(1j * ky[None, :] * spectrum).real)
+    coefficients = [ndimage.spline_filter(f, order=3, mode="grid-wrap") for f in fields]
+
+    def at(which, x, y):
+        x, y = np.broadcast_arrays(x, y)
+        points = np.stack([(x - origin[0]) / cell[0], (y - origin[1]) / cell[1]]).reshape(2, -1)
+        return ndimage.map_coordinates(coefficients[which], points, order=3, mode="grid-wrap",
+                                       prefilter=False).reshape(x.shape)
+
+    return at
+
+
+@pytest.mark.parametrize("n", [256, 255])
+def test_a_surface_on_some_rows_holds_those_rows_and_is_the_whole_spline_wherever_it_moved(n):
+    """A surface evaluated on half a grid's rows, the body moved by fractions of a cell, by whole cells and
+    around the period: the heights and slopes of the spline through all samples to round-off, from the
+    coefficients of only the rows the points' stencils need (their FFTs against scipy's recursive filter)."""
+    from petroll.model.bodies.rough import ROWS_MARGIN
+
+    heights = self_affine_heights(ROUGH, (n, 24), CELL)
+    origin = (0.5 * CELL[0], -3 * CELL[1])
+    surface = PeriodicSurface(heights, CELL, origin)
+    oracle = whole_spline(heights, CELL, origin)
+    i, j = np.arange(n)[:, None], np.arange(24)[None, :]
+    scale = (np.ptp(heights), *(np.abs(oracle(k, origin[0] + i * CELL[0], origin[1] + j * CELL[1])).max()
+                                for k in (1, 2)))
+    for rows in (slice(0, n // 2), slice(n // 2, n)):
+        for moved in (0.0, 0.37, 5.5, -17.25, 3 * n + 0.1, n // 2 + 0.8):
+            x, y = origin[0] + (i[rows] - moved) * CELL[0], origin[1] + (j + 0.3) * CELL[1]
+            got = (surface.height(x, y), *surface.slope(x, y))
+            want = (oracle(0, x, y) - surface.lowest, oracle(1, x, y), oracle(2, x, y))
+            for a, b, s in zip(got, want, scale):
+                np.testing.assert_allclose(a, b, rtol=0, atol=1e-12 * s)
+            # the rows of the points' stencils (half the grid and 3) and the margin each side
+            assert surface.rows_held <= n // 2 + 1 + 3 + 2 * ROWS_MARGIN < n
+
+
 # ---------------------------------------------------------------------------------------------------------
 # scene keys: a height map in every format, roughness on smooth bodies
 

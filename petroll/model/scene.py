@@ -22,7 +22,7 @@ from petroll.errors import MISSING, SceneError
 from petroll.model import materials
 from petroll.model import motion
 from petroll.model.bodies import Body, HeightMap, HeightProfile, make_body
-from petroll.model.bodies.rough import PeriodicSurface
+from petroll.model.bodies.rough import samples_surface
 from petroll.model.grid import Grid, line_grid
 from petroll.model.limits import MAGNITUDES, scale_message
 from petroll.model.schema import BODY_LENGTHS, CELL_DIGITS, MAX_CELLS, MODEL_KEYS, SCHEMA, Invalid, out_of_scale
@@ -489,16 +489,12 @@ def periodic_body(body: Body, grid: Grid) -> Body:
     if not any(grid.periodic):
         return body
     if isinstance(body, HeightProfile):
-        heights, cell = np.repeat(body.heights[:, None], 4, axis=1), (body.cell, grid.dy)
+        surface = samples_surface(np.repeat(body.heights[:, None], 4, axis=1), (body.cell, grid.dy), grid)
     elif isinstance(body, HeightMap):
-        heights, cell = body.heights, body.cell
+        surface = samples_surface(body.heights, body.cell, grid)
     else:
         return body
-    if (heights.shape[0] != grid.nx or (not grid.line and heights.shape[1] != grid.ny)
-            or not np.allclose(cell, (grid.dx, grid.dy), rtol=1e-9, atol=0.0)
-            or not np.isfinite(heights).all()):
-        return body
-    return PeriodicSurface(heights, cell, (grid.x0 + grid.dx / 2, grid.y0 + grid.dy / 2))
+    return body if surface is None else surface
 
 
 def _check_contact_inside(scene: Scene) -> None:

@@ -10,7 +10,7 @@ from petroll.model.bodies.analytic import Cylinder, CylinderSection, Ellipsoid, 
 from petroll.model.bodies.base import Body, cell_pair, type_name
 from petroll.model.bodies.maps import HeightMap, HeightProfile
 from petroll.model.bodies.mesh import mesh_height_map
-from petroll.model.bodies.rough import PeriodicSurface, RoughBody, grid_surface
+from petroll.model.bodies.rough import PeriodicSurface, RoughBody, grid_surface, samples_surface
 from petroll.model.grid import Grid
 from petroll.model.roughness import ROUGH_KEYS, self_affine_heights
 from petroll.model.topography import FORMATS, UNITS, read_npy, read_topography
@@ -175,6 +175,9 @@ def make_body(table: dict, base_dir: pathlib.Path, source: str, line: bool = Fal
         return _profile_from_npy(_resolve_file(source, values["file"], base_dir), values["cell"], source)
     if shape == "heightmap":
         topography = _measured(values, base_dir, source, "[body] ")
+        surface = None if grid is None else samples_surface(topography.heights, topography.cell, grid)
+        if surface is not None:
+            return surface
         return HeightMap(topography.heights, topography.cell, source=source)
     if shape == "rough":
         if grid is None:

@@ -5,10 +5,12 @@
   self-affine surface, petroll.model.roughness), or the roughness a smooth body carries.
 * :class:`RoughBody`: a smooth body (sphere, cylinder...) plus a periodic roughness; the heights add.
 
-Interpolation: a periodic cubic B-spline through the samples (scipy.ndimage, ``mode="grid-wrap"``), so
-heights at the sample points are the samples and the surface is twice continuously differentiable; the
+Interpolation: a periodic cubic B-spline through the samples (evaluated by scipy.ndimage.map_coordinates),
+so heights at the sample points are the samples and the surface is twice continuously differentiable; the
 slopes are the spectral derivative of the samples (exact for every Fourier mode the lattice carries),
-interpolated the same way.
+interpolated the same way. The spline's coefficients are made by FFTs (the periodic prefilter and the
+derivative are diagonal in Fourier space) for the sample rows a query needs only: evaluated on a rank's
+rows of a grid, a surface holds those rows' coefficients, wherever the body has moved.
 """
 
 from __future__ import annotations
@@ -23,7 +25,15 @@ from petroll.errors import SceneError
 from petroll.model.bodies.base import PYTHON_SOURCE, Body
 from petroll.model.grid import Grid
 
-__all__ = ["PeriodicSurface", "RoughBody", "grid_surface"]
+__all__ = ["PeriodicSurface", "RoughBody", "grid_surface", "samples_surface"]
+
+
+ROWS_MARGIN = 16
+"""Sample rows a periodic surface prepares beyond those a query needs (each side): a body moving a cell per
+step needs new rows' coefficients once every this many steps."""
+
+CHUNK_BYTES = 1 << 25
+"""Size of the columns' spectra transformed at once while rows' coefficients are made (bytes)."""
 
 
 def _spectral_slopes(heights: np.ndarray, cell: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
@@ -41,18 +51,39 @@ def _spectral_slopes(heights: np.ndarray, cell: tuple[float, float]) -> tuple[np
             scipy.fft.irfft2(1j * ky[None, :] * spectrum, s=heights.shape))
 
 
-def _spline_minimum(samples: np.ndarray, coefficients: np.ndarray, candidates: int = 8) -> float:
-    """The lowest value of the periodic cubic spline (its B-spline ``coefficients``) on a lattice of 1/16
-    of a cell within a cell of each of the ``candidates`` lowest samples."""
-    from scipy import ndimage  # here, not at the top: a scene without a periodic surface never imports it
+def _multipliers(n: int, h: float) -> tuple[np.ndarray, np.ndarray]:
+    """Along an axis of n periodic samples h m apart, on the half spectrum (rfft's frequencies): the
+    periodic cubic B-spline's prefilter 1 / B (B = (2 + cos theta) / 3, the spline's values at the samples
+    from unit coefficients) and the spectral derivative's i k / B (rad/m; Nyquist's k taken as 0)."""
+    theta = 2.0 * np.pi * scipy.fft.rfftfreq(n)
+    k = 2.0 * np.pi * scipy.fft.rfftfreq(n, h)
+    if n % 2 == 0:
+        k[-1] = 0.0
+    inverse = 3.0 / (2.0 + np.cos(theta))
+    return inverse, 1j * k * inverse
 
-    lowest = np.unravel_index(np.argsort(samples, axis=None)[:candidates], samples.shape)
-    offsets = np.linspace(-1.0, 1.0, 33)
-    u, v = np.broadcast_arrays(lowest[0][:, None, None] + offsets[None, :, None],
-                               lowest[1][:, None, None] + offsets[None, None, :])
-    values = ndimage.map_coordinates(coefficients, np.stack([u.ravel(), v.ravel()]), order=3,
-                                     mode="grid-wrap", prefilter=False)
-    return min(float(values.min()), float(samples.min()))
+
+def _row_coefficients(heights: np.ndarray, cell: tuple[float, float], rows: np.ndarray) -> np.ndarray:
+    """The periodic cubic B-spline coefficients of the samples ``heights``, of their spectral dh/dx and of
+    their dh/dy (m, -, -), on the sample rows ``rows`` only: shape (3, len(rows), ny). The diagonal
+    multipliers of :func:`_multipliers`, along X column block by column block (the whole column is
+    transformed, only ``rows`` kept), then along Y on those rows; a row's values do not depend on which
+    other rows are asked for."""
+    nx, ny = heights.shape
+    fx, dx = _multipliers(nx, cell[0])
+    fy, dy = _multipliers(ny, cell[1])
+    along_x = np.empty((2, len(rows), ny))
+    width = max(1, CHUNK_BYTES // (16 * nx))
+    for j in range(0, ny, width):
+        spectrum = scipy.fft.rfft(heights[:, j : j + width], axis=0)
+        for out, multiplier in zip(along_x, (fx, dx)):
+            out[:, j : j + width] = scipy.fft.irfft(spectrum * multiplier[:, None], n=nx, axis=0)[rows]
+    smooth = scipy.fft.rfft(along_x[0], axis=1)
+    out = np.empty((3, len(rows), ny))
+    out[0] = scipy.fft.irfft(smooth * fy, n=ny, axis=1)
+    out[1] = scipy.fft.irfft(scipy.fft.rfft(along_x[1], axis=1) * fy, n=ny, axis=1)
+    out[2] = scipy.fft.irfft(smooth * dy, n=ny, axis=1)
+    return out
 
 
 @dataclass(frozen=True, eq=False)
@@ -63,6 +94,11 @@ class PeriodicSurface(Body):
     Z = S - min S, S the periodic cubic spline through the samples and min S its lowest point, found on
     a lattice of 1/16 of a cell around the lowest samples (so Z >= 0 to within S's variation over 1/32 of
     a cell).
+
+    Memory: the samples (8 bytes each) and the spline coefficients of the heights and slopes (24 bytes per
+    sample) of only the sample rows the last query needed, :data:`ROWS_MARGIN` rows each side: a rank that
+    evaluates the surface on its rows of a grid holds those rows' coefficients (a whole-grid query, the
+    whole grid's, until a smaller one replaces them).
     """
 
     heights: np.ndarray
@@ -70,7 +106,7 @@ class PeriodicSurface(Body):
     origin: tuple[float, float] = (0.0, 0.0)
     _: KW_ONLY
     source: InitVar[str] = PYTHON_SOURCE
-    _coefficients: tuple[np.ndarray, np.ndarray, np.ndarray] = field(init=False, repr=False)
+    _prepared: dict = field(init=False, repr=False)  # "rows": sorted sample rows; "values": coefficients
     _lowest: float = field(init=False, repr=False)
     _radius_hint: float = field(init=False, repr=False)
 
@@ -79,24 +115,31 @@ class PeriodicSurface(Body):
         if heights.ndim != 2 or min(heights.shape) < 4 or not np.isfinite(heights).all():
             raise SceneError(source, "[body] heights", f"<array of shape {heights.shape}>",
                              "a periodic surface needs a 2-D array of at least 4 x 4 finite heights (m)")
-        from scipy import ndimage
-
         cell = (float(self.cell[0]), float(self.cell[1]))
-        slopes = _spectral_slopes(heights, cell)
-        surface, *gradient = (ndimage.spline_filter(f, order=3, mode="grid-wrap") for f in (heights, *slopes))
-        lowest = _spline_minimum(heights, surface)
-        coefficients = (surface - lowest, *gradient)  # a constant passes the filter as it is
         heights.setflags(write=False)
-        # the summits' radius of curvature ~ 1 / rms curvature (first guesses only)
-        curvature = np.gradient(slopes[0], cell[0], axis=0) + np.gradient(slopes[1], cell[1], axis=1)
-        rms = math.sqrt(float(np.mean(curvature**2)))
         set_ = object.__setattr__
         set_(self, "heights", heights)
         set_(self, "cell", cell)
         set_(self, "origin", (float(self.origin[0]), float(self.origin[1])))
-        set_(self, "_coefficients", coefficients)
-        set_(self, "_lowest", lowest)
+        set_(self, "_prepared", {"rows": np.zeros(0, dtype=np.intp), "values": None})
+        set_(self, "_lowest", 0.0)
+        set_(self, "_lowest", self._spline_minimum())
+        # the summits' radius of curvature ~ 1 / rms curvature (first guesses only)
+        slopes = _spectral_slopes(heights, cell)
+        curvature = np.gradient(slopes[0], cell[0], axis=0) + np.gradient(slopes[1], cell[1], axis=1)
+        rms = math.sqrt(float(np.mean(curvature**2)))
         set_(self, "_radius_hint", 1.0 / rms if rms > 0.0 else max(heights.shape) * max(cell))
+
+    def _spline_minimum(self, candidates: int = 8) -> float:
+        """The lowest value of S on a lattice of 1/16 of a cell within a cell of each of the ``candidates``
+        lowest samples (the lowest sample if lower)."""
+        samples = self.heights
+        lowest = np.unravel_index(np.argsort(samples, axis=None)[:candidates], samples.shape)
+        offsets = np.linspace(-1.0, 1.0, 33)
+        u, v = np.broadcast_arrays(lowest[0][:, None, None] + offsets[None, :, None],
+                                   lowest[1][:, None, None] + offsets[None, None, :])
+        x, y = self.origin[0] + u * self.cell[0], self.origin[1] + v * self.cell[1]
+        return min(float(self._interpolate(0, x, y).min()), float(samples.min()))
 
     @property
     def lowest(self) -> float:
@@ -108,19 +151,53 @@ class PeriodicSurface(Body):
         """(nx hx, ny hy) in m."""
         return (self.heights.shape[0] * self.cell[0], self.heights.shape[1] * self.cell[1])
 
-    def _interpolate(self, which: int, x, y) -> np.ndarray:
+    @property
+    def rows_held(self) -> int:
+        """How many sample rows' spline coefficients the surface holds now (of nx)."""
+        return len(self._prepared["rows"])
+
+    def _prepare(self, needed: np.ndarray) -> dict:
+        """The prepared rows, holding the sample rows ``needed`` (sorted, within 0 ... nx - 1): those held
+        if they hold them and not many more, else the needed rows and :data:`ROWS_MARGIN` around each,
+        prepared anew."""
+        nx = self.heights.shape[0]
+        wanted = np.unique((needed[:, None] + np.arange(-ROWS_MARGIN, ROWS_MARGIN + 1)) % nx)
+        prepared = self._prepared
+        if not np.isin(needed, prepared["rows"]).all() or len(prepared["rows"]) > len(wanted):
+            prepared["values"] = None  # the old rows go before the new ones come
+            prepared["values"] = _row_coefficients(self.heights, self.cell, wanted)
+            prepared["rows"] = wanted
+        return prepared
+
+    def _interpolate(self, which, x, y):
+        """The spline of coefficients ``which`` (0: heights less ``lowest``, 1: dh/dx, 2: dh/dy; a tuple:
+        each) at offsets (x, y) m, from the sample rows the points' stencils need."""
         from scipy import ndimage
 
-        x, y = np.broadcast_arrays(np.asarray(x, dtype=float), np.asarray(y, dtype=float))
-        coordinates = np.stack([(x - self.origin[0]) / self.cell[0], (y - self.origin[1]) / self.cell[1]])
-        return ndimage.map_coordinates(self._coefficients[which], coordinates.reshape(2, -1), order=3,
-                                       mode="grid-wrap", prefilter=False).reshape(x.shape)
+        nx = self.heights.shape[0]
+        u = (np.asarray(x, dtype=float) - self.origin[0]) / self.cell[0]
+        u = u - nx * np.floor(u / nx)  # in [0, nx]
+        base = np.floor(u).astype(np.intp)
+        stencil = np.unique(np.unique(base)[:, None] + np.arange(-1, 3))  # rows -1 ... nx + 2, unwrapped
+        prepared = self._prepare(np.unique(stencil % nx))
+        whole = len(prepared["rows"]) == nx  # all rows: the spline wraps around by itself
+        if not whole:  # the stencils' rows in order, each point's row numbered among them
+            index = np.searchsorted(prepared["rows"], stencil % nx)
+            u = u - (base - np.searchsorted(stencil, base))
+        u, v = np.broadcast_arrays(u, (np.asarray(y, dtype=float) - self.origin[1]) / self.cell[1])
+        coordinates = np.stack([u, v]).reshape(2, -1)
+        out = []
+        for w in np.atleast_1d(which):
+            values = prepared["values"][w] if whole else prepared["values"][w][index]
+            value = ndimage.map_coordinates(values, coordinates, order=3, mode="grid-wrap", prefilter=False)
+            out.append(value.reshape(u.shape) - (self._lowest if w == 0 else 0.0))
+        return out[0] if np.ndim(which) == 0 else tuple(out)
 
     def height(self, x, y):
         return self._interpolate(0, x, y)
 
     def slope(self, x, y):
-        return self._interpolate(1, x, y), self._interpolate(2, x, y)
+        return self._interpolate((1, 2), x, y)
 
     @property
     def radius_hint(self) -> float:
@@ -162,3 +239,16 @@ def grid_surface(heights: np.ndarray, cell: tuple[float, float], grid: Grid, *, 
                          f"their spacing is the grid's, [{grid.dx!r}, {grid.dy!r}] m")
     return PeriodicSurface(heights, (grid.dx, grid.dy), (grid.x0 + 0.5 * grid.dx, grid.y0 + 0.5 * grid.dy),
                            source=source)
+
+
+def samples_surface(heights: np.ndarray, cell: tuple[float, float], grid: Grid) -> PeriodicSurface | None:
+    """On a periodic ``grid``, the periodic surface of samples that are its cells (as many as its nx x ny,
+    or nx for a line grid's profile, at its spacing, all finite): sample (i, j) on the centre of cell
+    (i, j) while the body is at [body] position [0, 0]. None for samples that are not."""
+    if not any(grid.periodic) or heights.ndim != 2:
+        return None
+    if (heights.shape[0] != grid.nx or (not grid.line and heights.shape[1] != grid.ny)
+            or not np.allclose(cell, (grid.dx, grid.dy), rtol=1e-9, atol=0.0)
+            or not np.isfinite(heights).all()):
+        return None
+    return PeriodicSurface(heights, cell, (grid.x0 + grid.dx / 2, grid.y0 + grid.dy / 2))
