@@ -39,9 +39,9 @@ GOOD_CELLS = 8
 """Cells per contact half-width below which a run warns (about 1 % in force and mu_r: docs/accuracy.md)."""
 LEAST_CELLS = 2
 """Cells per contact half-width below which a run is refused unless [grid] allow_coarse = true."""
-BYTES_PER_CELL = 125
+BYTES_PER_CELL = 145
 """A rolling run's memory per grid cell, all ranks together (measured, `petroll bench memory`, an SLS)."""
-FIXED_MIB = 82
+FIXED_MIB = 96
 """A rank's memory before the scene is built: Python, numpy, PETSc, MPI (measured, MiB)."""
 
 

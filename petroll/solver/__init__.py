@@ -11,8 +11,8 @@ import os as _os
 SINGLETON = {"OMPI_MCA_ess_singleton_isolated": "1", "OMPI_MCA_pml": "ob1"}
 """Open MPI's settings for a process that no launcher started (one rank): a singleton without the helper
 daemon MPI_Init otherwise forks for it (petroll never spawns processes), with the ob1 messaging layer (a
-lone process talks only to itself) instead of the default pick's probe of UCX's transports: MPI_Init in
-about 0.07 s instead of 0.27 s (docs/benchmarks.md, peers)."""
+lone process talks only to itself) rather than the default pick, which probes UCX's transports: MPI_Init
+takes about 0.07 s with these settings, 0.27 s without (docs/benchmarks.md, peers)."""
 
 MPI_SETTINGS: dict[str, str] = {}
 """Those of :data:`SINGLETON` this process started MPI with (none under a launcher, nor where the

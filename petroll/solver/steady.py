@@ -60,7 +60,7 @@ class SteadySolve:
     QPs are solved to 1e-4 of the memory's last change until then (at most 1e-3, at least [solver] tol),
     the last ones to max([solver] tol, tol / 100); the memory is kept until the material has relaxed to
     tol / 100. (QPs solved to 1 % of the change stall the fixed point on fine grids: runs/sphere.toml on
-    2048 x 1024 cells took 172 iterations at tol 1e-8 instead of 19; docs/benchmarks.md.)
+    2048 x 1024 cells takes 172 iterations at tol 1e-8 that way, 19 this way; docs/benchmarks.md.)
     ``steady``: stop also once force and resisting force change by at most ``steady`` x force from one
     iteration to the next, once the QPs are solved to steady / 3 or tighter (looser QPs can agree by
     chance). The wake behind the grid is kept up to 30 V tau (or as far as the memory reaches): cell by
