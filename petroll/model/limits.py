@@ -11,7 +11,8 @@ the largest penetration the scene can reach, and
   equator, where its profile Z stops being a graph); under load control the penetration is only
   estimated (relaxed Hertz for the body's equivalent radius), so it warns.
 
-The stability suite (docs/stability.md) exercises both limits.
+The stability suite (docs/stability.md) exercises both limits. Numbers with a unit (and a height map's
+heights) must lie within ``MAGNITUDES``, whatever the units.
 """
 
 from __future__ import annotations
@@ -25,6 +26,32 @@ from petroll.errors import SceneError
 
 SLOPE_WARN = 0.3
 SLOPE_MAX = 1.0
+
+MAGNITUDES = (1e-30, 1e30)
+"""The smallest and largest non-zero magnitude of a number with a unit (a length, time, modulus, force,
+...), whatever the units: the kernels and integrators form squares and products of a few of them, which
+then stay far inside double precision (1e-308 ... 1e308). Scenes outside are refused: rescale the units."""
+
+
+def scale_message(bad: float, unit: str) -> str:
+    shown = f" {unit}" if unit not in ("-", "") else ""
+    return (f"{bad:g}{shown} is outside what petroll computes with: non-zero magnitudes from "
+            f"{MAGNITUDES[0]:g} to {MAGNITUDES[1]:g}; rescale the units (e.g. mm, MPa, ms)")
+
+
+def heights_out_of_scale(heights: np.ndarray) -> str | None:
+    """Why a map's finite heights (m) lie outside MAGNITUDES: the largest |height| above it, or a relief
+    (highest - lowest) that is not zero but below it (a flat map is refused elsewhere, if at all); None
+    when they lie within."""
+    finite = heights[np.isfinite(heights)]
+    if not finite.size:
+        return None
+    largest, relief = float(np.abs(finite).max()), float(np.ptp(finite))
+    if largest > MAGNITUDES[1]:
+        return f"height {scale_message(largest, 'm')}"
+    if 0 < relief < MAGNITUDES[0]:
+        return f"relief (highest - lowest height) {scale_message(relief, 'm')}"
+    return None
 
 
 class PetrollWarning(UserWarning):

@@ -24,8 +24,8 @@ from petroll.model import motion
 from petroll.model.bodies import Body, HeightMap, HeightProfile, make_body
 from petroll.model.bodies.rough import samples_surface
 from petroll.model.grid import Grid, line_grid
-from petroll.model.schema import (BODY_LENGTHS, CELL_DIGITS, MAGNITUDES, MAX_CELLS, MODEL_KEYS, SCHEMA,
-                                  Invalid, out_of_scale, scale_message)
+from petroll.model.limits import MAGNITUDES, scale_message
+from petroll.model.schema import BODY_LENGTHS, CELL_DIGITS, MAX_CELLS, MODEL_KEYS, SCHEMA, Invalid, out_of_scale
 
 
 # -- the validated scene ----------------------------------------------------------------------------------

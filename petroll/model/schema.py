@@ -16,6 +16,7 @@ import numpy as np
 from petroll.errors import MISSING
 from petroll.model import materials
 from petroll.model import motion
+from petroll.model.limits import MAGNITUDES
 from petroll.model.bodies import BODY_KEYS
 from petroll.model.tao import DEFAULT_TAO_TYPE, TAO_TYPES
 
@@ -60,11 +61,6 @@ def _count(value: Any) -> int:
     return int(value)
 
 
-MAGNITUDES = (1e-30, 1e30)
-"""The smallest and largest non-zero magnitude of a number with a unit (a length, time, modulus, force,
-...), whatever the units: the kernels and integrators form squares and products of a few of them, which
-then stay far inside double precision (1e-308 ... 1e308). Scenes outside are refused: rescale the units."""
-
 BODY_LENGTHS = ("radius", "radius_x", "radius_y", "width", "edge_radius", "cell")
 """[body] keys that are lengths (m), held to MAGNITUDES like the schema's keys with units."""
 
@@ -85,12 +81,6 @@ def out_of_scale(value: Any) -> float | None:
         if key != "phase" and (bad := out_of_scale(item)) is not None:
             return bad
     return None
-
-
-def scale_message(bad: float, unit: str) -> str:
-    shown = f" {unit}" if unit not in ("-", "") else ""
-    return (f"{bad:g}{shown} is outside what petroll computes with: non-zero magnitudes from "
-            f"{MAGNITUDES[0]:g} to {MAGNITUDES[1]:g}; rescale the units (e.g. mm, MPa, ms)")
 
 
 MAX_CELLS_AXIS, MAX_CELLS = 2**24, 2**31 - 1

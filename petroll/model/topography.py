@@ -29,6 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from petroll.errors import SceneError, reason
+from petroll.model.limits import heights_out_of_scale
 
 __all__ = ["FORMATS", "UNITS", "Topography", "read_npy", "read_topography"]
 
@@ -83,8 +84,8 @@ def _format_of(path: pathlib.Path, fmt: str | None, source: str, prefix: str) ->
 
 
 def _checked(heights: np.ndarray, path: pathlib.Path, source: str, key: str) -> np.ndarray:
-    """A 2-D float array of at least 2 x 2 heights, none NaN or -inf (+inf: no surface there), or
-    SceneError."""
+    """A 2-D float array of at least 2 x 2 heights, none NaN or -inf (+inf: no surface there), within
+    petroll.model.limits.MAGNITUDES, or SceneError."""
     if heights.ndim != 2 or min(heights.shape) < 2:
         raise SceneError(source, key, str(path), "must hold a 2-D array of heights with at least 2 samples "
                          f"along each axis, got shape {heights.shape}")
@@ -92,6 +93,8 @@ def _checked(heights: np.ndarray, path: pathlib.Path, source: str, key: str) -> 
     if bad:
         raise SceneError(source, key, str(path), f"{bad} of {heights.size} heights are NaN or -inf (points "
                          "not measured?): fill them first, e.g. with scipy.interpolate.griddata")
+    if (why := heights_out_of_scale(heights)) is not None:
+        raise SceneError(source, key, str(path), why)
     return heights
 
 

@@ -11,11 +11,13 @@ import numpy as np
 
 from petroll.errors import SceneError
 from petroll.model.bodies.base import PYTHON_SOURCE, Body, cell_pair, point_pair, positive, type_name
+from petroll.model.limits import heights_out_of_scale
 from petroll.model.topography import read_npy
 
 
 def check_heights(source: str, label: object, heights: object) -> np.ndarray:
-    """Heights as a 2-D float array (own copy), or SceneError on "[body] file" (``label`` is its value)."""
+    """Heights as a 2-D float array (own copy) within petroll.model.limits.MAGNITUDES, or SceneError on
+    "[body] file" (``label`` is its value)."""
     key = "[body] file"
     try:
         array = np.array(heights, dtype=float)
@@ -36,6 +38,8 @@ def check_heights(source: str, label: object, heights: object) -> np.ndarray:
             source, key, label,
             "height map values must be finite numbers (or +inf for no surface), found NaN or -inf",
         )
+    if (why := heights_out_of_scale(array)) is not None:
+        raise SceneError(source, key, label, why)
     finite = np.isfinite(array)
     if not (finite[:-1, :-1] & finite[1:, :-1] & finite[:-1, 1:] & finite[1:, 1:]).any():
         raise SceneError(
