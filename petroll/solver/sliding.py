@@ -241,14 +241,14 @@ class SteadySliding:
 
     def _active_set(self, profile, pressure, delta, total, gap_tol, tol):
         """The contact pressure (Pa) and penetration (m) by a primal-dual active set method from the
-        contact of ``pressure``: on a contact set C the gap is closed (:meth:`_closed`, to 1e-3 of its first
+        contact of ``pressure``: on a contact set C the gap is closed (:meth:`_closed`, to 1e-2 of its first
         residual); then C loses its cells of negative pressure and gains those of gap below -``gap_tol``
         (m), until it holds; the last set's equations are then solved to ``tol`` times the right-hand
         side's norm. After :attr:`SWEEPS` sets, the last one's answer (the caller's QP goes on)."""
         contact, x, tight = pressure > 0, pressure, False
         for _ in range(self.SWEEPS):
             x, delta = self._closed(profile, x, delta, total, contact,
-                                    (lambda norm: (0.0, tol * norm)) if tight else (lambda norm: (1e-3, 0.0)))
+                                    (lambda norm: (0.0, tol * norm)) if tight else (lambda norm: (1e-2, 0.0)))
             gap = self.operator(x) + profile - delta
             self.system.applications += 1
             new = (contact & (x > 0)) | (~contact & (gap < -gap_tol))

@@ -96,9 +96,9 @@ class PeriodicSurface(Body):
     a cell).
 
     Memory: the samples (8 bytes each) and the spline coefficients of the heights and slopes (24 bytes per
-    sample) of only the sample rows the last query needed, :data:`ROWS_MARGIN` rows each side: a rank that
-    evaluates the surface on its rows of a grid holds those rows' coefficients (a whole-grid query, the
-    whole grid's, until a smaller one replaces them).
+    sample) of only the sample rows the last large query needed, :data:`ROWS_MARGIN` rows each side (and
+    those of smaller queries since): a rank that evaluates the surface on its rows of a grid holds those
+    rows' coefficients (after a whole-grid query, the whole grid's, until a rank's query replaces them).
     """
 
     heights: np.ndarray
@@ -157,16 +157,23 @@ class PeriodicSurface(Body):
         return len(self._prepared["rows"])
 
     def _prepare(self, needed: np.ndarray) -> dict:
-        """The prepared rows, holding the sample rows ``needed`` (sorted, within 0 ... nx - 1): those held
-        if they hold them and not many more, else the needed rows and :data:`ROWS_MARGIN` around each,
-        prepared anew."""
+        """The prepared rows, holding the sample rows ``needed`` (sorted, within 0 ... nx - 1). A query of
+        at least an eighth of the rows (a rank's rows of a grid) keeps those held only if they hold the
+        needed rows and not more than those and :data:`ROWS_MARGIN` around each, else prepares just those;
+        a smaller query (a probe of a few points) keeps what is held, adding its rows if missing."""
         nx = self.heights.shape[0]
         wanted = np.unique((needed[:, None] + np.arange(-ROWS_MARGIN, ROWS_MARGIN + 1)) % nx)
         prepared = self._prepared
-        if not np.isin(needed, prepared["rows"]).all() or len(prepared["rows"]) > len(wanted):
-            prepared["values"] = None  # the old rows go before the new ones come
-            prepared["values"] = _row_coefficients(self.heights, self.cell, wanted)
-            prepared["rows"] = wanted
+        held = np.isin(needed, prepared["rows"]).all()
+        if 8 * len(needed) >= nx and (not held or len(prepared["rows"]) > len(wanted)):
+            rows = wanted
+        elif not held:
+            rows = np.union1d(prepared["rows"], wanted)
+        else:
+            return prepared
+        prepared["values"] = None  # the old rows go before the new ones come
+        prepared["values"] = _row_coefficients(self.heights, self.cell, rows)
+        prepared["rows"] = rows
         return prepared
 
     def _interpolate(self, which, x, y):
