@@ -19,7 +19,8 @@ import numpy as np
 from mpi4py import MPI
 
 from petroll.errors import PetrollError, SceneError, SolverError, reason
-from petroll.io.checkpoint import RunInterrupted, checkpoint_dir, remove_foreign_checkpoints, run_directory
+from petroll.io.checkpoint import (RunInterrupted, checkpoint_dir, fingerprint, remove_foreign_checkpoints,
+                                   run_directory)
 from petroll.io.checkpoint_writer import write_checkpoint
 from petroll.io.results import OutputError, Results, ResultsFile, results_identity
 from petroll.io.rundir import DirectoryBusy, RunLock, clean_temporaries
@@ -62,7 +63,8 @@ def run(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, out: str | pathlib.Path |
 
     ``out`` is held by this run alone (``out/petroll.lock``, released on every rank when run returns or raises
     an error of the run; OutputError if another process holds it), and
-    results of another scene there (another run's, for a restart into another directory) are refused with
+    results of another scene there (or of the same scene text over a changed [material] file or [body]
+    file; another run's, for a restart into another directory) are refused with
     OutputError unless ``overwrite``. A results file that cannot be written stops the run with OutputError
     on every rank, results.h5 holding the steps of its last complete append.
     """
@@ -73,8 +75,8 @@ def run(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, out: str | pathlib.Path |
                         f"petroll restart {restart.path}")
     collective = True  # raised on every rank alike (or returned): the ranks wait for the lock's release
     try:
-        run_id = _run_identity(out, scene, comm, restart, overwrite)
-        return _run(scene, comm, out, run_id, progress, restart, stop, on_step, steady_start, preflight,
+        run_id, inputs = _run_identity(out, scene, comm, restart, overwrite)
+        return _run(scene, comm, out, (run_id, inputs), progress, restart, stop, on_step, steady_start, preflight,
                     estimate_error)
     except BaseException as exc:
         collective = isinstance(exc, (PetrollError, RunInterrupted))
@@ -86,17 +88,20 @@ def run(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, out: str | pathlib.Path |
             comm.Barrier()
 
 
-def _run(scene: Scene, comm: MPI.Comm, out: pathlib.Path, run_id: str, progress: bool, restart, stop,
-         on_step, steady_start, preflight, estimate_error: bool) -> Results:
-    """The time loop of :func:`run`, its output directory claimed; ``preflight``: the scene's checks
-    (petroll.model.preflight.Preflight) where the run made them, for the error estimate."""
+def _run(scene: Scene, comm: MPI.Comm, out: pathlib.Path, identity: tuple[str, str], progress: bool, restart,
+         stop, on_step, steady_start, preflight, estimate_error: bool) -> Results:
+    """The time loop of :func:`run`, its output directory claimed; ``identity``: the run id and the
+    fingerprint of the material and body (rank 0's; :func:`_run_identity`); ``preflight``: the scene's
+    checks (petroll.model.preflight.Preflight) where the run made them, for the error estimate."""
+    run_id, inputs = identity
     sim = Simulation(scene, comm)
     sim.steady_start = steady_start
     g = scene.grid
     steady = scene.time.mode == "steady"
     rough = None if g.line or not all(g.periodic) else BINS  # the group rough of a periodic grid
     results = ResultsFile(out / "results.h5", scene.text, g.x, g.y, comm, fields=scene.fields, line=g.line,
-                          steady=steady, source=str(scene.source), run_id=run_id, rough=rough)
+                          steady=steady, source=str(scene.source), run_id=run_id, rough=rough,
+                          fingerprint=inputs)
     if restart is not None:
         t, field_steps = restart.restore(sim)
         results.resume(run_directory(restart.path) / "results.h5", len(sim.records), field_steps,
@@ -247,20 +252,29 @@ def claim_output(out: pathlib.Path, comm: MPI.Comm, what: str) -> RunLock | None
     return lock
 
 
-def _run_identity(out: pathlib.Path, scene: Scene, comm: MPI.Comm, restart, overwrite: bool) -> str:
-    """The run id of this run (a new one, or the checkpoint's run's), after checking that ``out`` holds no
-    results that it would replace without ``overwrite``: another scene's (a new run), another run's (a
-    restart into another directory than its run's). Collective; OutputError on every rank."""
-    message, run_id = None, None
+def _run_identity(out: pathlib.Path, scene: Scene, comm: MPI.Comm, restart, overwrite: bool
+                  ) -> tuple[str, str]:
+    """The run id of this run (a new one, or the checkpoint's run's) and, on rank 0 ("" on the others), the
+    fingerprint of its material and body (petroll.io.checkpoint.fingerprint), after checking that ``out``
+    holds no results that it would replace without ``overwrite``: another scene's (a new run: another
+    scene text, or the same text naming a [material] file or [body] file that changed since), another
+    run's (a restart into another directory than its run's). Collective; OutputError on every rank."""
+    message, run_id, inputs = None, None, ""
     if comm.rank == 0:
         path = out / "results.h5"
         held = results_identity(path) if path.is_file() else None
+        inputs = fingerprint(scene)
         if restart is None:
             run_id = uuid.uuid4().hex
+            state = "complete" if held is not None and held["complete"] else "unfinished"
             if held is not None and held["scene"] != scene.text and not overwrite:
-                message = (f"{out}: holds the {'complete' if held['complete'] else 'unfinished'} results of "
-                           f"another scene ({path}); give --overwrite (Python: overwrite=True) to replace "
-                           "them, or another output directory")
+                message = (f"{out}: holds the {state} results of another scene ({path}); give --overwrite "
+                           "(Python: overwrite=True) to replace them, or another output directory")
+            elif held is not None and held["fingerprint"] not in ("", inputs) and not overwrite:
+                message = (f"{out}: holds the {state} results of this scene with another material or body "
+                           f"({path}): a file it names ([material] file or [body] file) has changed since; "
+                           "give --overwrite (Python: overwrite=True) to replace them, or another output "
+                           "directory")
         else:
             run_id = restart.run_id  # "" for a checkpoint written before run ids: kept so
             elsewhere = out.resolve() != run_directory(restart.path)
@@ -273,7 +287,7 @@ def _run_identity(out: pathlib.Path, scene: Scene, comm: MPI.Comm, restart, over
     message, run_id = comm.bcast((message, run_id), root=0)
     if message is not None:
         raise OutputError(message)
-    return run_id
+    return run_id, inputs
 
 
 def _show_progress(scene: Scene, r: StepRecord, wall: float) -> None:

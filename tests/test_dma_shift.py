@@ -6,6 +6,7 @@ a rubber shifted by WLF and a glassy polymer shifted by WLF above its glass tran
 
 import dataclasses
 import math
+import pathlib
 import tomllib
 
 import numpy as np
@@ -137,3 +138,20 @@ def test_auto_shift_refuses_with_one_line_what_it_cannot(comm, shared_dir, capsy
     err = capsys.readouterr().err
     assert len(err.strip().splitlines()) == 1 and allowed in err and "Traceback" not in err
     assert not (tmp_path / "m.toml").exists()
+
+
+def test_the_shipped_polymer_scene_is_the_fit_of_the_shipped_instrument_table():
+    """runs/sphere-polymer.toml's [material] is what ``petroll material fit runs/polymer-dma.csv --shift
+    auto:268.15`` gives: the same keys, the same table law, the same curves (NNLS may differ by round-off
+    between scipy versions)."""
+    root = pathlib.Path(__file__).resolve().parents[1] / "runs"
+    data = dma.read_dma(root / "polymer-dma.csv", dma.parse_shift("auto:268.15"))
+    fit = dma.fit_prony(data.reduced, data.storage, data.loss)
+    block = fit.table(data.shift, data.T_ref)
+    shipped = tomllib.loads((root / "sphere-polymer.toml").read_text())["material"]
+    assert {k: v for k, v in shipped.items() if k not in ("Einf", "moduli", "times")} == {
+        k: v for k, v in block.items() if k not in ("Einf", "moduli", "times")}
+    assert shipped["shift"]["law"] == "table" and len(shipped["shift"]["T"]) == 21
+    f = np.geomspace(data.reduced.min(), data.reduced.max(), 500)
+    ours, theirs = fit.dynamic(f), dma.storage_loss(shipped["Einf"], shipped["moduli"], shipped["times"], f)
+    assert np.allclose(ours, theirs, rtol=1e-4, atol=0)

@@ -383,6 +383,44 @@ def test_the_results_of_another_scene_are_replaced_only_when_told(comm, shared_d
         assert read_checkpoint(path, comm).run_id == Results.open(out / "results.h5").run_id
 
 
+def test_the_same_scene_text_over_a_changed_height_map_is_another_scene(comm, shared_dir, capsys):
+    """The scene names a height map file; the file is edited (the sphere's radius 10 -> 12 mm) and the same
+    scene text run again into the same directory: refused in one line, the earlier results untouched
+    (their attribute fingerprint is the one of the material and body they were computed with); with
+    --overwrite it runs and gives what a fresh run on the edited map gives."""
+    def sphere_map(radius: float) -> np.ndarray:
+        x = np.arange(-60, 61) * 2e-5  # m: 2.4 mm square, beyond the body's reach over the run
+        return (x[:, None] ** 2 + x[None, :] ** 2) / (2 * radius)
+
+    raw = {**raw_scene(SLS), "body": {"shape": "heightmap", "file": "map.npy", "cell": 2e-5}}
+    out = shared_dir / "run"
+    if comm.rank == 0:
+        np.save(shared_dir / "map.npy", sphere_map(0.010))
+        write_toml(shared_dir / "s.toml", raw)
+    comm.Barrier()
+    capsys.readouterr()
+    assert main(["run", str(shared_dir / "s.toml"), "--out", str(out), "--quiet"]) == 0
+    first = Results.open(out / "results.h5")
+    comm.Barrier()  # every rank has read it before rank 0 edits the map
+    if comm.rank == 0:
+        np.save(shared_dir / "map.npy", sphere_map(0.012))
+    comm.Barrier()
+    before = snapshot(out)
+    assert main(["run", str(shared_dir / "s.toml"), "--out", str(out), "--quiet"]) == 2
+    if comm.rank == 0:
+        assert said(capsys.readouterr().err) == [
+            f"petroll: error: {out}: holds the complete results of this scene with another material or body "
+            f"({out}/results.h5): a file it names ([material] file or [body] file) has changed since; give "
+            "--overwrite (Python: overwrite=True) to replace them, or another output directory"]
+    assert snapshot(out) == before
+    assert main(["run", str(shared_dir / "s.toml"), "--out", str(out), "--quiet", "--overwrite"]) == 0
+    fresh = run(make_scene(raw, base_dir=shared_dir), comm, shared_dir / "fresh")
+    assert_identical(Results.open(out / "results.h5"), fresh)
+    # the edited map was used: the force at the same penetration grows like sqrt(R) (Hertz; measured 1.089)
+    assert fresh.series["force"][-1] / first.series["force"][-1] == pytest.approx(1.2**0.5, rel=0.02)
+    assert main(["run", str(shared_dir / "s.toml"), "--out", str(out), "--quiet"]) == 0  # the same: runs
+
+
 # -- restart identity -------------------------------------------------------------------------------------
 def forget_run_ids(path: pathlib.Path) -> None:
     """As written before run ids (the other checks must hold by themselves)."""

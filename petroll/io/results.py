@@ -11,7 +11,8 @@
     /rough/<name>         a grid periodic along every axis: at each saved field, the contact's fraction of
                           the cell, the mean gap and the pressure's radially averaged spectrum (ROUGH_UNITS)
     attributes            scene (the scene's TOML text), scene_file (the path it was read from),
-                          petroll_version, format_version, complete
+                          run_id, fingerprint (of the material and body as used: the files the
+                          scene names included), petroll_version, format_version, complete
                           (False while the run goes on), steps_written, fields_written, last_step,
                           line_contact (True: a plane-strain run; fields (n_saved, nx, 1) on strips of
                           unit length, y = [0]; series per unit length, force_y and cop_y absent),
@@ -218,17 +219,19 @@ class ResultsFile:
     append is under way leaves a file holding every step up to the last append. ``fields`` names the
     fields a run saves (keys of FIELD_UNITS); ``line``: a line-contact run; ``steady``: a direct steady
     solve (attribute steady); ``rough``: the number of spectrum bins of a run on a periodic grid (group
-    rough; None: none). Raises :class:`OutputError` (on every rank).
+    rough; None: none); ``fingerprint``: rank 0's petroll.io.checkpoint.fingerprint of the scene
+    (attribute fingerprint). Raises :class:`OutputError` (on every rank).
     """
 
     def __init__(self, path: str | pathlib.Path, scene_text: str, x: np.ndarray, y: np.ndarray, comm,
                  fields: tuple[str, ...] = ("pressure",), line: bool = False, steady: bool = False,
-                 source: str = "", run_id: str = "", rough: int | None = None):
+                 source: str = "", run_id: str = "", rough: int | None = None, fingerprint: str = ""):
         from petroll.solver.partition import RowPartition
 
         self.path, self.scene_text, self.comm = pathlib.Path(path), scene_text, comm
         self.source = source  # the scene file's path (attribute scene_file)
         self.run_id = run_id  # the run's identifier (attribute run_id), shared with its checkpoints
+        self.fingerprint = fingerprint  # of the material and body as used (attribute fingerprint)
         self.x, self.y, self.fields = np.asarray(x, dtype=float), np.asarray(y, dtype=float), tuple(fields)
         self.rows = RowPartition(len(self.x), comm.size)
         self.steady = bool(steady)
@@ -252,7 +255,7 @@ class ResultsFile:
                 h = f.file
                 h.attrs.update(scene=self.scene_text, scene_file=self.source, petroll_version=__version__,
                                format_version=FORMAT_VERSION, line_contact=self.line, steady=self.steady,
-                               run_id=self.run_id)
+                               run_id=self.run_id, fingerprint=self.fingerprint)
                 units = LINE_SERIES_UNITS if self.line else SERIES_UNITS
                 group = h.create_group("series")
                 for name in self.names:
@@ -505,11 +508,12 @@ def _resumable(source: pathlib.Path, steps: int, field_steps: list[int], check=N
 
 
 def results_identity(path: str | pathlib.Path) -> dict | None:
-    """Of a results file: its ``scene`` text, ``run_id`` ("" if it has none) and whether it is ``complete``;
-    None if it cannot be read as one."""
+    """Of a results file: its ``scene`` text, ``run_id`` and ``fingerprint`` ("" if it has none) and whether
+    it is ``complete``; None if it cannot be read as one."""
     try:
         with reading(path) as f:
             return {"scene": str(f.attrs["scene"]), "run_id": str(f.attrs.get("run_id", "")),
+                    "fingerprint": str(f.attrs.get("fingerprint", "")),
                     "complete": bool(f.attrs.get("complete", True))}
     except (OSError, KeyError):
         return None
