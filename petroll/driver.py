@@ -76,8 +76,8 @@ def run(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, out: str | pathlib.Path |
     collective = True  # raised on every rank alike (or returned): the ranks wait for the lock's release
     try:
         run_id, inputs = _run_identity(out, scene, comm, restart, overwrite)
-        return _run(scene, comm, out, (run_id, inputs), progress, restart, stop, on_step, steady_start, preflight,
-                    estimate_error)
+        return _run(scene, comm, out, (run_id, inputs), progress, restart, stop, on_step, steady_start,
+                    preflight, estimate_error)
     except BaseException as exc:
         collective = isinstance(exc, (PetrollError, RunInterrupted))
         raise
@@ -135,8 +135,8 @@ def _run(scene: Scene, comm: MPI.Comm, out: pathlib.Path, identity: tuple[str, s
         if (record.step == 0 or resumed) and comm.rank == 0:  # results.h5 is this run's now: so are they
             remove_foreign_checkpoints(checkpoint_dir(out), run_id)
         if due or interrupted:
-            newest = write_checkpoint(checkpoint_dir(out), sim, sim.t, sim.dt_next,
-                                             results.field_steps, scene.keep, run_id=run_id)
+            newest = write_checkpoint(checkpoint_dir(out), sim, sim.t, sim.dt_next, results.field_steps,
+                                      scene.keep, run_id=run_id, inputs=inputs)
             if interrupted:
                 if progress and comm.rank == 0:
                     print(file=sys.stderr)

@@ -21,7 +21,7 @@ from mpi4py import MPI
 from petroll import __version__
 from petroll.errors import reason
 from petroll.io.checkpoint import (FORMAT, FORMAT_VERSION, CheckpointError, checkpoint_path, digest_of,
-                                   field_digest, fingerprint, list_checkpoints, root_digest, row_digests)
+                                   field_digest, list_checkpoints, root_digest, row_digests)
 from petroll.io.hdf5 import RowFile, chunk_rows
 from petroll.io.journal import sync_directory
 from petroll.io.results import PACKED
@@ -30,10 +30,12 @@ from petroll.solver.partition import RowPartition
 
 
 def write_checkpoint(directory: str | pathlib.Path, sim, t: float, next_dt: float | None,
-                     field_steps: list[int], keep: int = 2, run_id: str = "") -> pathlib.Path:
+                     field_steps: list[int], keep: int = 2, run_id: str = "", *, inputs: str) -> pathlib.Path:
     """Write the state of ``sim`` after its last step (time ``t``; ``next_dt`` the step that follows, None
-    if none) with the steps of the fields saved so far (``field_steps``: they are in results.h5) and the
-    run's identifier ``run_id`` (as in its results.h5), then remove all but the newest ``keep`` checkpoints
+    if none) with the steps of the fields saved so far (``field_steps``: they are in results.h5), the
+    run's identifier ``run_id`` (as in its results.h5) and rank 0's ``inputs``, the fingerprint of the
+    scene's material and body (petroll.io.checkpoint.fingerprint, made once per run: the scene does not
+    change while it runs), then remove all but the newest ``keep`` checkpoints
     of earlier steps. Collective over ``sim.comm``: every rank gives its own rows of each field, rank 0
     writes them (petroll.io.hdf5.RowFile); returns the path. CheckpointError if the file cannot be written
     (every earlier checkpoint stays as it was).
@@ -68,7 +70,7 @@ def write_checkpoint(directory: str | pathlib.Path, sim, t: float, next_dt: floa
         "nx": g.nx, "ny": g.ny, "history": "prony" if prony else "hereditary",
         "integrator": scene.solver.integrator, "scene": scene.text, "run_id": run_id,
         "scene_source": scene.source, "base_dir": str(pathlib.Path(scene.base_dir).resolve()),
-        "fingerprint": comm.bcast(fingerprint(scene) if comm.rank == 0 else None, root=0),
+        "fingerprint": comm.bcast(inputs if comm.rank == 0 else None, root=0),
         "created": comm.bcast(datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
                               if comm.rank == 0 else None, root=0),
     }

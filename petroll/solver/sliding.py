@@ -166,7 +166,7 @@ class SteadySliding:
         newton = Convolution(make("newton"), g.nx, g.ny, comm, workers=self.qp.workers)
         self.system = ContactSystem(self.operator, self._inverse(newton), self.qp.local_shape, comm,
                                     scene.penetration is None)
-        self.target, self.first, self.gmres_iterations = (0.0, 0.0), 0.0, 0
+        self.target, self.first = (0.0, 0.0), 0.0
         self.iterations = 0  # fixed-point steps (QPs) of the last solve
 
     def _inverse(self, newton: Convolution):
@@ -231,7 +231,6 @@ class SteadySliding:
             if ksp.getConvergedReason() < 0:
                 raise SolverError(f"GMRES on the steady sliding contact's equations did not converge (reason "
                                   f"{ksp.getConvergedReason()} after {ksp.getIterationNumber()} iterations)")
-            self.gmres_iterations = ksp.getIterationNumber()
             if penetration is None:
                 fixed = self.comm.bcast(x.array_r[n] * system.c if len(x.array_r) > n else None, root=0)
             return system.field(x.array_r), fixed

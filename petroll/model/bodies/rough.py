@@ -244,8 +244,7 @@ def grid_surface(heights: np.ndarray, cell: tuple[float, float], grid: Grid, *, 
     if not np.allclose(cell, (grid.dx, grid.dy), rtol=1e-9, atol=0.0):
         raise SceneError(source, "[body] cell", list(cell), f"on a periodic grid the samples are the cells: "
                          f"their spacing is the grid's, [{grid.dx!r}, {grid.dy!r}] m")
-    return PeriodicSurface(heights, (grid.dx, grid.dy), (grid.x0 + 0.5 * grid.dx, grid.y0 + 0.5 * grid.dy),
-                           source=source)
+    return _on_cells(heights, (grid.dx, grid.dy), grid, source)
 
 
 def samples_surface(heights: np.ndarray, cell: tuple[float, float], grid: Grid) -> PeriodicSurface | None:
@@ -258,4 +257,10 @@ def samples_surface(heights: np.ndarray, cell: tuple[float, float], grid: Grid) 
             or not np.allclose(cell, (grid.dx, grid.dy), rtol=1e-9, atol=0.0)
             or not np.isfinite(heights).all()):
         return None
-    return PeriodicSurface(heights, cell, (grid.x0 + grid.dx / 2, grid.y0 + grid.dy / 2))
+    return _on_cells(heights, cell, grid, PYTHON_SOURCE)
+
+
+def _on_cells(heights: np.ndarray, cell: tuple[float, float], grid: Grid, source: str) -> PeriodicSurface:
+    """The periodic surface whose sample (i, j) lies on the centre of ``grid``'s cell (i, j) while the body
+    is at [body] position [0, 0]."""
+    return PeriodicSurface(heights, cell, (grid.x0 + 0.5 * grid.dx, grid.y0 + 0.5 * grid.dy), source=source)
