@@ -152,25 +152,35 @@ class Convolution:
         lead = inside.shape[:-2]
         stack = inside.reshape((int(np.prod(lead)), len(rows), len(cols)))
         spectra = []
-        for block in stack:
-            if fourier[1]:
-                half = np.zeros((k1 - k0, len(offsets_y)), dtype=block.dtype)
-                half[np.ix_(rows, cols)] = block
-            else:  # the kernel's rows transformed alone: the others are zero, and so are their transforms
-                values = np.zeros((len(rows), self.ly), dtype=block.dtype)
-                values[:, cols] = block
-                half = np.zeros((k1 - k0, self.ly // 2 + 1), dtype=complex)
-                half[rows] = _half_transform(values, self.workers)
-            columns = rows_to_columns(half, padded_rows, self.freqs, self.comm)
+        for block in stack:  # each block's transformed rows passed on alone: freed once they have travelled
+            columns = rows_to_columns(self._half_rows(block, rows, cols, k1 - k0, fourier[1]), padded_rows,
+                                      self.freqs, self.comm)
             spectra.append(columns if fourier[0] else
                            scipy.fft.fft(columns, axis=0, overwrite_x=True, workers=self.workers))
         return spectra[0] if not lead else np.stack(spectra).reshape(lead + spectra[0].shape)
 
+    def _half_rows(self, block: np.ndarray, rows: np.ndarray, cols: np.ndarray, n_rows: int,
+                   fourier_y: bool) -> np.ndarray:
+        """This rank's n_rows padded rows of a kernel at its Y-frequencies 0 ... ly/2, from its values
+        ``block`` on the rows ``rows`` and columns ``cols`` (at frequencies already if ``fourier_y``)."""
+        if fourier_y:
+            half = np.zeros((n_rows, self.ly // 2 + 1), dtype=block.dtype)
+            half[np.ix_(rows, cols)] = block
+            return half
+        # the kernel's rows transformed alone: the others are zero, and so are their transforms
+        values = np.zeros((len(rows), self.ly), dtype=block.dtype)
+        values[:, cols] = block
+        if len(rows) == n_rows:
+            return _half_transform(values, self.workers)
+        half = np.zeros((n_rows, self.ly // 2 + 1), dtype=complex)
+        half[rows] = _half_transform(values, self.workers)
+        return half
+
     def forward(self, x: np.ndarray, into: np.ndarray | None = None) -> np.ndarray:
         """The padded DFT of a field's local rows ``x`` (local rows, ny): this rank's Y-frequencies.
         ``into``: a complex (lx, this rank's Y-frequencies) array to transform in (overwritten, returned)."""
-        half = scipy.fft.rfft(x, n=self.ly, axis=1, workers=self.workers)
-        columns = rows_to_columns(half, self.rows, self.freqs, self.comm)
+        columns = rows_to_columns(scipy.fft.rfft(x, n=self.ly, axis=1, workers=self.workers), self.rows,
+                                  self.freqs, self.comm)  # the transform passed on alone: freed once sent
         if into is None:
             return scipy.fft.fft(columns, n=self.lx, axis=0, overwrite_x=True, workers=self.workers)
         into[: self.nx] = columns
@@ -179,9 +189,11 @@ class Convolution:
 
     def backward(self, spectrum: np.ndarray, overwrite: bool = False) -> np.ndarray:
         """This rank's rows (local rows, ny) of the field whose padded DFT is ``spectrum`` (:meth:`forward`);
-        ``overwrite``: ``spectrum`` may be overwritten."""
-        columns = scipy.fft.ifft(spectrum, axis=0, overwrite_x=overwrite, workers=self.workers)[: self.nx]
-        half = columns_to_rows(columns, self.rows, self.freqs, self.comm)
+        ``overwrite``: ``spectrum`` may be overwritten (then, under MPI, its memory is let go before the
+        last transform if the caller keeps no reference to it)."""
+        half = columns_to_rows(scipy.fft.ifft(spectrum, axis=0, overwrite_x=overwrite, workers=self.workers)
+                               [: self.nx], self.rows, self.freqs, self.comm)
+        del spectrum
         return scipy.fft.irfft(half, n=self.ly, axis=1, workers=self.workers)[:, : self.ny]
 
     WORKSPACE = 1 << 21
@@ -195,9 +207,13 @@ class Convolution:
         shape = (self.lx, self.freqs.counts[self.comm.rank])
         if self._workspace is None and shape[0] * shape[1] <= self.WORKSPACE:
             self._workspace = np.empty(shape, dtype=complex)
+        return self.backward(self._product(x), overwrite=True)
+
+    def _product(self, x: np.ndarray) -> np.ndarray:
+        """The padded DFT of A x (x's, times the kernel's), in the workspace if there is one."""
         spectrum = self.forward(x, self._workspace)
         spectrum *= self.spectrum
-        return self.backward(spectrum, overwrite=True)
+        return spectrum
 
 
 def _half_transform(values: np.ndarray, workers: int) -> np.ndarray:
