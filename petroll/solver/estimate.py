@@ -8,7 +8,8 @@ solved twice, the second time shifted by half its cell along X and Y, and the tw
 answer depends on where the contact's edges fall in their cells: one coarse alignment alone can happen to
 agree with the fine grid, or not). Where the scene's steps follow the cell (``steps_per_cell``, and the
 steady solve's time step) the step grows with the cell, a fixed ``dt`` stays. They run to the fine run's
-last time without the steady stop, so that all grids compare the same instant. For each quantity q of the
+last time without the steady stop, so that all grids compare the same instant, and are diagnosed (force,
+mu_r ...) at that last step only (:meth:`Simulation.last_step`). For each quantity q of the
 last step, with f1 its fine value, f2 the 2x grids' (mean; s half their spread) and f4 the 4x grid's:
 
 - d1 = f2 - f1, d2 = f4 - f2. Where the 4x grid was solved (it keeps at least ``THIRD_GRID_CELLS`` cells
@@ -228,7 +229,7 @@ def estimate_error(scene: Scene, fine: StepRecord, comm: MPI.Comm = MPI.COMM_WOR
     for factor, shift in runs:
         coarse = coarser(scene, factor, end, shift)
         try:
-            record = list(Simulation(coarse, comm).steps())[-1]
+            record = Simulation(coarse, comm).last_step()  # diagnosed at the last step only
         except PetrollError as exc:
             if factor == 4:
                 break
