@@ -177,6 +177,30 @@ def test_the_coarser_3d_grids_keep_the_body_at_the_same_place_in_its_cell():
             assert math.isclose(a, b, abs_tol=1e-9) or abs(abs(a - b) - 1) < 1e-9
 
 
+@pytest.mark.parametrize("name", ["sphere.toml", "roller-2d.toml"])
+def test_the_coarser_grids_tolerance_moves_them_little_against_their_differences(comm, monkeypatch, name):
+    """The estimate with its coarser grids solved to coarse_tol, against the same grids solved to 1e-10
+    (a second, tight solve): their values within 2 % of their difference from the fine value, the
+    estimated errors and extrapolated values within 2 % of that difference (penetration control in 3-D at
+    two alignments; load control in line contact with the 4x grid)."""
+    import numpy as np
+
+    import petroll.solver.estimate as estimate
+
+    scene = load_scene(shipped_scene(name))
+    fine = list(Simulation(scene, comm).steps())[-1]
+    found = estimate.estimate_error(scene, fine, comm)
+    monkeypatch.setattr(estimate, "coarse_tol", lambda tol: 1e-10)
+    tight = estimate.estimate_error(scene, fine, comm)
+    names = ("force", "mu_r", "p_max") if scene.penetration is not None else ("delta", "mu_r", "p_max")
+    for q in names:
+        a, b = found.quantities[q], tight.quantities[q]
+        d1 = abs(float(np.mean(b.coarse[: 1 if scene.grid.line else 2])) - b.value)  # the 2x grids'
+        assert d1 > 1e-5 * abs(b.value)  # differences well above round-off
+        assert np.max(np.abs(np.subtract(a.coarse, b.coarse))) <= 0.02 * d1, q
+        assert abs(a.error - b.error) <= 0.02 * d1 and abs(a.extrapolated - b.extrapolated) <= 0.02 * d1, q
+
+
 def test_a_sweep_with_its_estimate_has_the_error_columns(comm, shared_dir):
     """petroll sweep --estimate-error on runs/master-curve.toml (steady solves): each point's mu_r_error is
     its results.h5's estimate; a sweep without has no such column."""

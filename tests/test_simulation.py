@@ -1,5 +1,8 @@
 """The public time loop ``Simulation.steps``: its clock, its stops and its step limit, against the
-arithmetic of the scene's [time] section and against steps taken one by one with ``Simulation.step``."""
+arithmetic of the scene's [time] section and against steps taken one by one with ``Simulation.step``;
+``Simulation.last_step`` against the last record of ``steps``."""
+
+from dataclasses import replace
 
 import pytest
 
@@ -74,3 +77,23 @@ def test_steps_stop_at_steady_state_and_refuse_more_than_max_steps(comm):
         for _ in Simulation(parse_scene({**rolling, "time": {"steps_per_cell": 1, "distance": 3.5e-3,
                                                              "max_steps": 3}}, source="test"), comm).steps():
             pass
+
+
+@pytest.mark.parametrize("motion", [{"penetration": 2e-5, "velocity": [0.01, 0.0]},
+                                    {"load": 0.04, "velocity": [0.008, 0.006]}])
+def test_the_last_step_alone_is_the_last_record_of_the_steps(comm, motion):
+    """Simulation.last_step (diagnostics at the last step only, what the error estimate reads) against the
+    whole run's last record from Simulation.steps: the same record, field by field and bitwise (the same
+    operations in the same order), but for its wall time, under penetration and load control (the
+    penetration guessed from the step before's) and along a slanting path (the distance summed step by
+    step); it keeps no records, and refuses a run needing more than [time] max_steps steps."""
+    rolling = dict(RAW, grid={"nx": 40, "ny": 24, "x": [-1e-3, 4e-3], "y": [-1e-3, 2e-3]}, motion=motion)
+    scene = parse_scene({**rolling, "time": {"steps_per_cell": 1, "distance": 2.2e-3}}, source="test")
+    whole = list(Simulation(scene, comm).steps())
+    alone = Simulation(scene, comm)
+    last = alone.last_step()
+    assert len(whole) > 10 and alone.records == [] and (alone.t, alone.dt_next) == (whole[-1].t, None)
+    assert replace(last, solve_time=0.0) == replace(whole[-1], solve_time=0.0)
+    limited = replace(scene, time=replace(scene.time, max_steps=3))  # past the scene's own check of it
+    with pytest.raises(SceneError, match=r"\[time\] max_steps = 3: the run needs more steps"):
+        Simulation(limited, comm).last_step()

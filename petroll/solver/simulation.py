@@ -106,9 +106,8 @@ class Simulation:
         lengths = iter(dts) if dts is not None else None
         resumed, dt = bool(self.records), 0.0
         while True:
-            if not resumed and len(self.records) > self.scene.time.max_steps:
-                raise SceneError(self.scene.source, "[time] max_steps", self.scene.time.max_steps,
-                                 "the run needs more steps: raise max_steps or the time step")
+            if not resumed:
+                self._within_max_steps(len(self.records))
             record = self.records[-1] if resumed else self.step(t, dt)
             if lengths is not None:
                 dt = next(lengths, None)
@@ -128,9 +127,51 @@ class Simulation:
         """Length of the step after time t (None: the run is over): petroll.model.clock.step_length."""
         return step_length(self.scene, t, distance)
 
+    def last_step(self) -> StepRecord:
+        """Run the scene to the end of its clock and return the last step's record: the record
+        :meth:`steps` ends with, but for its ``solve_time`` (the last step's), on a fresh simulation of a
+        scene without [time] steady (whose stop needs every step's record; it is not applied here). The
+        diagnostics (force, mu_r, the patch ...) are made for the last step only, and no record is kept in
+        ``self.records``: what the error estimate reads of its coarser grids (petroll.solver.estimate).
+        A steady solve ([time] mode = "steady") is its one step. Collective."""
+        if self.scene.time.mode == "steady":
+            return list(self.steps())[-1]
+        t, dt, n, distance, delta, where = 0.0, 0.0, 0, 0.0, None, None
+        while True:
+            self._within_max_steps(n)
+            solution, sx, sy, velocity, elapsed = self._advance(t, dt, delta)
+            if where is not None:
+                distance += float(np.hypot(sx - where[0], sy - where[1]))
+            where, delta = (float(sx), float(sy)), solution.delta
+            dt = self.next_dt(t, distance)
+            if dt is None:
+                break
+            t, n = t + dt, n + 1
+        self.t, self.dt_next = t, None
+        return self._diagnose(n, t, sx, sy, solution, velocity, distance, elapsed)
+
+    def _within_max_steps(self, n: int) -> None:
+        """SceneError for a step numbered ``n`` beyond [time] max_steps."""
+        if n > self.scene.time.max_steps:
+            raise SceneError(self.scene.source, "[time] max_steps", self.scene.time.max_steps,
+                             "the run needs more steps: raise max_steps or the time step")
+
     # -- one step ---------------------------------------------------------------------------------------
     def step(self, t: float, dt: float) -> StepRecord:
         """Solve the step ending at time t (length dt; dt = 0 is the sudden start)."""
+        before = self.records[-1] if self.records else None
+        solution, sx, sy, velocity, elapsed = self._advance(t, dt, before.delta if before else None)
+        distance = 0.0
+        if before is not None:
+            distance = before.distance + float(np.hypot(sx - before.sx, sy - before.sy))
+        record = self._diagnose(len(self.records), t, sx, sy, solution, velocity, distance, elapsed)
+        self.records.append(record)
+        return record
+
+    def _advance(self, t: float, dt: float, previous: float | None):
+        """Solve the step ending at time t (length dt) and move the history, the warm start and the
+        direction of motion on; ``previous``: the step before's penetration (m; None: none). Returns the
+        solution, the body's position (m), its velocity (m/s) and the step's wall time (s)."""
         scene, solver = self.scene, self.solver
         start = clock.perf_counter()
         sx, sy = np.asarray(scene.position) + scene.velocity.integral(t)
@@ -144,7 +185,7 @@ class Simulation:
             height = profile if v is None else profile + self.wake.displacement(v, profile, delta)
             solution = solver.solve_penetration(height, compliance, delta, warm)
         else:
-            solution = self._solve_load(profile, v, compliance, float(scene.load(t)), warm)
+            solution = self._solve_load(profile, v, compliance, float(scene.load(t)), previous, warm)
         solution.iterations = solver.work[0] - work[0]  # all QPs of the step, a redone attempt's too
         solution.applications = solver.work[1] - work[1]
         self.history.advance(solution.pressure, dt)
@@ -155,12 +196,7 @@ class Simulation:
         velocity = np.asarray(scene.velocity(t), dtype=float)
         if np.hypot(*velocity) > 0:
             self.direction = velocity / np.hypot(*velocity)
-        distance = self.records[-1].distance if self.records else 0.0
-        if self.records:
-            distance += float(np.hypot(sx - self.records[-1].sx, sy - self.records[-1].sy))
-        record = self._diagnose(len(self.records), t, sx, sy, solution, velocity, distance, elapsed)
-        self.records.append(record)
-        return record
+        return solution, sx, sy, velocity, elapsed
 
     def solve_steady(self, tol: float = 1e-10, max_iterations: int = 500,
                      start: tuple[np.ndarray, float] | None = None, steady: float | None = None) -> StepRecord:
@@ -259,13 +295,12 @@ class Simulation:
         w = self.solver.influence.window(g.nx, g.ny)(source)
         return w, profile + w - delta
 
-    def _solve_load(self, profile, v, compliance: float, load: float, warm):
-        """The step under load control. With a history, u is first computed on the box for a penetration
-        up to 1.5 times the previous step's, and no penetration beyond that is tried; only if the load
-        needs more is the step solved again with u on every cell (the first attempt's work counted too).
-        Any other failure is the step's failure."""
+    def _solve_load(self, profile, v, compliance: float, load: float, previous: float | None, warm):
+        """The step under load control (``previous``: the step before's penetration, m, or None). With a
+        history, u is first computed on the box for a penetration up to 1.5 times the previous step's, and
+        no penetration beyond that is tried; only if the load needs more is the step solved again with u on
+        every cell (the first attempt's work counted too). Any other failure is the step's failure."""
         solver, radius = self.solver, self.scene.body.radius_hint
-        previous = self.records[-1].delta if self.records else None
         if v is not None and previous and previous > 0:
             reach = 1.5 * previous
             height = profile + self.wake.displacement(v, profile, reach)
