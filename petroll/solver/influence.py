@@ -95,7 +95,6 @@ class Convolution:
         self.rows = RowPartition(nx, comm.size)
         self.freqs = RowPartition(self.ly // 2 + 1, comm.size)  # Y-frequencies, split after transposing
         self.r0, self.r1 = self.rows.range(comm.rank)
-        self._workspace = None  # the spectrum's array, kept between applications (WORKSPACE)
         if coefficients is None:
             return
         if any(self.fourier):
@@ -197,21 +196,28 @@ class Convolution:
         return scipy.fft.irfft(half, n=self.ly, axis=1, workers=self.workers)[:, : self.ny]
 
     WORKSPACE = 1 << 21
-    """Largest spectrum (complex values per rank) an application transforms in an array kept from one
-    application to the next (32 MiB); a larger one is allocated afresh each time. Measured on the wavy
-    sphere's 440 x 450 window (padded 880 x 900) alone: 5.7 ms an application against 24 ms with fresh
-    arrays, whose pages the kernel must map and zero again every time (docs/benchmarks.md#peers)."""
+    """Largest spectrum (complex values per rank) an application transforms in the process's kept work
+    array (32 MiB at most, one for all convolutions: applications never overlap, and none returns a view
+    of it); a larger one is allocated afresh each time. Arrays of that size allocated at every
+    application can cost a page mapping and zeroing each time, depending on the allocator's state
+    (docs/design.md)."""
+
+    _scratch = np.empty(0, dtype=complex)  # the kept work array, grown up to WORKSPACE values
 
     def __call__(self, x: np.ndarray) -> np.ndarray:
         tally(self.cost)
-        shape = (self.lx, self.freqs.counts[self.comm.rank])
-        if self._workspace is None and shape[0] * shape[1] <= self.WORKSPACE:
-            self._workspace = np.empty(shape, dtype=complex)
         return self.backward(self._product(x), overwrite=True)
 
     def _product(self, x: np.ndarray) -> np.ndarray:
-        """The padded DFT of A x (x's, times the kernel's), in the workspace if there is one."""
-        spectrum = self.forward(x, self._workspace)
+        """The padded DFT of A x (x's, times the kernel's), in the kept work array where it fits."""
+        columns = int(self.freqs.counts[self.comm.rank])
+        need = self.lx * columns
+        workspace = None
+        if need <= self.WORKSPACE:
+            if Convolution._scratch.size < need:
+                Convolution._scratch = np.empty(need, dtype=complex)
+            workspace = Convolution._scratch[:need].reshape(self.lx, columns)
+        spectrum = self.forward(x, workspace)
         spectrum *= self.spectrum
         return spectrum
 

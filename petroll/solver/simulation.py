@@ -133,7 +133,10 @@ class Simulation:
         scene without [time] steady (whose stop needs every step's record; it is not applied here). The
         diagnostics (force, mu_r, the patch ...) are made for the last step only, and no record is kept in
         ``self.records``: what the error estimate reads of its coarser grids (petroll.solver.estimate).
-        A steady solve ([time] mode = "steady") is its one step. Collective."""
+        A steady solve ([time] mode = "steady") is its one step, solved by :meth:`steps` (which keeps its
+        record). RuntimeError on a simulation that has solved or restored steps. Collective."""
+        if self.records:
+            raise RuntimeError("last_step runs a fresh simulation: this one has solved or restored steps")
         if self.scene.time.mode == "steady":
             return list(self.steps())[-1]
         t, dt, n, distance, delta, where = 0.0, 0.0, 0, 0.0, None, None
