@@ -343,14 +343,18 @@ def stress(run_dir: str | pathlib.Path, step: int | None = None, depths=None, nu
     if not path.is_file():
         raise PetrollError(f"{path}: no results file (is {run_dir} the output directory of a run?)")
     saved = read_saved_pressure(path, step, comm)
-    raw = tomllib.loads(saved["scene"])
-    if raw["grid"].get("periodic", False):
-        raise PetrollError(f"{path}: [grid] periodic = {raw['grid']['periodic']!r}: the stresses below a "
+    try:
+        raw = tomllib.loads(saved["scene"])
+        g = dict(raw["grid"])
+    except (ValueError, RecursionError, KeyError, TypeError):  # TOMLDecodeError is a ValueError
+        raise PetrollError(f"{path}: not a readable petroll results file (its scene text is no scene)") from None
+    if g.get("periodic", False):
+        raise PetrollError(f"{path}: [grid] periodic = {g['periodic']!r}: the stresses below a "
                            "periodic surface are not computed (petroll stress sums an isolated pressure "
                            "field)")
     nu = _poisson_ratio(raw, nu)
     x, y, p = saved["x"], saved["y"], saved["pressure"]
-    g, line = raw["grid"], saved["line"]
+    line = saved["line"]
     dx = (g["x"][1] - g["x"][0]) / g["nx"]
     dy = 1.0 if line else (g["y"][1] - g["y"][0]) / g["ny"]
     r0, r1 = saved["rows"]

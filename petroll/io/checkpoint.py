@@ -309,7 +309,7 @@ class Checkpoint:
             return f"{self.path}: belongs to another run than {where} (run id {mine[:12]}, the file's {theirs[:12]}){fix}"
         try:
             old = tomllib.loads(str(f.attrs["scene"]))
-        except tomllib.TOMLDecodeError:
+        except (ValueError, RecursionError):  # TOMLDecodeError is a ValueError
             return f"{where}: its scene text is not TOML{fix}"
         for key, then, now in _changes(old, tomllib.loads(self.scene_text)):
             return f"{self.path}: belongs to another scene than {where} ({key} = {now!r}, the file's {then!r}){fix}"
@@ -537,7 +537,7 @@ def restart_scene(checkpoint: Checkpoint, new_scene: str | pathlib.Path | None =
     stored = checkpoint.scene_text
     try:
         raw = tomllib.loads(stored)
-    except tomllib.TOMLDecodeError as exc:
+    except (ValueError, RecursionError) as exc:  # TOMLDecodeError is a ValueError
         raise CheckpointError(f"{checkpoint.path}: corrupted (its scene text is not TOML: {exc})") from None
     if new_scene is None:
         try:

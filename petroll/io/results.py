@@ -111,7 +111,7 @@ def steady_state(series: dict[str, np.ndarray], scene_text: str = "") -> SteadyS
     changes = (math.nan, math.nan, math.nan)
     try:
         time = tomllib.loads(scene_text).get("time", {}) if scene_text else {}
-    except tomllib.TOMLDecodeError:
+    except (ValueError, RecursionError):  # TOMLDecodeError is a ValueError
         time = {}
     direct = time.get("mode") == "steady"  # solved directly: steady by construction
     if direct:

@@ -25,15 +25,14 @@ from __future__ import annotations
 import csv
 import math
 import pathlib
-import tomllib
 from dataclasses import dataclass
 
 import numpy as np
 
-from petroll.errors import DMAError
+from petroll.errors import DMAError, SceneError
 from petroll.model import materials, tts
 from petroll.model.prony_fit import TOLERANCE, PronyFit, candidate_times, fit_prony, storage_loss  # noqa: F401
-from petroll.model.scene import dumps
+from petroll.model.scene import dumps, load_scene_table
 
 COLUMNS = {"frequency": "Hz", "storage": "Pa", "loss": "Pa", "temperature": "K", "set": "a label"}
 """The CSV's columns and their units; temperature and set are optional."""
@@ -250,10 +249,11 @@ def parse_shift(text: str):
         return AutoShift(T_ref)
     if text.endswith(".toml"):
         try:
-            table = tomllib.loads(pathlib.Path(text).read_text(encoding="utf-8"))["material"]["shift"]
-        except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError, KeyError, TypeError) as exc:
-            raise DMAError(f"--shift {text}: cannot read [material] shift from it ({type(exc).__name__}: "
-                           f"{exc}); allowed: {SHIFT_TEXT}") from None
+            table = load_scene_table(text)["material"]["shift"]
+        except (SceneError, KeyError, TypeError) as exc:
+            why = exc.allowed if isinstance(exc, SceneError) else f"{type(exc).__name__}: {exc}"
+            raise DMAError(f"--shift {text}: cannot read [material] shift from it ({why}); allowed: "
+                           f"{SHIFT_TEXT}") from None
     else:
         law, _, numbers = text.partition(":")
         names = {"wlf": ("C1", "C2", "T_ref"), "arrhenius": ("Ea", "T_ref")}.get(law.strip().lower())

@@ -40,7 +40,7 @@ class SweepData:
         logx = bool(np.all(x > 0) and x.max() >= 10 * x.min())
         try:
             raw = tomllib.loads(table.scene_text)
-        except tomllib.TOMLDecodeError:
+        except (ValueError, RecursionError):  # TOMLDecodeError is a ValueError
             raw = {}
         load_control = table.key == "motion.load" or ("load" in raw.get("motion", {})
                                                       and table.key != "motion.penetration")
