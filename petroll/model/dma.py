@@ -29,7 +29,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from petroll.errors import DMAError, SceneError
+from petroll.errors import DMAError, SceneError, shown
+from petroll.model.limits import MAGNITUDES, scale_message
 from petroll.model import materials, tts
 from petroll.model.prony_fit import TOLERANCE, PronyFit, candidate_times, fit_prony, storage_loss  # noqa: F401
 from petroll.model.scene import dumps, load_scene_table
@@ -197,8 +198,11 @@ def _value(path, line: int, name: str, field: str):
     except ValueError:
         value = math.nan
     if not 0 < value < math.inf:
-        raise DMAError(f"{path}, line {line}: {name} = {field.strip()!r}: must be a finite number > 0 "
+        raise DMAError(f"{path}, line {line}: {name} = {shown(field.strip())}: must be a finite number > 0 "
                        f"({COLUMNS[name]}); the file must be {ALLOWED}")
+    if name != "temperature" and not MAGNITUDES[0] <= value <= MAGNITUDES[1]:
+        raise DMAError(f"{path}, line {line}: {name} = {shown(field.strip())}: "
+                       f"{scale_message(value, COLUMNS[name])}")
     return value
 
 

@@ -370,6 +370,13 @@ def _material(values: dict, table: dict, base_dir: pathlib.Path, source: str):
         if v[terms] is None or len(v[terms]) != len(v["times"]):
             raise SceneError(source, f"[material] {terms}", table.get(terms, MISSING),
                              f"required: one value per entry of times ({len(v['times'])})")
+        ordered = sorted(v["times"])
+        close = [(a, b) for a, b in zip(ordered, ordered[1:]) if b - a <= DISTINCT_TIMES * b]
+        if close:
+            a, b = close[0]
+            same = f"{a!r} appears twice" if a == b else f"{a!r} and {b!r} are within {DISTINCT_TIMES:g} of each other"
+            raise SceneError(source, "[material] times", table["times"],
+                             f"must differ: {same}; merge terms of one time into one (add their {terms})")
         if terms == "moduli":
             ratio = 1.0 + sum(v["moduli"]) / v["Einf"]
         else:
@@ -390,6 +397,10 @@ def _material_layer(values: dict, table: dict, source: str) -> materials.Layer |
                          "response depends on Poisson's ratio (-1 < nu <= 0.5)")
     return materials.Layer(*values["layer"], values["nu"])
 
+
+DISTINCT_TIMES = 1e-9
+"""The least relative difference between two times of a Prony series: the creep and relaxation forms
+(materials.maxwell, relaxation_series) put one root between each pair of neighbouring times."""
 
 MAX_STIFFNESS_RATIO = 1e7
 """The largest E0/Einf = Jinf/J0 of a Prony material: J0 = Jinf - sum dJ then keeps its digits to about

@@ -308,7 +308,10 @@ class ContactSolver:
         beyond a clear ring touching would need the bulge to rise faster than the body's profile away from
         the contact; the thin incompressible layer's contact, 41 % wider than the interference region, is
         found this way: tests/test_layer.py.)"""
-        if self.periodic:
+        if self.periodic:  # the whole grid: a cell without surface (petroll check refuses them) has no gap
+            if not self.comm.allreduce(bool(np.isfinite(interference).all()), op=MPI.LAND):
+                raise SolverError("the body has no surface (Z = +inf) over some cells of the periodic grid: give "
+                                  "it a surface over the whole grid, or set [grid] periodic = false")
             return self._solve_window(interference, compliance, warm, None, load)
         candidates = interference > 0
         if (not self.influence.positive and warm is not None
