@@ -223,17 +223,19 @@ def _plain(value):
 
 
 def remove_foreign_checkpoints(directory: str | pathlib.Path, run_id: str) -> list[pathlib.Path]:
-    """Remove the checkpoints in ``directory`` of other runs than ``run_id`` (unreadable ones too): once
-    this run's results.h5 is in their directory, theirs is gone and they can no longer continue anything.
-    One process (rank 0). Returns them."""
+    """Remove the checkpoints in ``directory`` of other runs than ``run_id``: once this run's results.h5 is
+    in their directory, theirs is gone and they can no longer continue anything. Only files read as
+    checkpoints (attribute format) whose run id differs are removed: one that cannot be read now (damaged,
+    or a passing read error) is not known to be another run's, and is kept. One process (rank 0).
+    Returns them."""
     removed = []
     for path in list_checkpoints(directory):
         try:
             with h5py.File(path, "r") as f:
-                theirs = _plain(f.attrs.get("run_id", ""))
-        except Exception:  # noqa: BLE001 - not a readable checkpoint
-            theirs = None
-        if theirs != run_id:
+                kept = _plain(f.attrs.get("format")) != FORMAT or _plain(f.attrs.get("run_id", "")) == run_id
+        except Exception:  # noqa: BLE001 - h5py reports a read failure as OSError, RuntimeError, KeyError, ...
+            kept = True  # not known to be another run's
+        if not kept:
             with contextlib.suppress(OSError):
                 path.unlink()
                 removed.append(path)

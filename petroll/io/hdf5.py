@@ -23,7 +23,7 @@ import h5py
 import numpy as np
 
 from petroll.errors import reason
-from petroll.io.journal import Session
+from petroll.io.journal import Session, atomic_write
 
 if TYPE_CHECKING:
     from mpi4py import MPI
@@ -180,3 +180,22 @@ class RowFile:
                     block = np.empty((m, *shape[1:]), dtype=dtype)
                     comm.Recv(block, source=r, tag=8)
                     yield a + s, block
+
+
+def atomic_hdf5(path: pathlib.Path, fill) -> None:
+    """Write a new HDF5 file ``path`` whole or not at all (:func:`atomic_write`): ``fill(f, failed)`` fills
+    the h5py file ``f``, which writes through a journal Session (petroll.io.journal): a disk write that
+    fails (a full disk) is kept from HDF5, which may otherwise crash the process ("Disable slist on flush
+    dest failure", then SIGSEGV); ``failed()`` is that OSError (None so far), for ``fill`` to stop writing.
+    The OSError is raised once HDF5 has closed the file; ``path`` keeps its previous contents."""
+    def write(tmp: pathlib.Path) -> None:
+        session = Session(tmp, fresh=True)
+        try:
+            with session.h5("w") as f:
+                fill(f, lambda: session.error)
+        except BaseException:
+            session.abandon()
+            raise
+        session.commit()
+
+    atomic_write(path, write)

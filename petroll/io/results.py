@@ -40,7 +40,7 @@ import numpy as np
 from petroll import __version__
 from petroll.errors import PetrollError, reason
 from petroll.io.hdf5 import RowFile, chunk_rows
-from petroll.io.journal import copy_committed, reading, sync_directory
+from petroll.io.journal import atomic_write, copy_committed, reading, sync_directory  # noqa: F401 - atomic_write: here too
 
 FORMAT_VERSION = 1
 
@@ -517,22 +517,6 @@ def results_identity(path: str | pathlib.Path) -> dict | None:
                     "complete": bool(f.attrs.get("complete", True))}
     except (OSError, KeyError):
         return None
-
-
-def atomic_write(path: pathlib.Path, write) -> None:
-    """Write ``path`` as a whole or not at all: ``write(tmp)`` fills a temporary file in the same directory,
-    which is fsynced and renamed over ``path`` (the directory is fsynced too). On any failure the temporary
-    file is removed and ``path`` keeps its previous contents."""
-    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
-    try:
-        write(tmp)
-        with open(tmp, "rb") as fh:
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-        sync_directory(path.parent)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
 
 
 def cell_corners(x: np.ndarray, y: np.ndarray, i0: int = 0, i1: int | None = None) -> np.ndarray:

@@ -122,14 +122,17 @@ def _me(what: str) -> dict:
             "started": datetime.datetime.now().astimezone().isoformat(timespec="seconds")}
 
 
-def clean_temporaries(directory: str | pathlib.Path) -> list[pathlib.Path]:
+def clean_temporaries(directory: str | pathlib.Path, names=None) -> list[pathlib.Path]:
     """Remove the temporary files (``.NAME.tmpPID``) that writers killed midway left in ``directory``:
-    those whose process no longer exists on this host (a live one may still be writing). Returns them."""
+    those whose process no longer exists on this host (a live one may still be writing); ``names``: only
+    those of these file names (in a directory that is not petroll's own). Returns them."""
     directory = pathlib.Path(directory)
     removed = []
     with contextlib.suppress(OSError):
         for path in directory.iterdir():
             match = _TEMPORARY.match(path.name)
+            if names is not None and (match is None or match.group(1) not in names):
+                continue
             if match and path.is_file() and _stale({"pid": match.group(2), "host": socket.gethostname()}):
                 with contextlib.suppress(OSError):
                     path.unlink()

@@ -33,7 +33,8 @@ from petroll.errors import DMAError, SceneError, shown
 from petroll.model.limits import MAGNITUDES, scale_message
 from petroll.model import materials, tts
 from petroll.model.prony_fit import TOLERANCE, PronyFit, candidate_times, fit_prony, storage_loss  # noqa: F401
-from petroll.model.scene import dumps, load_scene_table
+from petroll.model.scene import dumps
+from petroll.model.toml_file import load_scene_table
 
 COLUMNS = {"frequency": "Hz", "storage": "Pa", "loss": "Pa", "temperature": "K", "set": "a label"}
 """The CSV's columns and their units; temperature and set are optional."""

@@ -58,7 +58,9 @@ from petroll import __version__
 from petroll.model import motion as motions
 from petroll.errors import PetrollError, SceneError, reason, shown
 from petroll.model.materials import Prony, Tabulated, loss_peak_time
+from petroll.io.hdf5 import atomic_hdf5
 from petroll.io.results import Results, atomic_write, results_identity
+from petroll.io.rundir import clean_temporaries
 from petroll.model.schema import DEFAULT_STEADY, SCHEMA
 from petroll.model.scene import Scene
 
@@ -492,23 +494,23 @@ def write_table(table: SweepTable) -> None:
     lines = [header] + [",".join(f"{table.columns[n][i]:.10g}" for n in names)
                         for i in range(len(table.points))]
     text = "\n".join(lines) + "\n"
+    clean_temporaries(table.directory, [table.csv.name, table.h5.name])  # of a writer killed earlier
     atomic_write(table.csv, lambda tmp: tmp.write_text(text, encoding="utf-8"))
 
-    def fill(tmp: pathlib.Path) -> None:
-        with h5py.File(tmp, "w") as f:
-            f.attrs["format"] = "petroll-sweep"
-            f.attrs["petroll_version"] = __version__
-            f.attrs["key"] = table.key
-            f.attrs["unit"] = table.unit
-            f.attrs["scene"] = table.scene_text
-            f.attrs["points"] = np.array(table.points, dtype=h5py.string_dtype())
-            group = f.create_group("table")
-            for n, u in zip(names, units):
-                dataset = group.create_dataset(n, data=table.columns[n])
-                dataset.attrs["units"] = u
-                dataset.attrs["meaning"] = COLUMNS[n][1]
+    def fill(f: h5py.File, failed) -> None:
+        f.attrs["format"] = "petroll-sweep"
+        f.attrs["petroll_version"] = __version__
+        f.attrs["key"] = table.key
+        f.attrs["unit"] = table.unit
+        f.attrs["scene"] = table.scene_text
+        f.attrs["points"] = np.array(table.points, dtype=h5py.string_dtype())
+        group = f.create_group("table")
+        for n, u in zip(names, units):
+            dataset = group.create_dataset(n, data=table.columns[n])
+            dataset.attrs["units"] = u
+            dataset.attrs["meaning"] = COLUMNS[n][1]
 
-    atomic_write(table.h5, fill)
+    atomic_hdf5(table.h5, fill)
 
 
 def _plot(table: SweepTable) -> None:
