@@ -302,6 +302,8 @@ def _show_progress(scene: Scene, r: StepRecord, wall: float) -> None:
 
 
 AUTO_DEPTHS = 41
+MAX_DEPTHS = 1000
+"""The most depths ``petroll stress --depth`` takes (stress.h5 holds 8 fields of the grid's size per depth)."""
 """Depths of ``depths="auto"``: 0 to twice the contact's smaller half-width, evenly spaced (a/20 apart)."""
 
 
@@ -417,6 +419,9 @@ def _depths(depths, p: np.ndarray, x: np.ndarray, y: np.ndarray, dx: float, dy: 
         if isinstance(depths, str):
             raise PetrollError(f"--depths {depths!r}: only 'auto' is allowed (or give --depth z1,z2,...)")
         z = np.asarray(depths, dtype=float).ravel()
+        if z.size > MAX_DEPTHS:
+            raise PetrollError(f"--depth: {z.size} depths; at most {MAX_DEPTHS} (each one a field of the grid's "
+                               "size in stress.h5)")
         if z.size == 0 or not np.all(np.isfinite(z)) or np.any(z < 0):
             raise PetrollError(f"--depth {','.join(f'{v:g}' for v in z)}: depths must be finite numbers >= 0 "
                                "(m, below the surface)")

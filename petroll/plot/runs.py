@@ -14,6 +14,8 @@ from petroll.io.results import Results
 from petroll.plot.common import MM, cell_edges, constrained_figure, pressure_unit, write_figure
 
 MAX_PANELS = 4
+MAX_TIMES = 16
+"""The most pressure maps ``--times`` may pick (a figure of 4 x 4 panels)."""
 """Pressure maps drawn when no times are requested: the first, the last and evenly spaced ones between."""
 
 
@@ -64,6 +66,9 @@ def select_fields(results: Results, times: Sequence[float] | None = None) -> lis
     if times:
         t = field_times(results)
         picked = {int(np.argmin(np.abs(t - float(want)))) for want in times}
+        if len(picked) > MAX_TIMES:
+            raise PetrollError(f"--times: picks {len(picked)} saved fields; at most {MAX_TIMES} pressure maps are "
+                               "drawn in one figure")
         return sorted(picked)
     return sorted({int(round(i)) for i in np.linspace(0, n - 1, min(MAX_PANELS, n))})
 
