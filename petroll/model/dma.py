@@ -162,9 +162,13 @@ def _read_columns(path: pathlib.Path) -> tuple[list[int], dict]:
     except (OSError, UnicodeDecodeError) as exc:
         why = exc.strerror if isinstance(exc, OSError) else "not UTF-8 text"
         raise DMAError(f"{path}: cannot read it ({why}); must be {ALLOWED}") from None
-    rows = [(number, fields) for number, fields in
-            enumerate(csv.reader(text.splitlines()), start=1)
-            if fields and "".join(fields).strip() and not fields[0].lstrip().startswith("#")]
+    text = text.removeprefix("\ufeff")  # a byte-order mark (spreadsheets write one): not the header's
+    try:
+        rows = [(number, fields) for number, fields in
+                enumerate(csv.reader(text.splitlines()), start=1)
+                if fields and "".join(fields).strip() and not fields[0].lstrip().startswith("#")]
+    except csv.Error as exc:  # a field longer than csv's limit (131072 characters)
+        raise DMAError(f"{path}: not a CSV table ({exc}); must be {ALLOWED}") from None
     if not rows:
         raise DMAError(f"{path}: no header line; must be {ALLOWED}")
     header_line, header = rows[0]
