@@ -378,3 +378,427 @@ def test_damaged_height_maps(tmp_path, capsys):
         trial.call(["check", scene], what)
         trial.call(["run", scene, "--out", where / "out", "--quiet"], what, limit=60)
     trial.verdict()
+
+
+# -- DMA tables --------------------------------------------------------------------------------------------
+def damaged_table_csv(text: str, rng: random.Random) -> tuple[str | bytes, str]:
+    """A DMA table damaged one way: a value odd, a row or column dropped or repeated, the header changed,
+    text damage (damaged_text)."""
+    lines = text.splitlines()
+    data = [k for k, line in enumerate(lines) if line and line[0].isdigit()]
+    kind = rng.choice(["value", "value", "value", "row", "column", "header", "text", "rows"])
+    if kind == "value" and data:
+        k = rng.choice(data)
+        fields = lines[k].split(",")
+        c = rng.randrange(len(fields))
+        fields[c] = rng.choice(["nan", "inf", "-1", "0", "1e-320", "5e-324", "1e-31", "1e300", "1e31", "", "x",
+                                "1e30", "9" * 400, "1,2", "\"3\""])
+        lines[k] = ",".join(fields)
+        return "\n".join(lines) + "\n", f"line {k + 1} column {c + 1} = {fields[c][:20]}"
+    if kind == "row" and data:
+        k = rng.choice(data)
+        return "\n".join(lines[:k] + lines[k + 1:]) + "\n", f"line {k + 1} dropped"
+    if kind == "rows" and data:
+        keep = data[: rng.choice([0, 1, 2, 3])]
+        head = [line for line in lines if not (line and line[0].isdigit())]
+        return "\n".join(head + [lines[k] for k in keep]) + "\n", f"{len(keep)} data rows"
+    if kind == "column":
+        c = rng.randrange(4)
+        return "\n".join(",".join(f for i, f in enumerate(line.split(",")) if i != c) if not line.startswith("#")
+                         else line for line in lines) + "\n", f"column {c + 1} dropped"
+    if kind == "header":
+        k = next(k for k, line in enumerate(lines) if line.startswith("frequency"))
+        lines[k] = rng.choice(["Frequency,Storage,Loss,Temperature", "frequency;storage;loss;temperature",
+                               "frequency,storage,loss,temperature,set", "f,E1,E2,T", "",
+                               "frequency,storage,storage,temperature"])
+        return "\n".join(lines) + "\n", f"header {lines[k]!r}"
+    return damaged_text(text, rng)
+
+
+def test_damaged_dma_tables(tmp_path, capsys):
+    """The shipped DMA tables (runs/*.csv), damaged, fitted with ``petroll material fit`` under options drawn
+    from the valid and the odd (shift laws, --terms, --per-decade, --einf, --nu, --tolerance)."""
+    trial = Trial("DMA tables", capsys)
+    tables = {"rubber-dma.csv": "wlf:8.86,101.6,293.15", "polymer-dma.csv": "auto:293.15"}
+    for k in range(30):
+        name = trial.random.choice(sorted(tables))
+        data, how = damaged_table_csv((ROOT / "runs" / name).read_text(encoding="utf-8"), trial.random)
+        csv = write(tmp_path / f"t{k}.csv", data)
+        options = ["--shift", trial.random.choice([tables[name]] * 27 + [
+            "wlf:8.86,101.6,nan", "wlf:1e300,1,293", "arrhenius:1e300,293.15", "auto:1e-300", "auto:0",
+            "wlf:8.86,-293.15,293.15", "bogus", str(tmp_path / "missing.toml"), "auto:1e300"])]
+        for option, values in (("--terms", ["3", "0", "2001", "100000", "1" * 30]),
+                               ("--per-decade", ["0.5", "1e-300", "1e300", "nan"]),
+                               ("--einf", ["3e6", "1e-300", "1e300"]), ("--nu", ["0.5", "-1", "0.6", "nan"]),
+                               ("--tolerance", ["0.5", "0", "1e300", "nan"])):
+            if trial.random.random() < 0.1 and not (option == "--per-decade" and "--terms" in options):
+                options += [option, trial.random.choice(values)]
+        out = ["--out", tmp_path / f"fit{k}.toml"] if trial.random.random() < 0.5 else []
+        trial.call(["material", "fit", csv, *options, *out], f"{name} {how}", limit=60)
+    trial.verdict()
+
+
+# -- sweep specifications ----------------------------------------------------------------------------------
+SWEEP_SCENE = """[grid]
+nx = 16
+ny = 16
+x = [-0.8e-3, 0.8e-3]
+y = [-0.8e-3, 0.8e-3]
+allow_coarse = true
+
+[material]
+model = "sls"
+E0 = 10.0e6
+Einf = 2.0e6
+nu = 0.5
+tau_relax = 0.01
+
+[body]
+shape = "sphere"
+radius = 0.01
+
+[motion]
+penetration = 20.0e-6
+"""
+
+
+VALID_SPECS = ["motion.penetration=1e-5,2e-5", "motion.penetration=1e-5..3e-5:lin:3", "grid.nx=12,16",
+               "material.tau_relax=0.001..0.1:log:3", "motion.load=0.05,0.1", "body.radius=0.005,0.01,0.02",
+               "material.E0=5e6,2e7", "material.Einf=1e6,2e6", "material.nu=0.3,0.5"]
+
+
+def sweep_spec(rng: random.Random) -> str:
+    """A --vary text: a valid one (VALID_SPECS), or a key (valid, of another type, unknown) with values
+    (lists, ranges, odd numbers)."""
+    if rng.random() < 0.4:
+        return rng.choice(VALID_SPECS)
+    key = rng.choice(["motion.penetration", "motion.load", "material.tau_relax", "material.E0", "grid.nx",
+                      "body.radius", "motion.velocity", "time.dt", "material.model", "grid.x", "bogus.key",
+                      "motion", "", "grid.periodic", "material.nu", "time.steps_per_cell"])
+    number = lambda: rng.choice(["1e-5", "2e-5", "3e-5", "0", "-1", "nan", "inf", "1e-320", "1e300", "8",
+                                 "16", "100000", "1" * 400, "x", "", "1e-3", "0.4"])  # noqa: E731
+    form = rng.choice(["list", "list", "lin", "log", "odd"])
+    if form == "list":
+        values = ",".join(number() for _ in range(rng.choice([1, 2, 2, 3])))
+    elif form in ("lin", "log"):
+        count = rng.choice(["2", "3", "1", "0", "1000000000", "99999999999999999999", "9" * 5000, "-2", "x"])
+        values = f"{number()}..{number()}:{form}:{count}"
+    else:
+        values = rng.choice(["1..2", "1..2:lin", "1..2:cubic:3", ",,", "1,,2", "1;2", "[1,2]", "1..2:lin:3:4"])
+    return f"{key}={values}" if rng.random() < 0.95 else values
+
+
+def test_odd_sweep_specifications(tmp_path, capsys):
+    """``petroll sweep`` of a 16 x 16 static scene over --vary texts drawn from the valid and the odd
+    (unknown keys, keys of other types, empty, NaN, infinite, huge and tiny values, counts up to 10^5000,
+    malformed ranges); once or twice --vary."""
+    trial = Trial("sweep specifications", capsys)
+    scene = write(tmp_path / "s.toml", SWEEP_SCENE)
+    for k in range(24):
+        specs = [sweep_spec(trial.random) for _ in range(2 if trial.random.random() < 0.1 else 1)]
+        argv = ["sweep", scene, "--out", tmp_path / f"sweep{k}", "--quiet"]
+        for spec in specs:
+            argv += ["--vary", spec]
+        trial.call(argv, " ".join(spec[:60] for spec in specs), limit=60)
+    trial.verdict()
+
+
+# -- checkpoints -------------------------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def checkpointed(tmp_path_factory):
+    """A run of test_checkpoint's rolling sphere stopped after step 5 by a stop request: (its scene file,
+    its output directory with results.h5 and checkpoints/step-00000004.h5, -00000005.h5)."""
+    from mpi4py import MPI
+
+    from petroll.driver import run
+    from petroll.io.checkpoint import RunInterrupted
+    from test_checkpoint import interrupter, make_scene, raw_scene, write_toml
+
+    where = tmp_path_factory.mktemp("checkpointed")
+    raw = raw_scene()
+    write_toml(where / "s.toml", raw)
+    stop, on_step = interrupter(5, MPI.COMM_SELF)
+    with pytest.raises(RunInterrupted), warnings.catch_warnings():
+        warnings.simplefilter("ignore", PetrollWarning)  # a coarse grid, on purpose
+        run(make_scene(raw, where), MPI.COMM_SELF, where / "run", stop=stop, on_step=on_step)
+    return where / "s.toml", where / "run"
+
+
+def damage_checkpoint(path: pathlib.Path, rng: random.Random) -> str:
+    """Damage one checkpoint file in place, one way: cut, bytes, an attribute or dataset changed or gone,
+    its scene text damaged, another kind of file in its place."""
+    import h5py
+
+    kind = rng.choice(["cut", "bytes", "attribute", "attribute", "dataset", "dataset", "scene", "other"])
+    if kind == "cut":
+        data = path.read_bytes()
+        path.write_bytes(data[: rng.randrange(len(data))])
+        return "cut"
+    if kind == "bytes":
+        data = bytearray(path.read_bytes())
+        for _ in range(rng.choice([1, 4, 64])):
+            data[rng.randrange(len(data))] = rng.randrange(256)
+        path.write_bytes(bytes(data))
+        return "bytes changed"
+    if kind == "other":
+        what = rng.choice(["empty", "text", "directory"])
+        path.unlink()
+        if what == "directory":
+            path.mkdir()
+        else:
+            path.write_text("" if what == "empty" else "not a checkpoint\n")
+        return f"replaced by {what}"
+    with h5py.File(path, "r+") as f:
+        if kind == "attribute":
+            name = rng.choice(sorted(f.attrs))
+            value = rng.choice([None, math.nan, -1, "x", 2**62, np.zeros(3), b"\xff"])
+            if value is None:
+                del f.attrs[name]
+            else:
+                f.attrs[name] = value
+            return f"attribute {name} = {value!r}"[:80]
+        names = []
+        f.visit(lambda n: names.append(n) if isinstance(f[n], h5py.Dataset) else None)
+        if kind == "dataset":
+            name = rng.choice(sorted(names))
+            data = f[name][()]
+            del f[name]
+            how = rng.choice(["gone", "shape", "type", "nan"])
+            if how == "shape":
+                f[name] = np.zeros(np.asarray(data).size + 1)
+            elif how == "type":
+                f[name] = np.array(["x"] * max(1, np.asarray(data).size), dtype=h5py.string_dtype())
+            elif how == "nan":
+                f[name] = np.full(np.shape(data), np.nan)
+            return f"dataset {name} {how}"
+        text = str(f.attrs.get("scene", ""))
+        f.attrs["scene"] = rng.choice(["\ufeff" + text, text[: len(text) // 2], "[" * 3000, "x = " + "[" * 900
+                                       + "]" * 900, text.replace("nx", "n x", 1), "x = 1" + "9" * 5000])
+        return "scene text damaged"
+
+
+def test_damaged_checkpoints(tmp_path, capsys, checkpointed):
+    """A run's newest (or another) checkpoint damaged: ``petroll restart`` of its directory or the file,
+    ``petroll info`` of the directory, and the run again over it (which removes the checkpoints it knows to
+    be another run's, and must keep those it cannot read)."""
+    trial = Trial("checkpoints", capsys)
+    scene, original = checkpointed
+    for k in range(16):
+        run = tmp_path / f"run{k}"
+        shutil.copytree(original, run)
+        target = run / "checkpoints" / trial.random.choice(["step-00000005.h5", "step-00000005.h5",
+                                                            "step-00000004.h5"])
+        how = f"{target.name} {damage_checkpoint(target, trial.random)}"
+        verb = trial.random.choice([["restart", run], ["restart", target], ["info", run],
+                                    ["restart", run, "--out", tmp_path / f"elsewhere{k}"]])
+        trial.call([*verb, "--quiet"] if verb[0] == "restart" else verb, how, limit=60)
+        if trial.random.random() < 0.3:
+            trial.call(["run", scene, "--out", run, "--quiet"], f"{how}, run again", limit=60)
+    trial.verdict()
+
+
+# -- full and read-only disks ------------------------------------------------------------------------------
+DISK_BYTES = 16 * 2**20
+
+
+class Disk:
+    """A small file system for the trial at ``where``: a real tmpfs where this process may mount one (root
+    with CAP_SYS_ADMIN), filled up (``fill``) or remounted read-only (``read_only``). Elsewhere simulated
+    in this process: a full disk by a file-size limit (RLIMIT_FSIZE: every write() past ``free`` bytes of a
+    file fails, EFBIG), a read-only one by OSError(EROFS) from Python's file layer (os.open, open, io.open,
+    os.mkdir, os.replace) for paths below ``where`` (every petroll write goes through them: HDF5 files
+    through petroll.io.journal's os.open, figures through open). ``kind`` says which;
+    PETROLL_FUZZ_DISK=simulated simulates where a tmpfs could be mounted."""
+
+    def __init__(self, where: pathlib.Path, monkeypatch):
+        self.where, self.monkeypatch = where, monkeypatch
+        where.mkdir()
+        simulate = os.environ.get("PETROLL_FUZZ_DISK") == "simulated"  # the fallback, also where mount works
+        done = None if simulate else subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={DISK_BYTES}", "tmpfs",
+                                                     str(where)], capture_output=True, text=True)
+        self.kind = "tmpfs" if done is not None and done.returncode == 0 else "simulated"
+        self.mode, self.free = "writable", None
+
+    def reset(self) -> None:
+        for path in self.where.iterdir():
+            shutil.rmtree(path) if path.is_dir() and not path.is_symlink() else path.unlink()
+
+    @contextlib.contextmanager
+    def state(self, mode: str, free: int):
+        """Within the block the disk is ``mode``: "writable", "full" (``free`` bytes left) or "read-only"."""
+        self.mode, self.free = mode, free
+        undo = contextlib.ExitStack()
+        if self.kind == "tmpfs" and mode == "full":
+            left = os.statvfs(self.where).f_bavail * os.statvfs(self.where).f_frsize
+            with open(self.where / "filler", "wb") as fh:  # tmpfs: fill to within ``free`` bytes
+                with contextlib.suppress(OSError):
+                    fh.write(bytes(max(0, left - free)))
+        elif self.kind == "tmpfs" and mode == "read-only":
+            subprocess.run(["mount", "-o", "remount,ro", str(self.where)], check=True)
+            undo.callback(subprocess.run, ["mount", "-o", "remount,rw", str(self.where)], check=True)
+        elif mode == "full":
+            import resource
+
+            previous = resource.getrlimit(resource.RLIMIT_FSIZE)
+            handler = signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+            undo.callback(signal.signal, signal.SIGXFSZ, handler)
+            undo.callback(resource.setrlimit, resource.RLIMIT_FSIZE, previous)
+            resource.setrlimit(resource.RLIMIT_FSIZE, (max(free, 1), previous[1]))
+        elif mode == "read-only":
+            self._refuse_writes(undo)
+        with undo:
+            yield
+
+    def _refuse_writes(self, undo: contextlib.ExitStack) -> None:
+        import builtins
+        import io
+
+        root = str(self.where)
+
+        def below(path) -> bool:
+            try:
+                return os.path.abspath(os.fspath(path)).startswith(root)
+            except TypeError:
+                return False
+
+        def refuse(path):
+            raise OSError(errno.EROFS, os.strerror(errno.EROFS), os.fspath(path))
+
+        real = {"os.open": os.open, "open": builtins.open, "io.open": io.open, "mkdir": os.mkdir,
+                "replace": os.replace}
+
+        def os_open(path, flags, *args, **kwargs):
+            if below(path) and flags & (os.O_WRONLY | os.O_RDWR | os.O_CREAT):
+                refuse(path)
+            return real["os.open"](path, flags, *args, **kwargs)
+
+        def opener(which):
+            def open_(file, mode="r", *args, **kwargs):
+                if not isinstance(file, int) and below(file) and any(c in mode for c in "wax+"):
+                    refuse(file)
+                return real[which](file, mode, *args, **kwargs)
+            return open_
+
+        def mkdir(path, *args, **kwargs):
+            if below(path):
+                refuse(path)
+            return real["mkdir"](path, *args, **kwargs)
+
+        def replace(a, b, *args, **kwargs):
+            if below(a) or below(b):
+                refuse(b)
+            return real["replace"](a, b, *args, **kwargs)
+
+        patch = pytest.MonkeyPatch()
+        undo.callback(patch.undo)
+        patch.setattr(os, "open", os_open)
+        patch.setattr(builtins, "open", opener("open"))
+        patch.setattr(io, "open", opener("io.open"))
+        patch.setattr(os, "mkdir", mkdir)
+        patch.setattr(os, "replace", replace)
+
+    def held(self) -> list[str]:
+        """The files below ``where`` that this process holds open."""
+        found = []
+        for fd in os.listdir("/proc/self/fd"):
+            with contextlib.suppress(OSError):
+                target = os.readlink(f"/proc/self/fd/{fd}")
+                if target.startswith(str(self.where)):
+                    found.append(target[len(str(self.where)) + 1:])
+        return found
+
+    def close(self) -> None:
+        if self.kind == "tmpfs":
+            subprocess.run(["umount", "-l", str(self.where)], capture_output=True)
+
+
+def intact(path: pathlib.Path) -> str | None:
+    """Why a file petroll wrote earlier is no longer whole (None if it is)."""
+    import tomllib
+
+    import h5py
+
+    try:
+        if path.suffix == ".h5":
+            with h5py.File(path, "r") as f:
+                f.visit(lambda name: None)
+            if path.name == "results.h5":
+                from petroll.io.results import Results
+
+                Results.open(path)
+        elif path.suffix == ".png":
+            data = path.read_bytes()
+            if not (data.startswith(b"\x89PNG") and data.endswith(b"IEND\xaeB`\x82")):
+                return "not a whole PNG"
+        elif path.suffix == ".toml":
+            tomllib.loads(path.read_text(encoding="utf-8"))
+        elif path.suffix == ".csv" and not path.read_text(encoding="utf-8").strip():
+            return "empty"
+    except Exception as exc:  # noqa: BLE001 - any failure to read it is the answer
+        return f"{type(exc).__name__}: {exc}"
+    return None
+
+
+@pytest.fixture(scope="module")
+def earlier(tmp_path_factory, checkpointed):
+    """What a user had on the disk before: a run with checkpoints and its figures and stresses, a sweep,
+    a fitted material (templates copied onto the disk for every input)."""
+    from petroll.cli import main
+
+    scene, run = checkpointed
+    where = tmp_path_factory.mktemp("earlier")
+    shutil.copytree(run, where / "run")
+    write(where / "static.toml", SWEEP_SCENE)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", PetrollWarning)
+        for argv in (["plot", where / "run"], ["stress", where / "run"],
+                     ["sweep", where / "static.toml", "--vary", "motion.penetration=1e-5,2e-5", "--out",
+                      where / "sweep", "--quiet"],
+                     ["material", "fit", ROOT / "runs" / "rubber-dma.csv", "--shift", "wlf:8.86,101.6,293.15",
+                      "--out", where / "fit" / "rubber.toml"]):
+            assert main([str(a) for a in argv]) == 0, argv
+    return scene, where
+
+
+def test_full_and_read_only_disks(tmp_path, capsys, monkeypatch, earlier):
+    """Every verb that writes, on a disk left with a few bytes to a few MB free, or read-only, over what an
+    earlier session wrote there (a run with checkpoints, figures, stresses, a sweep, a fitted material):
+    one line and exit 2 (or success), nothing that was there lost or left half written, no temporary file
+    left behind, no file left open."""
+    scene, template = earlier
+    disk = Disk(tmp_path / "disk", monkeypatch)
+    trial = Trial(f"disks ({disk.kind})", capsys)
+    try:
+        for k in range(16):
+            disk.reset()
+            for name in ("run", "sweep", "fit"):
+                shutil.copytree(template / name, disk.where / name)
+            before = {p: p.stat().st_mtime_ns for p in disk.where.rglob("*") if p.is_file()}
+            mode = trial.random.choice(["full", "full", "read-only"])
+            free = trial.random.choice([0, 512, 4096, 32768, 200_000, 1_000_000, 4_000_000])
+            d = disk.where
+            verb = trial.random.choice([
+                ["run", scene, "--out", d / "new", "--quiet"], ["run", scene, "--out", d / "run", "--quiet"],
+                ["restart", d / "run", "--quiet"], ["stress", d / "run"], ["plot", d / "run"],
+                ["plot", d / "run", "--out", d / "figures", "--format", trial.random.choice(["png", "pdf", "svg"])],
+                ["plot", d / "sweep"], ["plot", d / "run" / "stress.h5"],
+                ["sweep", template / "static.toml", "--vary", "motion.penetration=1e-5,1.5e-5,2e-5", "--out",
+                 d / "sweep", "--quiet"],
+                ["material", "fit", ROOT / "runs" / "rubber-dma.csv", "--shift", "wlf:8.86,101.6,293.15", "--out",
+                 d / "fit" / "rubber.toml"],
+                ["export", d / "run", "--csv", "--out", d / "series.csv"]])
+            what = f"{mode}{f' ({free} bytes free)' if mode == 'full' else ''}: {verb[0]}"
+            with disk.state(mode, free):
+                code, _ = trial.call(verb, what, limit=60)
+            (d / "filler").unlink(missing_ok=True)
+            left = [str(p.relative_to(d)) for p in d.rglob(".*.tmp*")]
+            damaged = [f"{p.relative_to(d)} ({why})" for p in before if p.exists() and (why := intact(p))]
+            gone = [str(p.relative_to(d)) for p in before if not p.exists() and p.suffix != ".h5"
+                    and "checkpoints" not in p.parts]
+            held = disk.held()
+            if left or damaged or (gone and code != 0) or held:
+                trial.faults.append(f"files: {what}: petroll {verb[0]}: temporaries left {left}, damaged "
+                                    f"{damaged}, gone {gone}, held open {held}")
+    finally:
+        disk.close()
+    trial.verdict()

@@ -222,6 +222,12 @@ def _plain(value):
     return value
 
 
+def _is(value, text: str) -> bool:
+    """``value`` (an attribute read back, of any type: a damaged file's may be an array) is the string
+    ``text``."""
+    return isinstance(value, str) and value == text
+
+
 def remove_foreign_checkpoints(directory: str | pathlib.Path, run_id: str) -> list[pathlib.Path]:
     """Remove the checkpoints in ``directory`` of other runs than ``run_id``: once this run's results.h5 is
     in their directory, theirs is gone and they can no longer continue anything. Only files read as
@@ -232,7 +238,7 @@ def remove_foreign_checkpoints(directory: str | pathlib.Path, run_id: str) -> li
     for path in list_checkpoints(directory):
         try:
             with h5py.File(path, "r") as f:
-                kept = _plain(f.attrs.get("format")) != FORMAT or _plain(f.attrs.get("run_id", "")) == run_id
+                kept = not _is(_plain(f.attrs.get("format")), FORMAT) or _is(_plain(f.attrs.get("run_id", "")), run_id)
         except Exception:  # noqa: BLE001 - h5py reports a read failure as OSError, RuntimeError, KeyError, ...
             kept = True  # not known to be another run's
         if not kept:
@@ -469,7 +475,7 @@ def _load(path: pathlib.Path) -> dict:
     try:
         with h5py.File(path, "r") as f:
             attrs = {k: _plain(v) for k, v in f.attrs.items()}
-            if attrs.get("format") != FORMAT:
+            if not _is(attrs.get("format"), FORMAT):
                 what = ("a petroll results file" if "series" in f and "fields" in f and "state" not in f
                         else "an HDF5 file")
                 raise CheckpointError(f"{path}: not a petroll checkpoint ({what} without the attribute "
@@ -479,7 +485,7 @@ def _load(path: pathlib.Path) -> dict:
                 raise CheckpointError(f"{path}: written in checkpoint format {version} (petroll "
                                       f"{attrs.get('petroll_version', '?')}); this petroll {__version__} "
                                       f"reads format {FORMAT_VERSION} and older: use a newer petroll")
-            if version not in (1, FORMAT_VERSION):
+            if not isinstance(version, int) or version not in (1, FORMAT_VERSION):
                 raise CheckpointError(f"{path}: corrupted (format_version {version!r} is not a known "
                                       "version)")
             missing = [k for k in _ATTRS if k not in attrs]

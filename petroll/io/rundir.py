@@ -56,9 +56,13 @@ class RunLock:
                     os.close(fd)
                 raise
             self.fd = fd
-            os.ftruncate(fd, 0)
-            os.pwrite(fd, json.dumps(_me(self.what)).encode() + b"\n", 0)
-            os.fsync(fd)
+            try:
+                os.ftruncate(fd, 0)
+                os.pwrite(fd, json.dumps(_me(self.what)).encode() + b"\n", 0)
+                os.fsync(fd)
+            except BaseException:  # a full disk: no lock left behind, held or on disk
+                self.release()
+                raise
             return
         raise DirectoryBusy(f"{self.directory}: in use (its lock file {self.path} keeps changing hands)")
 

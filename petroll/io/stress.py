@@ -99,7 +99,7 @@ def write_stress(path: pathlib.Path, z: np.ndarray, x: np.ndarray, y: np.ndarray
             clean_temporaries(path.parent, [path.name])  # of a writer killed earlier
             atomic_hdf5(path, fill)
         except OSError as exc:
-            message = f"{path}: cannot write the stresses ({reason(exc)})"
+            message = f"{path}: cannot write the stresses ({exc.strerror or reason(exc)})"
             _drain(depths, nx, comm)  # the depths not yet computed: the other ranks wait for them
             if not done:
                 attributes()

@@ -238,8 +238,10 @@ def _relaxed(f: np.ndarray, e1: np.ndarray, einf) -> tuple[float | None, str, fl
         return value, (f"from the data: the mean E' of the {rows.sum()} rows within {FROM_DATA_DECADES:g} "
                        f"decade of the lowest frequency"), EXTEND_DECADES
     if einf is not None:
-        if isinstance(einf, bool) or not isinstance(einf, (int, float)) or not 0 < einf < math.inf:
-            raise DMAError(f"--einf {einf!r}: must be a finite number > 0 (Pa), or \"data\"")
+        if (isinstance(einf, bool) or not isinstance(einf, (int, float))
+                or not MAGNITUDES[0] <= einf <= MAGNITUDES[1]):
+            raise DMAError(f"--einf {einf!r}: must be a number from {MAGNITUDES[0]:g} to {MAGNITUDES[1]:g} (Pa), "
+                           "or \"data\"")
         return float(einf), "given (--einf)", EXTEND_DECADES
     flat = plateau(f, e1)
     if flat is None:
