@@ -267,9 +267,10 @@ def test_checkpoint_layout_and_sizes_do_not_grow_with_the_steps_for_prony(comm, 
 
 
 def test_keep_removes_older_checkpoints_and_those_of_the_run_replaced(comm, shared_dir):
-    """Of the run's own checkpoints the newest ``keep`` stay; those an earlier run left in the directory
-    (a later step, a damaged one) go once the new results.h5 is in place (they continued the results.h5 it
-    replaced); other files stay. A restart keeps its run's later checkpoints."""
+    """Of the run's own checkpoints the newest ``keep`` stay; those an earlier run left in the directory (a
+    later step) go once the new results.h5 is in place (they continued the results.h5 it replaced); one
+    that cannot be read (damaged: not known to be another run's, issue 35) and other files stay. A restart
+    keeps its run's later checkpoints."""
     raw = raw_scene(SLS, CONSTANT, ("penetration", 2e-5), output={"checkpoint_every": 2, "keep": 2})
     run(make_scene(raw_scene(SLS, CONSTANT, ("penetration", 2e-5), distance=2 * LENGTH,
                              output={"checkpoint_every": 20})), comm, shared_dir)
@@ -283,7 +284,7 @@ def test_keep_removes_older_checkpoints_and_those_of_the_run_replaced(comm, shar
     last = len(results.series["t"]) - 1
     names = sorted(p.name for p in (shared_dir / "checkpoints").iterdir())
     mine = sorted([f"step-{last - last % 2 - (2 if last % 2 == 0 else 0):08d}.h5", f"step-{last:08d}.h5"])
-    assert names == sorted([*mine, "notes.txt"])
+    assert names == sorted([*mine, "notes.txt", "step-00000099.h5"])
     run(make_scene(raw), comm, shared_dir, restart=read_checkpoint(shared_dir / "checkpoints" / mine[0], comm))
     assert sorted(p.name for p in (shared_dir / "checkpoints").iterdir()) == names
 
@@ -340,9 +341,24 @@ def other_hdf5(path: pathlib.Path) -> None:
         f.create_dataset("x", data=[1.0])
 
 
-def set_attribute(path: pathlib.Path, name: str, value) -> None:
+def set_attribute(path: pathlib.Path, name: str, value, reseal: bool = False) -> None:
+    """An attribute edited (h5py): the file's seal broken, or made again (``reseal``: as its writer)."""
+    from petroll.io.hdf5 import seal
+
     with h5py.File(path, "r+") as f:
         f.attrs[name] = value
+    if reseal:
+        seal(path)
+
+
+def unseal(path: pathlib.Path) -> None:
+    """A checkpoint as written before seals (petroll.io.hdf5.seal): its user block's seal blanked."""
+    from petroll.io.hdf5 import SEAL_BYTES, SEAL_MAGIC
+
+    with open(path, "r+b") as fh:
+        if fh.read(len(SEAL_MAGIC)) == SEAL_MAGIC:
+            fh.seek(0)
+            fh.write(bytes(SEAL_BYTES))
 
 
 BAD = {
@@ -355,8 +371,11 @@ BAD = {
     "other hdf5": (lambda good, p: other_hdf5(p), "not a petroll checkpoint (an HDF5 file"),
     "corrupted data": (lambda good, p: (shutil.copy(good, p), flip_byte_inside(p, "state/q")), "corrupted"),
     "edited scene": (lambda good, p: (shutil.copy(good, p), set_attribute(p, "scene", "[grid]\nnx = 1\n")),
-                     "corrupted (its attributes or list of datasets do not match the checksum)"),
-    "newer format": (lambda good, p: (shutil.copy(good, p), set_attribute(p, "format_version", 3)),
+                     "corrupted (its bytes do not match the checksum it was sealed with)"),
+    "edited and sealed": (lambda good, p: (shutil.copy(good, p), set_attribute(p, "scene", "[grid]\nnx = 1\n",
+                                                                                reseal=True)),
+                          "corrupted (its attributes or list of datasets do not match the checksum)"),
+    "newer format": (lambda good, p: (shutil.copy(good, p), set_attribute(p, "format_version", 3, reseal=True)),
                      "written in checkpoint format 3"),
 }
 

@@ -33,7 +33,8 @@ from petroll.io.checkpoint import list_checkpoints, read_checkpoint, restart_sce
 from petroll.io.results import OutputError, Results, ResultsFile
 from petroll.io.rundir import LOCK_NAME, RunLock
 from petroll.solver.partition import RowPartition
-from test_checkpoint import LENGTH, PRONY, SLS, assert_identical, make_scene, raw_scene, snapshot, write_toml
+from test_checkpoint import (LENGTH, PRONY, SLS, assert_identical, make_scene, raw_scene, snapshot, unseal,
+                             write_toml)
 from test_results import NX, NY, field, record
 
 real_write_all = journal.write_all
@@ -426,6 +427,7 @@ def forget_run_ids(path: pathlib.Path) -> None:
     """As written before run ids (the other checks must hold by themselves)."""
     with h5py.File(path, "r+") as f:
         del f.attrs["run_id"]
+    unseal(path)
 
 
 @pytest.mark.parametrize("change, expected", [
@@ -473,6 +475,7 @@ def strip_run_id(path: pathlib.Path) -> None:
         f.visititems(lambda name, item: digests.__setitem__(name, _plain(item.attrs["sha256"]))
                      if isinstance(item, h5py.Dataset) else None)
         f.attrs["sha256"] = root_digest(attrs, digests)
+    unseal(path)
 
 
 def test_a_foreign_checkpoint_among_a_runs_checkpoints_is_refused_and_the_run_restarts_from_its_own(

@@ -526,7 +526,18 @@ def checkpointed(tmp_path_factory):
 
 def damage_checkpoint(path: pathlib.Path, rng: random.Random) -> str:
     """Damage one checkpoint file in place, one way: cut, bytes, an attribute or dataset changed or gone,
-    its scene text damaged, another kind of file in its place."""
+    its scene text damaged, another kind of file in its place; an edit made through h5py sealed again
+    half the time (as a faulty writer would: the checks behind the seal are tried too)."""
+    from petroll.io.hdf5 import seal
+
+    how = _damage(path, rng)
+    if how.startswith(("attribute", "dataset", "scene")) and rng.random() < 0.5:
+        seal(path)
+        how += ", sealed again"
+    return how
+
+
+def _damage(path: pathlib.Path, rng: random.Random) -> str:
     import h5py
 
     kind = rng.choice(["cut", "bytes", "attribute", "attribute", "dataset", "dataset", "scene", "other"])

@@ -54,7 +54,7 @@ from petroll import __version__
 from petroll.errors import MISSING, PetrollError, SceneError, reason
 from petroll.solver.partition import RowPartition
 from petroll.solver.history import HereditaryHistory, RelaxationHistory
-from petroll.io.hdf5 import RowFile, chunk_rows
+from petroll.io.hdf5 import RowFile, chunk_rows, seal_broken
 
 FORMAT = "petroll-checkpoint"
 FORMAT_VERSION = 2
@@ -237,6 +237,8 @@ def remove_foreign_checkpoints(directory: str | pathlib.Path, run_id: str) -> li
     removed = []
     for path in list_checkpoints(directory):
         try:
+            if seal_broken(path):
+                raise CheckpointError("damaged")  # not opened: HDF5 can crash on a damaged file
             with h5py.File(path, "r") as f:
                 kept = not _is(_plain(f.attrs.get("format")), FORMAT) or _is(_plain(f.attrs.get("run_id", "")), run_id)
         except Exception:  # noqa: BLE001 - h5py reports a read failure as OSError, RuntimeError, KeyError, ...
@@ -458,16 +460,17 @@ def _read_field(path: pathlib.Path, name: str, shape: tuple, digest: str, comm: 
 def _load(path: pathlib.Path) -> dict:
     """Rank 0: the attributes and small datasets, checked; the fields' shapes and digests (format 2), or
     the fields themselves (format 1, under "whole")."""
-    from petroll.solver.simulation import StepRecord
-
     if not path.exists():
         raise CheckpointError(f"{path}: no such checkpoint file")
     if not path.is_file():
         raise CheckpointError(f"{path}: not a file (give a checkpoint step-NNNNNNNN.h5)")
     try:
+        broken = seal_broken(path)  # before HDF5 parses a damaged file, which can crash it (SIGSEGV)
         is_hdf5 = h5py.is_hdf5(str(path))
     except Exception as exc:  # noqa: BLE001 - any failure to read is the file's problem
         raise CheckpointError(f"{path}: cannot be read ({reason(exc)})") from None
+    if broken:
+        raise CheckpointError(f"{path}: {broken}")
     if not is_hdf5:
         what = ("empty" if path.stat().st_size == 0
                 else "not an HDF5 file (corrupted, or another kind of file)")
@@ -508,6 +511,18 @@ def _load(path: pathlib.Path) -> dict:
         why = reason(exc)
         what = "truncated" if "truncated" in why.lower() else "corrupted"
         raise CheckpointError(f"{path}: {what}, cannot be read as a checkpoint ({why})") from None
+    try:
+        return _checked(path, attrs, data, digests, shapes, version)
+    except CheckpointError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - a damaged file's names and values can be of any type
+        raise CheckpointError(f"{path}: corrupted, cannot be read as a checkpoint ({reason(exc)})") from None
+
+
+def _checked(path: pathlib.Path, attrs: dict, data: dict, digests: dict, shapes: dict, version) -> dict:
+    """:func:`_load`'s checks of what it read: digests, the datasets a restart needs."""
+    from petroll.solver.simulation import StepRecord
+
     for name, value in sorted(data.items()):
         if digest_of(name, np.asarray(value)) != digests[name]:
             raise CheckpointError(f"{path}: corrupted (the data of {name} do not match their checksum)")

@@ -22,7 +22,7 @@ from petroll import __version__
 from petroll.errors import reason
 from petroll.io.checkpoint import (FORMAT, FORMAT_VERSION, CheckpointError, checkpoint_path, digest_of,
                                    field_digest, list_checkpoints, root_digest, row_digests)
-from petroll.io.hdf5 import RowFile, chunk_rows
+from petroll.io.hdf5 import RowFile, chunk_rows, seal
 from petroll.io.journal import sync_directory
 from petroll.io.results import PACKED
 from petroll.solver.history import HereditaryHistory, RelaxationHistory
@@ -112,7 +112,7 @@ class _Sink:
         if self.comm.rank == 0:
             with contextlib.suppress(OSError):  # if it fails, so does the opening, on every rank
                 self.path.parent.mkdir(parents=True, exist_ok=True)
-        self.file = RowFile(self.tmp, "w", self.comm)
+        self.file = RowFile(self.tmp, "w", self.comm, sealed=True)
 
     def array(self, name: str, data: np.ndarray) -> None:
         """A small dataset: rank 0's ``data``."""
@@ -183,6 +183,7 @@ class _Sink:
         if failure is not None:
             raise failure
         if self.comm.rank == 0:
+            seal(self.tmp)  # an OSError here: reported by finish(), the file discarded
             os.replace(self.tmp, self.path)
             sync_directory(self.path.parent)
 
