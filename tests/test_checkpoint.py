@@ -671,3 +671,28 @@ def test_without_parallel_hdf5_rank_0_writes_the_same_files_and_restarts_bitwise
             same_files(path, shared_dir / "rank0" / "checkpoints" / path.name)
 
     on_root(comm, compare)
+
+
+def test_remove_foreign_checkpoints_removes_only_those_it_read_as_another_runs(tmp_path, monkeypatch):
+    """Issue 35: a checkpoint it fails to open (here a passing read error, OSError EIO), or finds damaged
+    by its seal, is not known to be another run's and stays; one read as another run's goes; ours stay."""
+    from petroll.io import checkpoint as module
+    from petroll.io.checkpoint import remove_foreign_checkpoints
+
+    run(make_scene(raw_scene(output={"checkpoint_every": 2, "keep": 10})), MPI.COMM_SELF, tmp_path / "run")
+    found = list_checkpoints(tmp_path / "run" / "checkpoints")
+    ours = read_checkpoint(found[0], MPI.COMM_SELF).run_id
+    assert len(found) >= 4
+    unreadable, damaged, foreign = found[1], found[2], found[3]
+    set_attribute(foreign, "run_id", "another run", reseal=True)
+    flip_byte_inside(damaged, "state/pressure")
+    real_file = h5py.File
+
+    def flaky(path, *args, **kwargs):
+        if pathlib.Path(path) == unreadable:
+            raise OSError(errno.EIO, "Input/output error")
+        return real_file(path, *args, **kwargs)
+
+    monkeypatch.setattr(module.h5py, "File", flaky)
+    assert remove_foreign_checkpoints(found[0].parent, ours) == [foreign]
+    assert [p for p in found if p.exists()] == [p for p in found if p != foreign]
