@@ -12,15 +12,16 @@ point, along X and Y (for a sphere exactly Hertz's radius: a^2 = R delta). Lengt
 
 Resolution. Cells per contact half-width along X and Y, the smaller over the compliance range: below
 ``GOOD_CELLS`` the run warns (one line naming the key and the value that gives ``GOOD_CELLS``), below
-``LEAST_CELLS`` it is refused unless ``[grid] allow_coarse = true`` (docs/accuracy.md: errors against
-cells per half-width).
+``LEAST_CELLS`` it is refused unless ``[grid] allow_coarse = true``, above ``MOST_CELLS`` (a contact
+smaller than half the grid) it is refused (docs/accuracy.md: errors against cells per half-width).
 
 Path. The body's reference point over the whole run (petroll.model.clock.path) carries the box of the
 cells it can interfere with: where it lies within delta_e of its lowest point (rubbery delta_e under load
 control; line contact: the contact, within delta_e / 2). A run whose box would reach the grid's edge cells
 at some step is refused, saying where it leaves the grid and the extent it needs (along a periodic axis
 the body wraps around: nothing to leave). A body that never presses (its largest penetration or load
-<= 0) or has no surface over the grid is refused.
+<= 0) or has no surface over the grid is refused, and on a periodic grid, whose contact problem covers
+every cell, a body without surface over some cells (:func:`check_surface`).
 """
 
 from __future__ import annotations
@@ -42,8 +43,8 @@ LEAST_CELLS = 2
 MOST_CELLS = 1024
 """Cells per contact half-width above which a run is refused (a contact smaller than the grid): the error
 falls as the square of the cell (2e-4 in force at 24 cells, docs/accuracy.md), about 1e-7 at 1024, below
-the solver's tolerance, while every step costs more with every cell (a typed nx = 100000 would run for
-days)."""
+the solver's tolerance, while every step costs more with every cell (nx = 100000 typed for hertz.toml's
+64: 6.4 million cells, minutes per step)."""
 SURFACE_POINTS = 2**22
 """Body heights evaluated at most by the check that a periodic grid's body has a surface over every cell
 (:func:`surface_gaps`): the grid at the start and at steps spread over the path."""
@@ -165,7 +166,7 @@ def _penetration(scene, radii, lowest, compliance: float, widths) -> float:
         per_length = load if scene.grid.line else load / (2 * (widths[1] if math.isfinite(rx) else widths[0]))
         a = math.sqrt(4 * per_length * radius * compliance / math.pi)
         return a * a / radius
-    radius = math.sqrt(rx * ry)
+    radius = math.sqrt(rx) * math.sqrt(ry)  # not rx * ry: radii up to 1e308 m (a nearly flat body)
     a = (3 * load * radius * compliance / 4) ** (1 / 3)
     return a * a / radius
 
@@ -447,7 +448,7 @@ def check(scene, ranks: int = 1) -> Preflight:
 def check_run(scene) -> Preflight:
     """The checks a run makes before step 1: :func:`check` (a body that never touches refused); SceneError
     (naming the [grid] key) below LEAST_CELLS cells per contact half-width unless [grid] allow_coarse =
-    true; SceneError for a path that leaves the grid (naming [grid] x or y; under load control with the
+    true, and above MOST_CELLS (:meth:`Preflight.too_fine`); SceneError for a path that leaves the grid (naming [grid] x or y; under load control with the
     glassy penetration, the least the run will have); a warning (PetrollWarning, one line) where a contact
     half-width has fewer than GOOD_CELLS cells along an axis, or where under load control the rubbery
     contact would leave the grid (the run may stop there as its contact creeps)."""
