@@ -233,8 +233,8 @@ def _relaxed(f: np.ndarray, e1: np.ndarray, einf) -> tuple[float | None, str, fl
     if einf is not None:
         if (isinstance(einf, bool) or not isinstance(einf, (int, float))
                 or not MAGNITUDES[0] <= einf <= MAGNITUDES[1]):
-            raise DMAError(f"--einf {einf!r}: must be a number from {MAGNITUDES[0]:g} to {MAGNITUDES[1]:g} (Pa), "
-                           "or \"data\"")
+            raise DMAError(f"--einf {einf!r}: must be a finite number > 0 (Pa), from {MAGNITUDES[0]:g} to "
+                           f"{MAGNITUDES[1]:g}, or \"data\"")
         return float(einf), "given (--einf)", EXTEND_DECADES
     flat = plateau(f, e1)
     if flat is None:
