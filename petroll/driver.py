@@ -19,9 +19,8 @@ import numpy as np
 from mpi4py import MPI
 
 from petroll.errors import PetrollError, SceneError, SolverError, reason
-from petroll.io.checkpoint import (RunInterrupted, checkpoint_dir, fingerprint, remove_foreign_checkpoints,
-                                   run_directory)
-from petroll.io.checkpoint_writer import write_checkpoint
+from petroll.io.checkpoint import RunInterrupted, checkpoint_dir, fingerprint, run_directory
+from petroll.io.checkpoint_writer import remove_foreign_checkpoints, write_checkpoint
 from petroll.io.results import OutputError, Results, ResultsFile, results_identity
 from petroll.io.rundir import DirectoryBusy, RunLock, clean_temporaries
 from petroll.model.preflight import check_run

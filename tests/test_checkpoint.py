@@ -676,8 +676,8 @@ def test_without_parallel_hdf5_rank_0_writes_the_same_files_and_restarts_bitwise
 def test_remove_foreign_checkpoints_removes_only_those_it_read_as_another_runs(tmp_path, monkeypatch):
     """Issue 35: a checkpoint it fails to open (here a passing read error, OSError EIO), or finds damaged
     by its seal, is not known to be another run's and stays; one read as another run's goes; ours stay."""
-    from petroll.io import checkpoint as module
-    from petroll.io.checkpoint import remove_foreign_checkpoints
+    from petroll.io import checkpoint_writer as module
+    from petroll.io.checkpoint_writer import remove_foreign_checkpoints
 
     run(make_scene(raw_scene(output={"checkpoint_every": 2, "keep": 10})), MPI.COMM_SELF, tmp_path / "run")
     found = list_checkpoints(tmp_path / "run" / "checkpoints")

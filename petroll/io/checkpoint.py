@@ -222,34 +222,6 @@ def _plain(value):
     return value
 
 
-def _is(value, text: str) -> bool:
-    """``value`` (an attribute read back, of any type: a damaged file's may be an array) is the string
-    ``text``."""
-    return isinstance(value, str) and value == text
-
-
-def remove_foreign_checkpoints(directory: str | pathlib.Path, run_id: str) -> list[pathlib.Path]:
-    """Remove the checkpoints in ``directory`` of other runs than ``run_id``: once this run's results.h5 is
-    in their directory, theirs is gone and they can no longer continue anything. Only files read as
-    checkpoints (attribute format) whose run id differs are removed: one that cannot be read now (damaged,
-    or a passing read error) is not known to be another run's, and is kept. One process (rank 0).
-    Returns them."""
-    removed = []
-    for path in list_checkpoints(directory):
-        try:
-            if seal_broken(path):
-                raise CheckpointError("damaged")  # not opened: HDF5 can crash on a damaged file
-            with h5py.File(path, "r") as f:
-                kept = not _is(_plain(f.attrs.get("format")), FORMAT) or _is(_plain(f.attrs.get("run_id", "")), run_id)
-        except Exception:  # noqa: BLE001 - h5py reports a read failure as OSError, RuntimeError, KeyError, ...
-            kept = True  # not known to be another run's
-        if not kept:
-            with contextlib.suppress(OSError):
-                path.unlink()
-                removed.append(path)
-    return removed
-
-
 def fingerprint(scene) -> str:
     """A digest of the material (and its layer) and of the body's heights on the grid: what a restart must
     find unchanged even when it comes from files ([material] file, [body] file) that the scene text only
@@ -478,7 +450,7 @@ def _load(path: pathlib.Path) -> dict:
     try:
         with h5py.File(path, "r") as f:
             attrs = {k: _plain(v) for k, v in f.attrs.items()}
-            if not _is(attrs.get("format"), FORMAT):
+            if not (isinstance(attrs.get("format"), str) and attrs["format"] == FORMAT):  # any type if damaged
                 what = ("a petroll results file" if "series" in f and "fields" in f and "state" not in f
                         else "an HDF5 file")
                 raise CheckpointError(f"{path}: not a petroll checkpoint ({what} without the attribute "
