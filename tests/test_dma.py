@@ -14,6 +14,7 @@ import warnings
 
 import numpy as np
 import pytest
+from mpi4py import MPI
 
 import petroll
 from petroll.cli import main
@@ -329,7 +330,10 @@ def test_dma_values_beyond_double_precision_are_refused_in_one_line_without_warn
         warnings.simplefilter("error")
         code, _, err = cli_main(["material", "fit", str(tmp_path / "t.csv"), "--shift", "wlf:8.86,101.6,293.15"])
     said = [text for text in err.splitlines() if text.strip()]
-    assert code == 2 and len(said) == 1, err
+    assert code == 2
+    if MPI.COMM_WORLD.rank:  # rank 0 fits and says why not
+        return
+    assert len(said) == 1, err
     assert said[0].startswith(f"petroll: error: {tmp_path / 't.csv'}, line {header + 4}: ") and allowed in said[0]
 
 
