@@ -145,7 +145,9 @@ def _material_fit(args: argparse.Namespace) -> None:
     from petroll.plot import plot_fit, plot_shifts  # matplotlib imported only when drawing
 
     shift = dma.parse_shift(args.shift) if args.shift else None
-    data = dma.read_dma(args.csv, shift, args.tolerance)
+    columns = dma.parse_mapping("--columns", args.columns, "NAME") if args.columns else None
+    units = dma.parse_mapping("--units", args.units, "UNIT") if args.units else None
+    data = dma.read_dma(args.csv, shift, args.tolerance, columns, units)
     einf = "data" if args.einf_from_data else args.einf
     fit = dma.fit_prony(data.reduced, data.storage, data.loss, args.terms, args.per_decade, args.nu, einf)
     text = dma.material_toml(fit, data.shift, args.csv, data.T_ref)

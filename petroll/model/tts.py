@@ -22,6 +22,15 @@ temperature wanders by tenths of a kelvin and each row is at its recorded temper
 moves every row by the first pass's law from its set's mean temperature to its own, and finds the shifts
 again.
 
+**Standard errors.** A pair's shift is a function of its two sets' rows; linearised about the shift found
+(Gauss-Newton: the slopes of the other set's cubic at the compared rows, and each cubic's own dependence
+on its set's rows), its change with every row's log10 E' and log10 E'' is known, and each row scatters
+by its set's scatter about its cubic (for that modulus). That gives each shift's variance, and the
+covariance of neighbouring shifts (they share a set), from which the variance of every set's log10 a_T
+follows along the chain to T_ref (its dependence on the shifts taken through the PCHIP law that sets it
+to 0 at T_ref). A standard error above SIGMA_WARN is reported as a warning. The scatter includes what a
+cubic misses of the curve's shape, so exact data still get a (small) error.
+
 WLF (C1, C2 about T_ref) and Arrhenius (Ea) are fitted to the factors by least squares
 (``scipy.optimize.least_squares``; Arrhenius is linear in Ea); their residuals say how well each law
 describes the material. Temperatures in K, shifts in decades.
@@ -51,6 +60,18 @@ PASSES = 2
 
 MIN_ROWS = 5
 """The fewest rows (at 4 different frequencies or more) of a set whose shift is to be found."""
+
+SIGMA_WARN = 0.1
+"""A set's log10 a_T whose standard error exceeds this (decades) is warned of: the master curve is blurred
+there by more than a tenth of a decade of time."""
+
+FLOOR = 1e-6
+"""A scatter (decades of modulus) no measurement reaches (exact synthetic data): the least one taken."""
+
+RESOLUTION = 2e-3
+"""The method's own error (decades), added in quadrature to each set's standard error: on noise-free
+synthetic sweeps the factors err by 0.8e-3 (polymer) to 3e-3 (rubber, 6 sets from T_ref), and near T_ref
+the table law's interpolation to T_ref errs by a few 1e-4 where the noise adds nothing."""
 
 
 @dataclass(frozen=True)
@@ -86,11 +107,35 @@ class LawFit:
 
 
 @dataclass(frozen=True)
+class PairShift:
+    """The shift of one pair of neighbouring sets (:func:`pair_shift`): ``d`` (decades), the overlap it
+    leaves (decades), the misfit there, and, for its standard error, the change of d with each row's
+    log10 E' and log10 E'' (``colder_gradient``, ``warmer_gradient``: shape (2, rows), E' then E'') and
+    the two sets' scatters about their cubics (``colder_scatter``, ``warmer_scatter``: E', E'';
+    decades)."""
+
+    d: float
+    overlap: float
+    misfit: float
+    colder_gradient: np.ndarray
+    warmer_gradient: np.ndarray
+    colder_scatter: np.ndarray
+    warmer_scatter: np.ndarray
+
+    @property
+    def variance(self) -> float:
+        """Var(d), decades^2, from the rows' scatters (module docstring)."""
+        return float(np.sum((self.colder_gradient * self.colder_scatter[:, None]) ** 2)
+                     + np.sum((self.warmer_gradient * self.warmer_scatter[:, None]) ** 2))
+
+
+@dataclass(frozen=True)
 class ShiftFit:
-    """Shift factors found from the data: per set (by increasing temperature) its mean temperature (K) and
-    log10 a_T (0 at T_ref); per pair of neighbours the shift between them, the overlap it leaves (decades)
-    and the misfit there (:func:`pair_shift`); the tabulated law through the factors, WLF and Arrhenius
-    fitted to them, and log10 a_T of every row at its own temperature."""
+    """Shift factors found from the data: per set (by increasing temperature) its mean temperature (K),
+    log10 a_T (0 at T_ref) and its standard error (decades, chained to T_ref); per pair of neighbours the
+    shift between them, its standard error, the overlap it leaves (decades) and the misfit there
+    (:func:`pair_shift`); the tabulated law through the factors, WLF and Arrhenius fitted to them, and
+    log10 a_T of every row at its own temperature."""
 
     T_ref: float
     labels: tuple[str, ...]
@@ -103,6 +148,19 @@ class ShiftFit:
     wlf: LawFit
     arrhenius: LawFit
     row_log10_aT: tuple[np.ndarray, ...]  # each set's rows at their own temperatures (the last pass's law)
+    sigma: np.ndarray  # standard error of each set's log10_aT, decades
+    shift_sigma: np.ndarray  # standard error of each pair's shift, decades
+
+    def warnings(self) -> list[str]:
+        """One line if any set's log10 a_T has a standard error above SIGMA_WARN, else none."""
+        over = np.flatnonzero(self.sigma > SIGMA_WARN)
+        if over.size == 0:
+            return []
+        sets = ", ".join(f"{self.labels[k]} ({self.temperatures[k]:.2f} K: {self.sigma[k]:.2g})" for k in over)
+        return [f"the shift factors of {over.size} of {len(self.labels)} sets have a standard error above "
+                f"{SIGMA_WARN:g} decade (chained to T_ref = {self.T_ref:g} K from each pair's overlap): {sets}; "
+                "the master curve is blurred there (noisy or flat data, little overlap, or sets far from "
+                "T_ref)"]
 
 
 def find_shifts(sets: list[Isotherm], T_ref: float) -> ShiftFit:
@@ -125,17 +183,47 @@ def find_shifts(sets: list[Isotherm], T_ref: float) -> ShiftFit:
     offsets = [np.zeros(len(s.frequency)) for s in sets]
     for _ in range(PASSES):
         pairs = [pair_shift(a, b, da, db) for a, b, da, db in zip(sets, sets[1:], offsets, offsets[1:])]
-        chained = np.concatenate([[0.0], -np.cumsum([p[0] for p in pairs])])
+        chained = np.concatenate([[0.0], -np.cumsum([p.d for p in pairs])])
         nodes, values = _nodes(temperatures, chained)
         law = PchipInterpolator(nodes, values, extrapolate=True)
         offsets = [law(s.row_temperature) - law(s.temperature) for s in sets]
     log10_aT = chained - float(law(T_ref))
     nodes, values = _nodes(temperatures, log10_aT)
     table = materials.TableShift(tuple(float(t) for t in nodes), tuple(float(v) for v in values))
-    shifts, overlaps, misfits = (np.array(column) for column in zip(*pairs))
+    shifts, overlaps, misfits = (np.array([getattr(p, name) for p in pairs]) for name in ("d", "overlap",
+                                                                                          "misfit"))
+    covariance = _shift_covariance(pairs)
+    chain = _chain_jacobian(temperatures, shifts, T_ref)
+    sigma = np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", chain, covariance, chain), 0.0) + RESOLUTION**2)
     laws = fit_wlf(temperatures, log10_aT, T_ref), fit_arrhenius(temperatures, log10_aT, T_ref)
     return ShiftFit(float(T_ref), tuple(s.label for s in sets), temperatures, log10_aT, shifts, overlaps,
-                    misfits, table, *laws, tuple(value + offset for value, offset in zip(log10_aT, offsets)))
+                    misfits, table, *laws, tuple(value + offset for value, offset in zip(log10_aT, offsets)),
+                    sigma, np.sqrt(np.diag(covariance)))
+
+
+def _shift_covariance(pairs: list[PairShift]) -> np.ndarray:
+    """The covariance of the pairs' shifts (decades^2): each its own variance, and neighbours through the
+    set they share (the warmer set of one is the colder of the next)."""
+    covariance = np.diag([p.variance for p in pairs])
+    for k, (a, b) in enumerate(zip(pairs, pairs[1:])):
+        shared = float(np.sum(a.warmer_gradient * b.colder_gradient * (a.warmer_scatter ** 2)[:, None]))
+        covariance[k, k + 1] = covariance[k + 1, k] = shared
+    return covariance
+
+
+def _chain_jacobian(temperatures: np.ndarray, shifts: np.ndarray, T_ref: float) -> np.ndarray:
+    """d log10_aT (each set) / d shift (each pair): the chain from the coldest set, less the PCHIP law's
+    value at T_ref (by central differences of 1e-6 decade; the law is smooth in its values)."""
+
+    def factors(d: np.ndarray) -> np.ndarray:
+        chained = np.concatenate([[0.0], -np.cumsum(d)])
+        nodes, values = _nodes(temperatures, chained)
+        return chained - float(PchipInterpolator(nodes, values, extrapolate=True)(T_ref))
+
+    step = 1e-6
+    columns = [(factors(shifts + step * e) - factors(shifts - step * e)) / (2 * step)
+               for e in np.eye(len(shifts))]
+    return np.array(columns).T
 
 
 def _nodes(temperatures: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -150,19 +238,20 @@ def _cubic(x: np.ndarray, y: np.ndarray) -> tuple[np.poly1d, float]:
     return cubic, math.sqrt(np.sum((y - cubic(x)) ** 2) / max(len(x) - 4, 1))
 
 
-def pair_shift(colder: Isotherm, warmer: Isotherm, colder_offset=0.0, warmer_offset=0.0):
-    """(d, overlap, misfit): the shift of ``colder`` onto ``warmer``, d = log10 a_T(colder) - log10
-    a_T(warmer), by least squares on their overlap (module docstring), the overlap it leaves (decades) and
-    the rms of the weighted differences there (about 1 where the sets superpose within their scatter). The
-    offsets (decades) move each row's log10 f first. DMAError when the best shift leaves too little
-    overlap."""
+def pair_shift(colder: Isotherm, warmer: Isotherm, colder_offset=0.0, warmer_offset=0.0) -> PairShift:
+    """The shift of ``colder`` onto ``warmer``, d = log10 a_T(colder) - log10 a_T(warmer), by least squares
+    on their overlap (module docstring), the overlap it leaves (decades), the rms of the weighted
+    differences there (about 1 where the sets superpose within their scatter) and what its standard error
+    needs (:class:`PairShift`). The offsets (decades) move each row's log10 f first. DMAError when the
+    best shift leaves too little overlap."""
     xa = np.log10(colder.frequency) + colder_offset
     xb = np.log10(warmer.frequency) + warmer_offset
     ya = np.log10([colder.storage, colder.loss])
     yb = np.log10([warmer.storage, warmer.loss])
     ca, cb = [_cubic(xa, y) for y in ya], [_cubic(xb, y) for y in yb]
-    floor = 1e-6  # decades: a scatter no measurement reaches (exact synthetic data)
-    weights = np.array([1 / (max(a[1], floor) ** 2 + max(b[1], floor) ** 2) for a, b in zip(ca, cb)])
+    scatter_a = np.array([max(c[1], FLOOR) for c in ca])
+    scatter_b = np.array([max(c[1], FLOOR) for c in cb])
+    weights = 1 / (scatter_a**2 + scatter_b**2)
     least = MIN_OVERLAP * min(np.ptp(xa), np.ptp(xb))
     lo, hi = xb.min() - xa.max() + least, xb.max() - xa.min() - least
 
@@ -189,7 +278,38 @@ def pair_shift(colder: Isotherm, warmer: Isotherm, colder_offset=0.0, warmer_off
                             method="bounded", options={"xatol": 1e-6})
     d = float(found.x)
     overlap = min(xa.max() + d, xb.max()) - max(xa.min() + d, xb.min())
-    return d, float(overlap), math.sqrt(float(objective(d)[0]))
+    gradient_a, gradient_b = _shift_gradient(xa, xb, d, ca, cb, weights)
+    return PairShift(d, float(overlap), math.sqrt(float(objective(d)[0])), gradient_a, gradient_b, scatter_a,
+                     scatter_b)
+
+
+def _shift_gradient(xa, xb, d: float, ca, cb, weights) -> tuple[np.ndarray, np.ndarray]:
+    """(dd/dya, dd/dyb), shape (2, rows) each: the change of the shift found with each row's log10 modulus,
+    linearised (Gauss-Newton) about d. The colder rows compared with the warmer's cubic have residuals
+    r1 = ya - Vb(xa + d) Pb yb, the warmer's with the colder's cubic r2 = yb - Va(xb - d) Pa ya (V: the
+    cubic's powers at those abscissae, P: the least-squares projection onto a set's cubic); d makes
+    sum_m w_m (J1.r1 + J2.r2) vanish, J = dr/dd, so dd = -sum_m w_m (J1.dr1 + J2.dr2) / H with
+    H = sum_m w_m (|J1|^2 + |J2|^2)."""
+    ina = (xa + d >= xb.min()) & (xa + d <= xb.max())
+    inb = (xb - d >= xa.min()) & (xb - d <= xa.max())
+    project_a, project_b = np.linalg.pinv(np.vander(xa, 4)), np.linalg.pinv(np.vander(xb, 4))
+    at_b, at_a = np.vander(xa[ina] + d, 4), np.vander(xb[inb] - d, 4)  # where each is read off the other
+    numerators_a, numerators_b, curvature = [], [], 0.0
+    for w, (pa, _), (pb, _) in zip(weights, ca, cb):
+        j1 = -np.polyder(pb)(xa[ina] + d)  # dr1/dd
+        j2 = np.polyder(pa)(xb[inb] - d)  # dr2/dd
+        curvature += w * (j1 @ j1 + j2 @ j2)
+        grad_a = np.zeros(len(xa))
+        grad_a[ina] += j1
+        grad_a -= (at_a @ project_a).T @ j2
+        grad_b = np.zeros(len(xb))
+        grad_b[inb] += j2
+        grad_b -= (at_b @ project_b).T @ j1
+        numerators_a.append(w * grad_a)
+        numerators_b.append(w * grad_b)
+    if not curvature > 0:  # flat data on both sides: the shift is not determined
+        return np.full((2, len(xa)), np.inf), np.full((2, len(xb)), np.inf)
+    return -np.array(numerators_a) / curvature, -np.array(numerators_b) / curvature
 
 
 def fit_wlf(T: np.ndarray, log10_aT: np.ndarray, T_ref: float) -> LawFit:
