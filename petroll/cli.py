@@ -149,8 +149,8 @@ def _material_fit(args: argparse.Namespace) -> None:
     units = dma.parse_mapping("--units", args.units, "UNIT") if args.units else None
     data = dma.read_dma(args.csv, shift, args.tolerance, columns, units)
     einf = "data" if args.einf_from_data else args.einf
-    fit = dma.fit_prony(data.reduced, data.storage, data.loss, args.terms, args.per_decade, args.nu, einf)
-    text = dma.material_toml(fit, data.shift, args.csv, data.T_ref)
+    fit, warnings = dma.fit_dma(data, args.terms, args.per_decade, args.nu, einf)
+    text = dma.material_toml(fit, data.shift, args.csv, data.T_ref, warnings, data.found)
     report = sys.stdout
     if args.out:
         out = pathlib.Path(args.out)
@@ -179,6 +179,8 @@ def _material_fit(args: argparse.Namespace) -> None:
         raise dma.DMAError(f"--plot {png}: cannot write it ({exc.strerror})") from None
     print(dma.report(data, fit) + f" Block: {args.out or 'printed above'}; plot: "
           f"{', '.join(str(p) for p in drawn) or 'none (--plot PNG draws one)'}", file=report)
+    for line in warnings:  # also in the block, as comments
+        print(f"petroll: warning: {line}", file=sys.stderr)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -280,10 +280,10 @@ def _read_columns(path: pathlib.Path, mapping: dict[str, str], units: dict[str, 
     stated = {}
     if rows and not any(_is_number(field) for field in rows[0][1]):  # a units row
         unit_line, unit_fields = rows.pop(0)
-        if len(unit_fields) != len(names):
+        if len(unit_fields) > len(names):
             raise DMAError(f"{path}, line {unit_line}: a units row of {len(unit_fields)} fields for the "
                            f"{len(names)} columns; must be {ALLOWED}")
-        stated = {k: (unit_fields[k].strip().strip("[]").strip(), unit_line) for k in range(len(names))}
+        stated = {k: (field.strip().strip("[]").strip(), unit_line) for k, field in enumerate(unit_fields)}
     if len(rows) < 2:
         raise DMAError(f"{path}: {len(rows)} data row(s); a fit needs at least 2; must be {ALLOWED}")
     used = {}
@@ -373,23 +373,35 @@ def _value(path, line: int, name: str, field: str, unit: str):
         value *= UNITS["storage" if name == "loss" else name][unit]
     if not 0 < value < math.inf:
         shown = f" {unit}" if unit != COLUMNS[name] else ""
+        hint = ("; if the column is in degrees Celsius, say so in a units row under the header (C) or with "
+                "--units temperature=C" if name == "temperature" and unit == "K" and math.isfinite(value)
+                else f"; the file must be {ALLOWED}")
         raise DMAError(f"{path}, line {line}: {name} = {field.strip()!r}{shown}: must be a finite number > 0 "
-                       f"({COLUMNS[name]}); the file must be {ALLOWED}")
+                       f"({COLUMNS[name]}){hint}")
     return value
 
 
 def _likely_units(raw: np.ndarray, einf_raw: float | None = None) -> list[str]:
     """The units in which the numbers ``raw`` (as written) would be plausible storage moduli (PLAUSIBLE):
-    at most 1 TPa, and their relaxed modulus (``einf_raw``, or their least) at least 1 kPa."""
+    at most 1 TPa, and their relaxed modulus (``einf_raw``, or their least) at least 1 kPa; the likeliest
+    first: the one that puts the relaxed modulus nearest 0.1 ... 100 MPa and the largest nearest 1 MPa
+    ... 10 GPa (rubbers and polymers, from their rubbery to their glassy state), in decades."""
     low, high = PLAUSIBLE["storage"]
     least = raw.min() if einf_raw is None else einf_raw
-    return [u for u, factor in UNITS["storage"].items() if low <= least * factor and raw.max() * factor <= high]
+
+    def off(value: float, lo: float, hi: float) -> float:
+        return max(math.log10(lo / value), math.log10(value / hi), 0.0)
+
+    fits = [(off(least * f, 1e5, 1e8) + off(raw.max() * f, 1e6, 1e10), u) for u, f in UNITS["storage"].items()
+            if low <= least * f and raw.max() * f <= high]
+    return [u for _, u in sorted(fits)]
 
 
 def _unit_hint(units: list[str]) -> str:
     if not units:
         return ""
-    return (f"; likely in {' or '.join(units)}: state the unit in a units row under the header or with "
+    other = f" (or {' or '.join(units[1:])})" if len(units) > 1 else ""
+    return (f"; likely in {units[0]}{other}: state the unit in a units row under the header or with "
             f"--units storage={units[0]},loss={units[0]}")
 
 
@@ -447,6 +459,100 @@ def group_sets(path, lines: list[int], frequency: np.ndarray, temperature: np.nd
     return tuple(sets)
 
 
+RMS_BOUND, MAX_BOUND = 0.03, 0.15
+"""The fit's relative error warned of: rms above 3 % (three times a DMA's usual 1 % scatter) or the largest
+above 15 % (five times that)."""
+
+WLF_RANGE = {"C1": (1.0, 60.0), "C2": (10.0, 400.0)}
+"""WLF constants within which a law is physical. WLF's 'universal' constants at Tg are C1 = 17.44 and
+C2 = 51.6 K (Williams, Landel and Ferry, J. Am. Chem. Soc. 77, 3701, 1955), the law holding from Tg to
+about Tg + 100 K (IUPAC Gold Book, 'WLF equation'); referred to another T_ref, C2 = C2g + T_ref - Tg and
+C1 = C1g C2g / C2. Constants 3 times smaller or larger than the universal ones at Tg, referred to any
+T_ref from Tg - 5 K to Tg + 350 K, stay within these ranges; constants beyond them describe no polymer:
+a degenerate fit (C1 and C2 growing together make the law a straight line, Arrhenius-like) or a law
+fitted to too few or noisy factors."""
+
+RIPPLE = 1e-3
+"""A fitted E'' that goes up and down between two neighbouring data frequencies by more than this
+(decades: 0.23 %) while the data there are monotone is warned of as a ripple of the Maxwell terms."""
+
+RIPPLE_WINDOW = 2
+"""Points on each side of a gap whose log10 E'' must be monotone (with the gap's two) for the data to be
+smooth there."""
+
+
+def fit_dma(data: DMAData, terms: int | None = None, per_decade: float | None = None, nu: float = 0.5,
+            einf: float | str | None = None) -> tuple[PronyFit, list[str]]:
+    """The Prony fit of ``data`` (:func:`fit_prony` on the reduced frequencies) and its warnings
+    (:func:`fit_warnings`). DMAError when the relaxed modulus is below 1 kPa (PLAUSIBLE), naming the
+    unit the data are likely in."""
+    fit = fit_prony(data.reduced, data.storage, data.loss, terms, per_decade, nu, einf)
+    low = PLAUSIBLE["storage"][0]
+    if fit.Einf < low:
+        name, unit = (data.columns or {}).get("storage", ("storage", "Pa"))
+        factor = UNITS["storage"][unit]
+        raise DMAError(f"{data.source}: the relaxed modulus Einf = {fit.Einf:.4g} Pa ({fit.einf_how}) is below "
+                       f"{low:g} Pa, softer than any solid petroll can roll on, with storage ({name!r}) in "
+                       f"{unit}" + _unit_hint(_likely_units(data.storage / factor, fit.Einf / factor)))
+    return fit, fit_warnings(data, fit)
+
+
+def fit_warnings(data: DMAData, fit: PronyFit) -> list[str]:
+    """One line for each thing the user should look at: the fit's error beyond RMS_BOUND or MAX_BOUND, a
+    WLF law (given, or fitted to the factors found) beyond WLF_RANGE, ripples of E'' (:func:`ripples`),
+    shift factors with a standard error above tts.SIGMA_WARN."""
+    lines = []
+    if fit.rms_error > RMS_BOUND or fit.max_error > MAX_BOUND:
+        lines.append(f"the fit's relative error (rms {100 * fit.rms_error:.3g} %, max {100 * fit.max_error:.3g} "
+                     f"%) exceeds {100 * RMS_BOUND:g} % rms or {100 * MAX_BOUND:g} % max: check the units, the "
+                     "shift (sets that do not superpose) and the data's scatter, or fix the density "
+                     "(--per-decade)")
+    laws = [("the shift law given", data.shift)] if isinstance(data.shift, materials.WLF) else []
+    if data.found is not None and data.found.wlf.law is not None:
+        laws.append(("WLF fitted to the factors found", data.found.wlf.law))
+    for what, law in laws:
+        bad = [f"{name} = {getattr(law, name):.4g}" for name, (lo, hi) in WLF_RANGE.items()
+               if not lo <= getattr(law, name) <= hi]
+        if bad:
+            ranges = ", ".join(f"{name} {lo:g} ... {hi:g}" for name, (lo, hi) in WLF_RANGE.items())
+            lines.append(f"{what} is degenerate: {', '.join(bad)}, beyond the physical ranges ({ranges} K; "
+                         "docs/materials.md): the factors do not determine it (a straight line in T, or too "
+                         "few or noisy factors)")
+    found = ripples(data, fit)
+    if found:
+        bump, lo, hi = found[0]
+        lines.append(f"the fitted E'' ripples between neighbouring data frequencies where the data are "
+                     f"monotone: {len(found)} gap(s), the largest {100 * (10**bump - 1):.2g} % at {lo:.4g} ... "
+                     f"{hi:.4g} Hz (too few terms: --per-decade {2 * fit.per_decade:g}, or more data there)")
+    if data.found is not None:
+        lines += data.found.warnings()
+    return lines
+
+
+def ripples(data: DMAData, fit: PronyFit) -> list[tuple[float, float, float]]:
+    """(bump in decades, lower and upper frequency in Hz) of every gap between neighbouring reduced
+    frequencies (rows within 1e-6 decade merged, their log10 E'' averaged) where the fit's log10 E''
+    rises above or falls below both ends by more than RIPPLE, though the data's log10 E'' is monotone over
+    the gap and RIPPLE_WINDOW points on each side; largest first."""
+    x, y = np.log10(data.reduced), np.log10(data.loss)
+    order = np.argsort(x, kind="stable")
+    x, y = x[order], y[order]
+    group = np.cumsum(np.concatenate([[True], np.diff(x) > 1e-6])) - 1
+    count = np.bincount(group)
+    x, y = np.bincount(group, x) / count, np.bincount(group, y) / count
+    inside = np.linspace(0.0, 1.0, 17)
+    found = []
+    for i in range(len(x) - 1):
+        step = np.diff(y[max(i - RIPPLE_WINDOW, 0):i + 2 + RIPPLE_WINDOW])
+        if not (np.all(step > 0) or np.all(step < 0)):
+            continue
+        z = np.log10(fit.dynamic(10 ** (x[i] + inside * (x[i + 1] - x[i])))[1])
+        bump = max(z.max() - max(z[0], z[-1]), min(z[0], z[-1]) - z.min())
+        if bump > RIPPLE:
+            found.append((float(bump), float(10 ** x[i]), float(10 ** x[i + 1])))
+    return sorted(found, reverse=True)
+
+
 def parse_shift(text: str):
     """A shift law from ``wlf:C1,C2,T_ref``, ``arrhenius:Ea,T_ref`` or a TOML file's [material] shift, or
     :class:`AutoShift` from ``auto:T_ref``."""
@@ -481,9 +587,11 @@ def parse_shift(text: str):
         raise DMAError(f"--shift {text}: {exc}") from None
 
 
-def material_toml(fit: PronyFit, shift=None, source: str | None = None, T_ref: float | None = None) -> str:
+def material_toml(fit: PronyFit, shift=None, source: str | None = None, T_ref: float | None = None,
+                  warnings=(), found: tts.ShiftFit | None = None) -> str:
     """The [material] block of ``fit`` as TOML, with comment lines saying where it comes from; with a
-    shift law, at ``T_ref`` (K, default the law's)."""
+    shift law, at ``T_ref`` (K, default the law's); each of ``warnings`` as a comment line "# warning:
+    ..."; with shift factors ``found`` from the data, their standard errors as a comment line."""
     lo, hi = fit.frequency_range
     where = f" from {source}" if source else ""
     if shift is not None and T_ref is None:
@@ -492,28 +600,49 @@ def material_toml(fit: PronyFit, shift=None, source: str | None = None, T_ref: f
     head = (f"# Generalized Maxwell series fitted by petroll material fit{where}: {len(fit.moduli)} terms\n"
             f"# (of {fit.candidates} candidate times), to E', E'' over {lo:.4g} ... {hi:.4g} Hz{at}; "
             f"relative error rms {100 * fit.rms_error:.3g} %, max {100 * fit.max_error:.3g} %.\n")
+    if found is not None:
+        head += ("# The shift factors' standard errors (decades of log10 a_T; each pair's overlap, chained to "
+                 "T_ref), per set:\n"
+                 f"#   T = {[round(float(t), 4) for t in found.temperatures]}\n"
+                 f"#   log10_aT_error = {[float(f'{s:.3g}') for s in found.sigma]}\n")
+    head += "".join(f"# warning: {line}\n" for line in warnings)
     return head + dumps({"material": fit.table(shift, T_ref)})
+
+
+def describe_columns(data: DMAData) -> str:
+    """How the table's columns were read, where that is not petroll's own format (other names, units or
+    columns ignored); "" otherwise."""
+    used = data.columns or {}
+    own = all(name == column and unit == COLUMNS[column] for column, (name, unit) in used.items())
+    if own and not data.ignored:
+        return ""
+    read = ", ".join(f"{name!r} as {column}" + ("" if column == "set" else f" ({unit})")
+                     for column, (name, unit) in used.items())
+    ignored = f"; ignored: {', '.join(repr(n) for n in data.ignored)}" if data.ignored else ""
+    return f"columns read: {read} (converted to Hz, Pa, K){ignored}."
 
 
 def describe_sets(data: DMAData) -> str:
     """The sets of ``data`` as a table of text lines: label, rows, mean temperature, spread, frequencies;
-    with factors found from the data, each set's log10 a_T, and the shift to the next set, the overlap it
-    leaves and the misfit there (tts.pair_shift)."""
+    with factors found from the data, each set's log10 a_T and its standard error (+-, decades, chained
+    to T_ref), and the shift to the next set, its standard error, the overlap it leaves and the misfit
+    there (tts.pair_shift)."""
     how = ("the set column" if data.tolerance is None else
            f"temperatures within {data.tolerance:g} K of their neighbours")
     found = data.found
     head = f"  {'set':>8} {'rows':>5} {'T (K)':>9} {'spread (K)':>10}   {'frequency (Hz)':<17}"
     if found is not None:
-        head += f" {'log10 a_T':>10} {'to next':>8} {'overlap':>8} {'misfit':>7}"
+        head += f" {'log10 a_T':>10} {'+-':>6} {'to next':>8} {'+-':>6} {'overlap':>8} {'misfit':>7}"
     lines = [f"{len(data.sets)} sets ({how}):", head.rstrip()]
     for k, s in enumerate(data.sets):
         f = data.frequency[s.rows]
         line = (f"  {s.label:>8} {len(s.rows):5d} {s.temperature:9.2f} {s.spread:10.3f}   "
                 f"{f'{f.min():.4g} ... {f.max():.4g}':<17}")
         if found is not None:
-            line += f" {found.log10_aT[k]:10.3f}"
+            line += f" {found.log10_aT[k]:10.3f} {found.sigma[k]:6.3f}"
             if k < len(found.shifts):
-                line += f" {found.shifts[k]:8.3f} {found.overlaps[k]:8.2f} {found.misfits[k]:7.2f}"
+                line += (f" {found.shifts[k]:8.3f} {found.shift_sigma[k]:6.3f} {found.overlaps[k]:8.2f} "
+                         f"{found.misfits[k]:7.2f}")
         lines.append(line.rstrip())
     return "\n".join(lines)
 
@@ -522,6 +651,9 @@ def report(data: DMAData, fit: PronyFit) -> str:
     """What ``petroll material fit`` says (lines starting ``petroll:``): the sets, the shift factors found
     and the laws fitted to them, and the fit's size and error."""
     lines = []
+    read = describe_columns(data)
+    if read:
+        lines.append(f"petroll: {data.source}: {read}")
     if data.temperature is not None:
         lines.append("petroll: " + describe_sets(data))
     if data.found is not None:

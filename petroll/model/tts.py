@@ -156,7 +156,8 @@ class ShiftFit:
         over = np.flatnonzero(self.sigma > SIGMA_WARN)
         if over.size == 0:
             return []
-        sets = ", ".join(f"{self.labels[k]} ({self.temperatures[k]:.2f} K: {self.sigma[k]:.2g})" for k in over)
+        sets = ", ".join(f"set {self.labels[k]} ({self.temperatures[k]:.2f} K: {self.sigma[k]:.2g})"
+                         for k in over)
         return [f"the shift factors of {over.size} of {len(self.labels)} sets have a standard error above "
                 f"{SIGMA_WARN:g} decade (chained to T_ref = {self.T_ref:g} K from each pair's overlap): {sets}; "
                 "the master curve is blurred there (noisy or flat data, little overlap, or sets far from "
