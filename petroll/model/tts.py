@@ -23,8 +23,9 @@ moves every row by the first pass's law from its set's mean temperature to its o
 again.
 
 **Standard errors.** A pair's shift is a function of its two sets' rows; linearised about the shift found
-(Gauss-Newton: the slopes of the other set's cubic at the compared rows, and each cubic's own dependence
-on its set's rows), its change with every row's log10 E' and log10 E'' is known, and each row scatters
+(the derivative of the implicit function: the slopes and curvatures of the other set's cubic at the
+compared rows, and each cubic's own dependence on its set's rows), its change with every row's log10 E'
+and log10 E'' is known, and each row scatters
 by its set's scatter about its cubic (for that modulus). That gives each shift's variance, and the
 covariance of neighbouring shifts (they share a set), from which the variance of every set's log10 a_T
 follows along the chain to T_ref (its dependence on the shifts taken through the PCHIP law that sets it
@@ -279,38 +280,46 @@ def pair_shift(colder: Isotherm, warmer: Isotherm, colder_offset=0.0, warmer_off
                             method="bounded", options={"xatol": 1e-6})
     d = float(found.x)
     overlap = min(xa.max() + d, xb.max()) - max(xa.min() + d, xb.min())
-    gradient_a, gradient_b = _shift_gradient(xa, xb, d, ca, cb, weights)
+    gradient_a, gradient_b = _shift_gradient(xa, xb, ya, yb, d, ca, cb, weights)
     return PairShift(d, float(overlap), math.sqrt(float(objective(d)[0])), gradient_a, gradient_b, scatter_a,
                      scatter_b)
 
 
-def _shift_gradient(xa, xb, d: float, ca, cb, weights) -> tuple[np.ndarray, np.ndarray]:
-    """(dd/dya, dd/dyb), shape (2, rows) each: the change of the shift found with each row's log10 modulus,
-    linearised (Gauss-Newton) about d. The colder rows compared with the warmer's cubic have residuals
-    r1 = ya - Vb(xa + d) Pb yb, the warmer's with the colder's cubic r2 = yb - Va(xb - d) Pa ya (V: the
-    cubic's powers at those abscissae, P: the least-squares projection onto a set's cubic); d makes
-    sum_m w_m (J1.r1 + J2.r2) vanish, J = dr/dd, so dd = -sum_m w_m (J1.dr1 + J2.dr2) / H with
-    H = sum_m w_m (|J1|^2 + |J2|^2)."""
+def _shift_gradient(xa, xb, ya, yb, d: float, ca, cb, weights) -> tuple[np.ndarray, np.ndarray]:
+    """(dd/dya, dd/dyb), shape (2, rows) each: the change of the shift found with each row's log10 modulus
+    (the implicit function's derivative). The colder rows compared with the warmer's cubic have residuals
+    r1 = ya - pb(xa + d), the warmer's with the colder's r2 = yb - pa(xb - d), pa and pb the least-squares
+    cubics of the rows (linear in them: the coefficients P y, P the projection); d makes
+    g = sum_m w_m (J1.r1 + J2.r2) vanish, J = dr/dd (J1 = -pb'(xa + d), J2 = pa'(xb - d)), so
+    dd/dy = -(dg/dy) / (dg/dd), both taken exactly (with the cubics' slopes and curvatures)."""
     ina = (xa + d >= xb.min()) & (xa + d <= xb.max())
     inb = (xb - d >= xa.min()) & (xb - d <= xa.max())
+    u, v = xa[ina] + d, xb[inb] - d  # where each set's rows are read off the other's cubic
     project_a, project_b = np.linalg.pinv(np.vander(xa, 4)), np.linalg.pinv(np.vander(xb, 4))
-    at_b, at_a = np.vander(xa[ina] + d, 4), np.vander(xb[inb] - d, 4)  # where each is read off the other
-    numerators_a, numerators_b, curvature = [], [], 0.0
-    for w, (pa, _), (pb, _) in zip(weights, ca, cb):
-        j1 = -np.polyder(pb)(xa[ina] + d)  # dr1/dd
-        j2 = np.polyder(pa)(xb[inb] - d)  # dr2/dd
-        curvature += w * (j1 @ j1 + j2 @ j2)
+    value_b, value_a = np.vander(u, 4) @ project_b, np.vander(v, 4) @ project_a  # p(x) = value @ y
+    slope_b = np.hstack([np.vander(u, 3) * [3.0, 2.0, 1.0], np.zeros((len(u), 1))]) @ project_b  # p'(x)
+    slope_a = np.hstack([np.vander(v, 3) * [3.0, 2.0, 1.0], np.zeros((len(v), 1))]) @ project_a
+    dg_dd, dg_da, dg_db = 0.0, [], []
+    for w, y_a, y_b, (pa, sa), (pb, sb) in zip(weights, ya, yb, ca, cb):
+        r1, r2 = y_a[ina] - pb(u), y_b[inb] - pa(v)
+        j1, j2 = -np.polyder(pb)(u), np.polyder(pa)(v)
+        dg_dd += w * (j1 @ j1 - np.polyder(pb, 2)(u) @ r1 + j2 @ j2 - np.polyder(pa, 2)(v) @ r2)
         grad_a = np.zeros(len(xa))
         grad_a[ina] += j1
-        grad_a -= (at_a @ project_a).T @ j2
+        grad_a += slope_a.T @ r2 - value_a.T @ j2
         grad_b = np.zeros(len(xb))
         grad_b[inb] += j2
-        grad_b -= (at_b @ project_b).T @ j1
-        numerators_a.append(w * grad_a)
-        numerators_b.append(w * grad_b)
-    if not curvature > 0:  # flat data on both sides: the shift is not determined
+        grad_b += -slope_b.T @ r1 - value_b.T @ j1
+        # the weight w = 1 / (sa^2 + sb^2) moves with the rows too: d(s^2)/dy = 2 (y - p(x)) / (rows - 4)
+        g = j1 @ r1 + j2 @ r2
+        for grad, s, y, p, x in ((grad_a, sa, y_a, pa, xa), (grad_b, sb, y_b, pb, xb)):
+            if s > FLOOR:
+                grad -= w * g * 2 * (y - p(x)) / max(len(x) - 4, 1)
+        dg_da.append(w * grad_a)
+        dg_db.append(w * grad_b)
+    if not dg_dd > 0:  # not a minimum the data determine
         return np.full((2, len(xa)), np.inf), np.full((2, len(xb)), np.inf)
-    return -np.array(numerators_a) / curvature, -np.array(numerators_b) / curvature
+    return -np.array(dg_da) / dg_dd, -np.array(dg_db) / dg_dd
 
 
 def fit_wlf(T: np.ndarray, log10_aT: np.ndarray, T_ref: float) -> LawFit:
