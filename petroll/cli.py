@@ -22,8 +22,10 @@
                             --steady: steady solves; bench sliding --ranks/--sides: the rough solve's memory
                             per rank
     petroll material fit DMA.csv [--terms N | --per-decade K] [--nu NU] [--shift LAW|auto:T_REF]
-                            [--tolerance K] [--einf E | --einf-from-data] [--out FILE.toml]
-                            a Prony series fitted to DMA data: the [material] block (docs/materials.md)
+                            [--tolerance K] [--einf E | --einf-from-data] [--columns C=NAME,...]
+                            [--units C=UNIT,...] [--out FILE.toml]
+                            a Prony series fitted to DMA data (petroll's CSV, or as pyvisco and
+                            instruments export it): the [material] block (docs/materials.md)
 
 Options that argparse does not know are handed to PETSc's options database. A user mistake (bad scene,
 unreachable load, solver failure) prints one line ``petroll: error: ...`` and exits with status 2 (a bad
