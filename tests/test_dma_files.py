@@ -150,6 +150,7 @@ GOOD = "frequency,storage,loss\n0.1,2e6,1e5\n1,2.5e6,3e5\n10,3e6,6e5\n"
     ("f,E' (MPa),E''\nHz,Pa,Pa\n1,2e6,1e5\n2,2e6,1e5\n", [], None, "units 'Pa', 'MPa' disagree"),
     (GOOD, ["--columns", "storage=E1"], 1, "--columns storage=E1: no such column"),
     (GOOD, ["--units", "stiffness=MPa"], None, "'stiffness' is not one of frequency, storage, loss"),
+    (GOOD, ["--units", "temperature=C"], None, "--units temperature=C: the table has no temperature column"),
     ("frequency,storage,loss\nHz,MPa,MPa\n0.1,2e6,1e5\n1,2.5e6,3e5\n", [], 4,
      "storage ('storage', MPa) = 2.5e+12 Pa: above 1e+12 Pa, stiffer than any solid (diamond: 1.1e12 Pa); "
      "likely in Pa (or kPa): state the unit in a units row under the header or with --units "
@@ -159,7 +160,7 @@ GOOD = "frequency,storage,loss\n0.1,2e6,1e5\n1,2.5e6,3e5\n10,3e6,6e5\n"
     ("f,E_stor,E_loss,T\n1,2,0.1,-20\n2,2.5,0.3,-20\n", ["--shift", "wlf:8.86,101.6,293.15"], 2,
      "temperature = '-20': must be a finite number > 0 (K); if the column is in degrees Celsius"),
 ], ids=["shear", "unknown", "two-frequencies", "millipascal", "units-disagree", "no-such-column",
-        "bad-option", "terapascal", "celsius-as-kelvin", "negative-kelvin"])
+        "bad-option", "absent-unit", "terapascal", "celsius-as-kelvin", "negative-kelvin"])
 def test_what_cannot_be_read_is_refused_with_one_line(comm, shared_dir, capsys, content, argv, line, allowed):
     tmp_path = shared_dir
     on_rank0(comm, lambda: write(tmp_path / "bad.csv", content))

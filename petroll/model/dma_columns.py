@@ -142,6 +142,10 @@ def read_columns(path: pathlib.Path, mapping: dict[str, str], units: dict[str, s
         stated = {k: (field.strip().strip("[]").strip(), unit_line) for k, field in enumerate(unit_fields)}
     if len(rows) < 2:
         raise DMAError(f"{path}: {len(rows)} data row(s); a fit needs at least 2; must be {ALLOWED}")
+    absent = [column for column in units if column not in chosen]
+    if absent:
+        raise DMAError(f"{path}: --units {absent[0]}={units[absent[0]]}: the table has no {absent[0]} column "
+                       f"(its columns: {', '.join(chosen)})")
     used = {}
     for column, (k, kind) in chosen.items():
         given = [(u, line, what) for u, line, what in (
