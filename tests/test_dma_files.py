@@ -113,7 +113,7 @@ def test_one_table_in_every_dialect_reads_the_same(tmp_path, variant):
                   f"{2 * np.pi * f!r}\t{a / 1e6!r}\t{b / 1e6!r}\t{T - 273.15!r}\t{b / a!r}\n"
                   for f, a, b, T in ROWS))
     elif variant == "eplexor":
-        write(tmp_path / "t.csv", "f,E',E'',|E*|,tan delta,T\nHz,MPa,MPa,MPa,-,\u00b0C\n" + "".join(
+        write(tmp_path / "t.csv", "f,E',E'',|E*|,tan(delta),T\nHz,MPa,MPa,MPa,-,\u00b0C\n" + "".join(
             f"{f!r},{a / 1e6!r},{b / 1e6!r},{np.hypot(a, b) / 1e6!r},{b / a!r},{T - 273.15!r}\n"
             for f, a, b, T in ROWS))
     elif variant == "semicolons":
@@ -133,7 +133,7 @@ def test_one_table_in_every_dialect_reads_the_same(tmp_path, variant):
     for name in ("frequency", "storage", "loss", "temperature", "reduced"):
         np.testing.assert_allclose(getattr(got, name), getattr(expected, name), rtol=1e-12, err_msg=name)
     if variant in ("trios-tabs", "eplexor"):
-        assert "tan delta" in got.ignored
+        assert {"tan delta", "tan(delta)"} & set(got.ignored)
     if variant == "columns":
         assert got.ignored == ("Notiz",)
 

@@ -74,8 +74,11 @@ def parse_mapping(option: str, text: str, values: str) -> dict[str, str]:
 
 
 def _name_and_unit(header: str) -> tuple[str, str | None]:
-    """A header field as (name, unit in it or None): ``E' (MPa)`` or ``Frequency [Hz]`` -> (E', MPa)."""
+    """A header field as (name, unit in it or None): ``E' (MPa)`` or ``Frequency [Hz]`` -> (E', MPa); a
+    name recognised whole (``tan(delta)``) is kept whole."""
     text = header.strip()
+    if _recognised(text) is not None:
+        return text, None
     for open_, close in (("(", ")"), ("[", "]")):
         if text.endswith(close) and open_ in text:
             name, _, unit = text[:-1].rpartition(open_)
