@@ -264,9 +264,11 @@ def fit_warnings(data: DMAData, fit: PronyFit) -> list[str]:
     found = ripples(data, fit)
     if found:
         bump, lo, hi = found[0]
+        denser = (f"--per-decade {2 * fit.per_decade:g}" if math.isfinite(fit.per_decade) else
+                  f"--terms {2 * fit.candidates}")
         lines.append(f"the fitted E'' ripples between neighbouring data frequencies where the data are "
                      f"monotone: {len(found)} gap(s), the largest {100 * (10**bump - 1):.2g} % at {lo:.4g} ... "
-                     f"{hi:.4g} Hz (too few terms: --per-decade {2 * fit.per_decade:g}, or more data there)")
+                     f"{hi:.4g} Hz (too few terms: {denser}, or more data there)")
     if data.found is not None:
         lines += data.found.warnings()
     return lines
@@ -334,7 +336,7 @@ def material_toml(fit: PronyFit, shift=None, source: str | None = None, T_ref: f
                   warnings=(), found: tts.ShiftFit | None = None) -> str:
     """The [material] block of ``fit`` as TOML, with comment lines saying where it comes from; with a
     shift law, at ``T_ref`` (K, default the law's); each of ``warnings`` as a comment line "# warning:
-    ..."; with shift factors ``found`` from the data, their standard errors as a comment line."""
+    ..."; with shift factors ``found`` from the data, their standard errors as comment lines."""
     lo, hi = fit.frequency_range
     where = f" from {source}" if source else ""
     if shift is not None and T_ref is None:

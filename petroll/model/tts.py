@@ -22,15 +22,15 @@ temperature wanders by tenths of a kelvin and each row is at its recorded temper
 moves every row by the first pass's law from its set's mean temperature to its own, and finds the shifts
 again.
 
-**Standard errors.** A pair's shift is a function of its two sets' rows; linearised about the shift found
-(the derivative of the implicit function: the slopes and curvatures of the other set's cubic at the
-compared rows, and each cubic's own dependence on its set's rows), its change with every row's log10 E'
-and log10 E'' is known, and each row scatters
-by its set's scatter about its cubic (for that modulus). That gives each shift's variance, and the
-covariance of neighbouring shifts (they share a set), from which the variance of every set's log10 a_T
-follows along the chain to T_ref (its dependence on the shifts taken through the PCHIP law that sets it
-to 0 at T_ref). A standard error above SIGMA_WARN is reported as a warning. The scatter includes what a
-cubic misses of the curve's shape, so exact data still get a (small) error.
+**Standard errors.** A pair's shift is a function of its two sets' rows. Its derivative with respect to
+each row's log10 E' and log10 E'' (the implicit function's: the slopes and curvatures of the other set's
+cubic at the compared rows, each cubic's own dependence on its set's rows, and the weights' dependence on
+the scatters), with each row scattering by its set's scatter about its cubic (for that modulus), gives
+each shift's variance and the covariance of neighbouring shifts (they share a set); from them follows
+the variance of every set's log10 a_T along the chain to T_ref (its dependence on the shifts taken
+through the PCHIP law that sets it to 0 at T_ref), to which RESOLUTION is added in quadrature. A standard
+error above SIGMA_WARN is warned of. The scatter includes what a cubic misses of the curve's shape, so
+exact data still get a small error.
 
 WLF (C1, C2 about T_ref) and Arrhenius (Ea) are fitted to the factors by least squares
 (``scipy.optimize.least_squares``; Arrhenius is linear in Ea); their residuals say how well each law
