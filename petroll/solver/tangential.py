@@ -163,8 +163,8 @@ class DiskResult:
 
 
 def project(q: np.ndarray, g: np.ndarray) -> np.ndarray:
-    """Each cell's traction q[:, I] put on its disk |q_I| <= g_I (radially)."""
-    norm = np.sqrt(np.einsum("ij,ij->j", q, q))
+    """Each cell's traction q[:, I] put on its disk |q_I| <= g_I (radially); q of shape (m,) + g's."""
+    norm = np.sqrt((q * q).sum(axis=0))
     scale = np.where(norm > g, g / np.where(norm > 0, norm, 1.0), 1.0)
     return q * scale
 
