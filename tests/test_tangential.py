@@ -193,3 +193,317 @@ def test_the_inverse_block_circulant_is_symmetric_positive_definite_and_close_to
         scalar = Convolution(love_coefficients(15, 10, dx, dy), nx, ny, comm, inverse=True, torus=(15, 10))
         v = np.random.default_rng(1).standard_normal((2, nx, ny))[:, r0:r1]
         assert np.abs(inverse(v)[0] - scalar(v[0])).max() <= 1e-12 * np.abs(scalar(v[0])).max()
+
+
+# -- the tangential QP on the friction disks -----------------------------------------------------------------
+
+def hertz_grid(n: int, margin: int = 4, line: bool = False):
+    """A grid with n cells per contact radius (half-width) a = 1 and ``margin`` cells around the contact."""
+    from petroll.model.grid import Grid, line_grid
+
+    half = 1.0 + margin / n
+    if line:
+        return line_grid(2 * (n + margin), -half, half)
+    return Grid(2 * (n + margin), 2 * (n + margin), -half, half, -half, half)
+
+
+def hertz_pressure(grid, r0, r1, centre=0.0, p0=1.0):
+    """Hertz's pressure p0 sqrt(1 - r^2) (a = 1; line contact: sqrt(1 - x^2)) at this rank's cell centres."""
+    x = grid.x[r0:r1, None] - centre
+    r2 = x * x if grid.line else x * x + grid.y[None, :] ** 2
+    return p0 * np.sqrt(np.clip(1 - r2, 0.0, None))
+
+
+def total(comm, field, grid):
+    return comm.allreduce(float(field.sum())) * grid.cell_area
+
+
+def dense_tangential_qp(q0, g, b, c):
+    """The reference: the QP min 1/2 q^T C q + b^T q, |q_I| <= g_I by projected block Gauss-Seidel on the
+    dense matrix C (each cell's 2 x 2 diagonal block is a multiple of the identity, so its exact minimiser
+    with the others held is the projection of the unconstrained one onto its disk), swept to round-off."""
+    n = len(g)
+    q = q0.copy()
+    for sweep in range(20000):
+        biggest = 0.0
+        for i in range(n):
+            r = c[[i, n + i]] @ q + b[[i, n + i]]
+            trial = q[[i, n + i]] - r / c[i, i]
+            norm = math.hypot(*trial)
+            new = trial * (min(1.0, g[i] / norm) if norm > 0 else 1.0)
+            biggest = max(biggest, abs(new - q[[i, n + i]]).max())
+            q[[i, n + i]] = new
+        if biggest <= 1e-15 * max(g):
+            return q
+    raise AssertionError("the reference did not converge")
+
+
+@pytest.mark.parametrize("nu", [0.0, 0.3])
+def test_the_disk_qp_equals_a_dense_projected_gauss_seidel(comm, nu):
+    """The distributed projected CG's tractions on a small Hertz contact under a rigid slip with a spin part
+    (traction directions turning across the contact) equal a dense projected block Gauss-Seidel's."""
+    from petroll.solver.tangential import TangentialSolver
+
+    grid = hertz_grid(4, 1)
+    solver = TangentialSolver(grid, comm, nu, 0.5, tol=1e-12)
+    r0, r1 = solver.r0, solver.r1
+    mu, p = 0.3, hertz_pressure(grid, r0, r1)
+    x, y = grid.x[:, None], grid.y[None, :]
+    rigid = np.stack(np.broadcast_arrays(0.02 - 0.05 * y, 0.01 + 0.05 * x)) * solver.compliance
+    found = solver.solve(mu * p, rigid[:, r0:r1])
+    c = solver.compliance * dense_block(grid.nx, grid.ny, grid.dx, grid.dy, nu)
+    g = (mu * hertz_pressure(grid, 0, grid.nx)).ravel()
+    expected = dense_tangential_qp(np.zeros(2 * g.size), g, rigid.reshape(-1), c).reshape(2, grid.nx, grid.ny)
+    assert np.abs(found.traction - expected[:, r0:r1]).max(initial=0.0) <= 1e-8 * mu
+    assert comm.allreduce(int(found.stick.sum())) > 0 and comm.allreduce(int((~found.stick & (p > 0)).sum())) > 0
+
+
+CATTANEO = {0.2: (3.3e-3, 1.4e-2), 0.5: (2.4e-3, 1.7e-2), 0.875: (2.1e-3, 1.7e-2)}
+"""Q/(mu P): the measured relative errors (shift, stick radius) at 16 cells per contact radius, nu = 0.3."""
+
+
+@pytest.mark.parametrize("ratio", sorted(CATTANEO))
+def test_cattaneo_mindlin_shift_and_stick_radius(comm, ratio):
+    """A rigid sphere shifted from rest by a tangential force Q < mu P in one step (force control: the
+    shift is the constraint's multiplier): the shift 3 mu P (2 - nu)/(16 G a) (1 - (1 - Q/(mu P))^(2/3))
+    and the stick radius a (1 - Q/(mu P))^(1/3) (Johnson 1985, 7.3; sqrt(stick area/pi), the stick area
+    the cells with |q| < mu p) within 2 % at 16 cells per contact radius (measured: CATTANEO); P the
+    cell-centred pressure's force. The traction on the body opposes the shift (+x for a force -Q)."""
+    from petroll.solver.friction import Stepping
+    from petroll.solver.tangential import TangentialSolver
+
+    nu, shear, mu = 0.3, 2.0, 0.3
+    grid = hertz_grid(16)
+    solver = TangentialSolver(grid, comm, nu, 1 / (2 * shear), tol=1e-10)
+    p = hertz_pressure(grid, solver.r0, solver.r1, p0=5.0)
+    force = total(comm, p, grid)
+    stepping = Stepping(solver)
+    solution = stepping.shift(mu * p, force=[-ratio * mu * force, 0.0])
+    shift = 3 * mu * force * (2 - nu) / (16 * shear) * (1 - (1 - ratio) ** (2 / 3))
+    assert stepping.shift_total[0] == pytest.approx(shift, rel=1.5 * CATTANEO[ratio][0])
+    assert abs(stepping.shift_total[1]) <= 1e-9 * shift
+    stick = comm.allreduce(int(solution.stick.sum())) * grid.cell_area
+    assert math.sqrt(stick / math.pi) == pytest.approx((1 - ratio) ** (1 / 3), rel=min(2e-2, 1.3 * CATTANEO[ratio][1]))
+    assert solution.force == pytest.approx([-ratio * mu * force, 0.0], abs=1e-9 * force)
+
+
+def test_a_body_of_the_same_material_doubles_the_shift_and_steps_add_up(comm):
+    """Quasi-identical bodies of one material: the compliance doubles, the tractions do not change and the
+    shift doubles (Johnson: twice the rigid sphere's). Loading in four steps to the same force ends where one
+    step does (monotonic loading: the slip annulus only grows; to 2e-4 of the shift, measured 6e-5: the
+    discrete slip directions differ by their small y components)."""
+    from petroll.solver.friction import Stepping
+    from petroll.solver.tangential import TangentialSolver
+
+    grid = hertz_grid(8)
+    results = []
+    for compliance, steps in ((0.25, 1), (0.5, 1), (0.25, 4)):
+        solver = TangentialSolver(grid, comm, 0.3, compliance, tol=1e-11)
+        p = hertz_pressure(grid, solver.r0, solver.r1)
+        q_total = 0.6 * 0.3 * total(comm, p, grid)
+        stepping = Stepping(solver)
+        for k in range(1, steps + 1):
+            solution = stepping.shift(0.3 * p, force=[-q_total * k / steps, 0.0])
+        results.append((stepping.shift_total[0], solution.traction))
+    assert results[1][0] == pytest.approx(2 * results[0][0], rel=1e-8)
+    assert np.abs(results[1][1] - results[0][1]).max(initial=0.0) <= 1e-8 * 0.3
+    assert results[2][0] == pytest.approx(results[0][0], rel=2e-4)
+
+
+def carter(x, frac, mu_p0):
+    """Carter's steady traction (a = 1) at the creepage |xi| R/(mu a) = frac < 1 (negative creepage, rolling
+    towards +x: the stick zone of half-width c = 1 - frac at the leading edge)."""
+    c = 1 - frac
+    outer = np.sqrt(np.clip(1 - x * x, 0.0, None))
+    inner = c * np.sqrt(np.clip(1 - ((x - (1 - c)) / c) ** 2, 0.0, None))
+    return mu_p0 * (outer - inner)
+
+
+CARTER = {0.1: (5.8e-3, 2.2e-3), 0.3: (6.0e-3, 4.8e-3), 0.6: (6.4e-3, 4.3e-3), 0.9: (4.4e-3, 4.3e-3)}
+"""|xi| R/(mu a): the measured creep force error and L1 traction error (over mu P) at 16 cells per half-width,
+order 2."""
+
+
+@pytest.mark.parametrize("frac", sorted(CARTER))
+def test_carter_creep_force_and_tractions(comm, frac):
+    """Line contact, a rigid cylinder (R = 100 a) rolling steadily on a nu = 1/2 half-space (no coupling),
+    the Hertz pressure at the cell centres, creepage xi = -frac mu a/R: the creep force
+    Q/(mu P) = 1 - (1 - frac)^2 and the tractions (L1 error over mu P) within 1 % at 16 cells per
+    half-width (measured: CARTER; the traction at the cell across the stick zone's trailing edge, where
+    Carter's traction has a square-root kink, is 2-3 % off)."""
+    from petroll.solver.friction import SteadyRolling
+    from petroll.solver.tangential import TangentialSolver
+
+    nu, shear, radius, mu = 0.5, 1.0, 100.0, 0.3
+    grid = hertz_grid(16, margin=16, line=True)
+    compliance = (1 - nu) / (2 * shear)
+    force = math.pi / (4 * radius * compliance)
+    p0 = 2 * force / math.pi
+    solver = TangentialSolver(grid, comm, nu, 1 / (2 * shear), tol=1e-10)
+    p = hertz_pressure(grid, solver.r0, solver.r1, p0=p0)
+    steady = SteadyRolling(solver, 0, 1).solve(mu * p, creepage=(-frac * mu / radius, 0.0))
+    discrete = total(comm, p, grid)
+    assert steady.solution.force[0] / (mu * discrete) == pytest.approx(1 - (1 - frac) ** 2, rel=1e-2)
+    exact = carter(grid.x[solver.r0 : solver.r1, None], frac, mu * p0)
+    l1 = total(comm, np.abs(steady.solution.traction[0] - exact), grid) / (mu * discrete)
+    assert l1 <= 1e-2
+    assert l1 <= 1.3 * CARTER[frac][1]
+
+
+@pytest.mark.parametrize("nu", [0.0, 0.25, 0.5])
+def test_kalkers_linear_creep_coefficients_of_a_circular_contact(comm, nu):
+    """Two bodies of one material (compliance 1/G) rolling steadily along +x at small creepage (mu p0 10^3
+    times G xi: adhesion but for the trailing edge): F_x = -G a^2 C11 xi, F_y = -G a^2 (C22 eta + a C23 phi)
+    within 3 % of Kalker's Table E.3 (Three-dimensional elastic bodies in rolling contact, 1990; a/b = 1:
+    C11 = 3.40, 4.12, 5.20, C22 = 3.40, 3.67, 3.98, C23 = 1.33, 1.47, 1.63 at nu = 0, 0.25, 0.5) at 16 cells
+    per radius (measured: within -0.3 % to -1.1 %)."""
+    from petroll.solver.friction import SteadyRolling
+    from petroll.solver.tangential import TangentialSolver
+
+    table = {0.0: (3.40, 3.40, 1.33), 0.25: (4.12, 3.67, 1.47), 0.5: (5.20, 3.98, 1.63)}[nu]
+    shear, mu = 1.0, 1.0
+    grid = hertz_grid(16)
+    solver = TangentialSolver(grid, comm, nu, 1 / shear, tol=1e-9)
+    p = hertz_pressure(grid, solver.r0, solver.r1)
+    rolling = SteadyRolling(solver, 0, 1)
+    creepage = 1e-3 * mu / shear
+    c11 = -rolling.solve(mu * p, creepage=(creepage, 0.0)).solution.force[0] / (shear * creepage)
+    c22 = -rolling.solve(mu * p, creepage=(0.0, creepage)).solution.force[1] / (shear * creepage)
+    c23 = -rolling.solve(mu * p, spin=creepage).solution.force[1] / (shear * creepage)
+    assert [c11, c22, c23] == pytest.approx(table, rel=3e-2)
+    assert [c11, c22, c23] == pytest.approx(table, rel=1.2e-2)
+
+
+def test_full_slip_at_large_creepage(comm):
+    """Beyond saturation every cell slips (stick area 0). Line contact: the traction is mu p against the
+    creepage everywhere, |F| = mu P exactly (to the solver's tolerance). 3-D: the displacements' own slip
+    turns each cell's slip a little off the rigid one, so |F| < mu P by an amount falling like the creepage
+    squared (measured 2.3e-4, 2.3e-6, 2.3e-8 at 1, 10, 100 times a creepage of 0.5 with mu p0 c = 0.2): it
+    tends to mu P. Under force control the QP refuses a force above mu P (the body slides) in one line."""
+    from petroll.errors import SolverError
+    from petroll.solver.friction import SteadyRolling, Stepping
+    from petroll.solver.tangential import TangentialSolver
+
+    mu = 0.4
+    for line, creepages in ((True, [(0.5, 0.0)]), (False, [(30.0, -40.0), (300.0, -400.0)])):
+        grid = hertz_grid(8, line=line)
+        solver = TangentialSolver(grid, comm, 0.3, 0.5, tol=1e-10)
+        p = hertz_pressure(grid, solver.r0, solver.r1)
+        force = total(comm, p, grid)
+        deficits = []
+        for creepage in creepages:
+            steady = SteadyRolling(solver, 0, 1).solve(mu * p, creepage=creepage)
+            direction = -np.asarray(creepage[: solver.m]) / np.linalg.norm(creepage[: solver.m])
+            assert comm.allreduce(int(steady.solution.stick.sum())) == 0
+            deficits.append(1 - np.linalg.norm(steady.solution.force) / (mu * force))
+            assert steady.solution.force @ direction == pytest.approx(np.linalg.norm(steady.solution.force),
+                                                                     rel=1e-5)
+        if line:
+            expected = mu * p[None] * direction[:, None, None]
+            assert np.abs(steady.solution.traction - expected).max(initial=0.0) <= 1e-9 * mu
+            assert abs(deficits[0]) <= 1e-9
+        else:
+            assert 0 < deficits[1] <= 1e-7 and deficits[0] / deficits[1] == pytest.approx(100, rel=0.05)
+        with pytest.raises(SolverError, match="exceeds the friction bound"):
+            Stepping(solver).shift(mu * p, force=1.001 * mu * force * direction)
+
+
+def test_steady_force_control_finds_the_creepage_of_creepage_control(comm):
+    """A steady solve at the force a creepage-controlled solve gave finds that creepage (and the same
+    tractions), spin included (the spin given, the creepage found)."""
+    from petroll.solver.friction import SteadyRolling
+    from petroll.solver.tangential import TangentialSolver
+
+    grid = hertz_grid(8)
+    solver = TangentialSolver(grid, comm, 0.3, 1.0, tol=1e-10)
+    p = hertz_pressure(grid, solver.r0, solver.r1)
+    rolling = SteadyRolling(solver, 1, -1)
+    given = rolling.solve(0.3 * p, creepage=(0.05, 0.08), spin=0.1, centre=(0.0, 0.0))
+    found = rolling.solve(0.3 * p, force=given.solution.force, spin=0.1, centre=(0.0, 0.0))
+    assert found.creepage == pytest.approx([0.05, 0.08], rel=1e-7)
+    assert np.abs(found.solution.traction - given.solution.traction).max(initial=0.0) <= 1e-7 * 0.3
+
+
+@pytest.mark.parametrize("control", ["force", "creepage"])
+def test_the_onset_of_rolling_from_a_cattaneo_shift_reaches_the_steady_state(control):
+    """A sphere shifted by Q = mu P/2 (Cattaneo), then rolled one cell a step along +x (BDF2 slip), at that
+    force (the creepage found each step) or at the steady state's creepage, against the steady state solved
+    directly (8 cells per radius). Force control: after two contact lengths the creepage and the traction
+    field are within 0.2 % (of the creepage, of mu p0; measured 0.007 % and 0.06 %). Creepage control:
+    the force approaches the steady one geometrically, by a factor of about 0.15 a contact length (the same
+    at 16 cells per radius: the elastic field's memory, not the grid's): within 1 % after two contact
+    lengths and 0.2 % after three (measured 0.68 % and 0.11 %). Under force control the tractions agree to
+    1e-4 mu p0 after three lengths and converge to the same discrete problem (measured 8e-6; 3e-7 after
+    four). Each rank runs it alone (COMM_SELF): 48 steps of small distributed FFTs cost a minute under
+    an oversubscribed mpirun; the ranks' agreement on rolling steps is test_two_ranks_agree_with_one's."""
+    comm = MPI.COMM_SELF
+    from petroll.model.grid import Grid
+    from petroll.solver.friction import SteadyRolling, Stepping
+    from petroll.solver.tangential import TangentialSolver
+
+    n, mu = 8, 0.3
+    dx = 1.0 / n
+    grid = Grid(6 * n + 2 * n + 8, 2 * n + 8, -1 - 4 * dx, -1 - 4 * dx + (8 * n + 8) * dx, -(n + 4) * dx,
+                (n + 4) * dx)
+    solver = TangentialSolver(grid, comm, 0.3, 1.0, tol=1e-10)
+
+    def bound(centre):
+        return mu * hertz_pressure(grid, solver.r0, solver.r1, centre)
+
+    force = np.array([-0.5 * total(comm, bound(0.0), grid), 0.0])
+    steady = SteadyRolling(solver, 0, 1).solve(bound(0.0), force=force)
+    stepping = Stepping(solver)
+    stepping.shift(bound(0.0), force=force)
+    for k in range(1, 6 * n + 1):
+        centre = k * dx
+        if control == "force":
+            solution = stepping.roll(bound(centre), (centre, 0.0), dx, (1.0, 0.0), force=force)
+            if k == 4 * n:  # two contact lengths
+                moved = stepping._moved(steady.solution.traction, centre, (1.0, 0.0))
+                assert stepping.creepage[0] == pytest.approx(steady.creepage[0], rel=2e-3)
+                assert np.abs(solution.traction - moved).max(initial=0.0) <= 2e-3 * mu
+        else:
+            solution = stepping.roll(bound(centre), (centre, 0.0), dx, (1.0, 0.0), creepage=steady.creepage)
+            if k in (4 * n, 6 * n):
+                assert solution.force[0] == pytest.approx(force[0], rel=1e-2 if k == 4 * n else 2e-3)
+    if control == "force":
+        moved = stepping._moved(steady.solution.traction, 6 * n * dx, (1.0, 0.0))
+        assert np.abs(solution.traction - moved).max(initial=0.0) <= 1e-4 * mu
+
+
+@pytest.mark.parallel
+def test_two_ranks_agree_with_one(comm):
+    """A shift, transient rolling steps and a steady solve (3-D with spin, force control; line contact) on
+    the rows split over 2 ranks against every rank's own COMM_SELF run: tractions within 1e-10 mu p0,
+    shift and creepage within 1e-10 relative."""
+    from petroll.model.grid import Grid
+    from petroll.solver.friction import SteadyRolling, Stepping
+    from petroll.solver.tangential import TangentialSolver
+
+    n = 6
+    dx = 1.0 / n
+    grid = Grid(5 * n, 2 * n + 6, -1 - 3 * dx, -1 - 3 * dx + 5 * n * dx, -(n + 3) * dx, (n + 3) * dx)
+    results = []
+    for c in (comm, MPI.COMM_SELF):
+        solver = TangentialSolver(grid, c, 0.3, 1.0, tol=1e-13)
+
+        def bound(centre):
+            return 0.3 * hertz_pressure(grid, solver.r0, solver.r1, centre)
+
+        force = np.array([-0.4 * total(c, bound(0.0), grid), 0.1 * total(c, bound(0.0), grid)])
+        stepping = Stepping(solver)
+        stepping.shift(bound(0.0), force=force)
+        for k in range(1, 4):
+            rolled = stepping.roll(bound(k * dx), (k * dx, 0.0), dx, (1.0, 0.0), spin=0.05, force=force)
+        steady = SteadyRolling(solver, 0, 1).solve(bound(0.0), force=force, spin=0.05)
+        fields = [rolled.traction, steady.solution.traction]
+        whole = [np.zeros((2, grid.nx, grid.ny)) for _ in fields]
+        for w, f in zip(whole, fields):
+            w[:, solver.r0 : solver.r1] = f
+            c.Allreduce(MPI.IN_PLACE, w, op=MPI.SUM)
+        results.append((whole, stepping.shift_total, stepping.creepage, steady.creepage))
+    (many, *values), (one, *alone) = results
+    for a, b in zip(many, one):
+        assert np.abs(a - b).max() <= 1e-10 * 0.3
+    for a, b in zip(values, alone):
+        assert np.asarray(a) == pytest.approx(np.asarray(b), rel=1e-10, abs=1e-20)

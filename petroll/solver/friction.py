@@ -37,6 +37,7 @@ import numpy as np
 from mpi4py import MPI
 
 from petroll.errors import SolverError
+from petroll.solver.partition import shift_field
 from petroll.solver.steady_friction import SteadyNewton
 from petroll.solver.tangential import TangentialSolution, TangentialSolver
 
@@ -51,6 +52,91 @@ def rigid_slip(x: np.ndarray, y: np.ndarray, creepage, spin: float, distance: fl
     ym = np.asarray(y, dtype=float) + 0.5 * distance * direction[1]
     xm, ym = np.broadcast_arrays(xm, ym)
     return distance * np.stack([creepage[0] - spin * ym, creepage[1] + spin * xm])
+
+
+class Stepping:
+    """Shift and transient rolling step by step in the grid's frame (module docstring), with the tangential
+    ``solver``: the tractions of the last steps kept (this rank's rows), u' = c K q' recomputed on the box
+    that holds both the new contact and the old tractions (one convolution a step).
+
+    :meth:`shift`: a quasi-static step (rate-independent: first order, u' = the last step's u), the
+    body's rigid tangential displacement changed by ``increment`` or found from the force; ``shift``
+    accumulates it (m). :meth:`roll`: a rolling step; with ``order`` 2 (default) and a previous rolling
+    step, the slip rate is the second-order backward difference at the step's end (BDF2, variable steps:
+    du/dt = [a0 u^n - a1 u^(n-1) + a2 u^(n-2)]/dt, a0 = (1 + 2 r)/(1 + r), a1 = 1 + r, a2 = r^2/(1 + r),
+    r = dt_n/dt_(n-1)), written as the QP's form (dt/a0) w + u - (a1 u' - a2 u'')/a0 with the rigid slip
+    w taken at the step's end; first order otherwise (the slip of the step, w at the step's mean
+    position). A rolling run with one cell per step converges to :class:`SteadyRolling` of the same
+    order."""
+
+    def __init__(self, solver: TangentialSolver, order: int = 2):
+        if order not in (1, 2):
+            raise ValueError(f"order {order}: 1 or 2")
+        self.solver, self.order = solver, order
+        self.traction = solver.zeros()  # q^(n-1), Pa
+        self.older = None  # q^(n-2) when the last step was a rolling one (with its distance)
+        self.last_distance = None
+        self.shift_total = np.zeros(solver.m)  # the body's rigid tangential displacement of the shifts, m
+        self.creepage = np.zeros(solver.m)  # the last rolling step's (given or found)
+
+    def _previous(self, bound: np.ndarray, combination: np.ndarray) -> np.ndarray:
+        """c K ``combination`` (m) on this rank's rows, on the box of the new contact and the field."""
+        cells = (bound > 0) | np.any(combination != 0, axis=0)
+        return self.solver.displacement(combination, self.solver.box(cells))
+
+    def _moved(self, field: np.ndarray, distance: float, direction) -> np.ndarray:
+        """A tangential field moved with the body by ``distance`` along ``direction``, rounded to whole
+        cells (a warm start: steady rolling is stationary in the body's frame)."""
+        grid, solver = self.solver.grid, self.solver
+        di = int(round(distance * direction[0] / grid.dx))
+        dj = 0 if grid.line else int(round(distance * direction[1] / grid.dy))
+        if di == 0 and dj == 0:
+            return field
+        return np.stack([shift_field(f, di, dj, solver.rows, solver.comm) for f in field])
+
+    def shift(self, bound: np.ndarray, increment=None, force=None, tol: float | None = None) -> TangentialSolution:
+        """One quasi-static step on the traction bound ``bound`` (Pa, this rank's rows): the body shifted by
+        ``increment`` (m, an m-vector) relative to the half-space, or by the amount that makes the total
+        traction ``force`` (N; N/m in line contact; the force the half-space exerts on the body: it
+        opposes the shift)."""
+        solver = self.solver
+        previous = self._previous(bound, self.traction)
+        rigid = None
+        if force is None:
+            increment = np.zeros(solver.m) if increment is None else np.asarray(increment, dtype=float)
+            rigid = np.broadcast_to(increment[:, None, None], (solver.m, *solver.local_shape))
+        solution = solver.solve(bound, rigid, previous, self.traction, force, tol)
+        self.shift_total = self.shift_total + (solution.shift if force is not None else increment)
+        self.traction, self.older, self.last_distance = solution.traction, None, None
+        return solution
+
+    def roll(self, bound: np.ndarray, centre, distance: float, direction, creepage=(0.0, 0.0),
+             spin: float = 0.0, force=None, tol: float | None = None) -> TangentialSolution:
+        """One rolling step on the traction bound ``bound`` (Pa, this rank's rows): the body's reference
+        point now at ``centre`` (m), having rolled ``distance`` (m) > 0 along the unit vector ``direction``
+        over the step, at the creepage (xi, eta) and spin phi (1/m), or at the tangential ``force`` (N),
+        the creepage then found (``creepage`` attribute; the spin given). Returns the step's solution (its
+        ``slip``: the slip of the step, m; ``shift``: the uniform slip found under force control)."""
+        solver, grid = self.solver, self.solver.grid
+        x = grid.x[solver.r0 : solver.r1, None] - centre[0]
+        y = grid.y[None, :] - centre[1]
+        given = (0.0, 0.0) if force is not None else creepage
+        if self.order == 2 and self.older is not None:
+            r = distance / self.last_distance
+            a0, a1, a2 = (1 + 2 * r) / (1 + r), 1 + r, r * r / (1 + r)
+            combination = (a1 * self.traction - a2 * self.older) / a0
+            rigid = rigid_slip(x, y, given, spin, distance / a0)[: solver.m]
+            scale = distance / a0
+        else:  # first order: relative to the body the point moved from distance x direction ahead
+            combination = self.traction
+            rigid = rigid_slip(x, y, given, spin, distance, direction)[: solver.m]
+            scale = distance
+        warm = self._moved(self.traction, distance, direction)
+        solution = solver.solve(bound, rigid, self._previous(bound, combination), warm, force, tol)
+        self.creepage = (np.asarray(creepage, dtype=float)[: solver.m] if force is None
+                         else solution.shift / scale)
+        self.older, self.traction, self.last_distance = self.traction, solution.traction, distance
+        return solution
 
 
 @dataclass
