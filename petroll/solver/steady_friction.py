@@ -89,14 +89,25 @@ def gmres(matvec, precondition, rhs: np.ndarray, comm: MPI.Comm, tol: float, res
             k += 1
             if abs(e[k]) <= target or breakdown or applications >= max_iterations:
                 break
-        y = np.linalg.solve(np.triu(h[:k, :k]) + np.diag(np.where(np.diag(h[:k, :k]) == 0, 1.0, 0.0)), e[:k])
+        y = _back_substitute(h[:k, :k], e[:k])
         x = x + np.einsum("i,ij->j", y, zs[:k])
-        r = rhs - matvec(x)
+        if abs(e[k]) <= target or breakdown or applications >= max_iterations:
+            break  # converged by the recurrence's residual (exact but for round-off), or no better x
+        r = rhs - matvec(x)  # a restart: the true residual
         applications += 1
         beta = math.sqrt(max(float(dots(r[None], r)[0]), 0.0))
-        if breakdown:
-            break  # the Krylov space holds no better x
     return x, applications
+
+
+def _back_substitute(upper: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """y with upper y = rhs for an upper-triangular matrix (a zero pivot's unknown set to 0), without LAPACK
+    (whose threads slow small solves on a loaded node)."""
+    k = len(rhs)
+    y = np.zeros(k)
+    for i in range(k - 1, -1, -1):
+        pivot = upper[i, i]
+        y[i] = 0.0 if pivot == 0 else (rhs[i] - upper[i, i + 1 :] @ y[i + 1 :]) / pivot
+    return y
 
 
 @dataclass
@@ -147,9 +158,10 @@ class SteadyNewton:
         return out
 
     def run_solve(self, f: np.ndarray, on: np.ndarray) -> np.ndarray:
-        """(I - S_1)_II^-1 f on the cells I where ``on`` (f elsewhere): each cell's sum of f over itself and
-        the cells ahead of it in its run of ``on`` cells along the motion (for order 2 too: (I - S_2) =
-        (I - S_1)(I - S_1/3), whose second factor, with eigenvalues in [2/3, 4/3], GMRES resolves)."""
+        """An approximation of (I - S_k)_II^-1 f on the cells I where ``on`` (f elsewhere), I's runs along the
+        motion solved from their fronts: order 1 exactly (each cell's sum of f over itself and the cells
+        ahead of it in its run); order 2 as (I - S_1/3)^-1 (I - S_1)^-1 on the runs ((I - S_2) = (I - S_1)
+        (I - S_1/3)), the first factor's series cut after S_1^4/81."""
         mask = self.lines.from_grid(on.astype(float)) > 0.5
         n = mask.shape[1]
         index = np.broadcast_to(np.arange(n), mask.shape)
@@ -161,6 +173,14 @@ class SteadyNewton:
             total = np.zeros((lines.shape[0], n + 1))
             total[:, :n] = np.cumsum(np.where(mask, lines, 0.0)[:, ::-1], axis=1)[:, ::-1]
             sums = total[:, :n] - np.take_along_axis(total, stop, axis=1)
+            if self.order == 2:
+                term, series = sums, sums.copy()
+                for k in range(1, 5):
+                    ahead = np.zeros_like(term)
+                    ahead[:, :-1] = term[:, 1:]
+                    term = np.where(mask, ahead, 0.0) / 3.0
+                    series += term
+                sums = series
             out[c] = self.lines.to_grid(np.where(mask, sums, lines))
         return out
 
@@ -237,13 +257,15 @@ class SteadyNewton:
         """Newton's iterations from (q, w) until max |F| <= tol (and |sum q - total| <= tol sum g).
         Returns the last point and the Newton iterations."""
         at = self.point(q, w)
-        recent = [at.merit]
+        recent, forcing = [at.merit], 0.1
         for iteration in range(max_newton + 1):
             if at.largest <= tol:
                 return at, iteration
             if iteration == max_newton:
                 break
-            forcing = min(0.1, math.sqrt(at.largest))
+            if iteration:  # Eisenstat and Walker's choice 2: 0.9 (|F_k|/|F_k-1|)^2, safeguarded
+                forcing = min(0.1, max(0.9 * at.merit / recent[-2], 0.9 * forcing**2 if forcing > 0.1 else 0.0))
+            forcing = max(forcing, 0.5 * tol / max(at.largest, 1e-300))
             step, apps = gmres(self.jacobian(at), self.preconditioner(at), -self.pack(at.residual, at.force),
                                self.comm, forcing, replicated=self.k)
             self.applications += apps
