@@ -132,6 +132,8 @@ class Stepping:
             rigid = rigid_slip(x, y, given, spin, distance, direction)[: solver.m]
             scale = distance
         warm = self._moved(self.traction, distance, direction)
+        if self.older is not None and self.last_distance == distance:  # the body frame's trend, extrapolated
+            warm = 2 * warm - self._moved(self.older, 2 * distance, direction)
         solution = solver.solve(bound, rigid, self._previous(bound, combination), warm, force, tol)
         self.creepage = (np.asarray(creepage, dtype=float)[: solver.m] if force is None
                          else solution.shift / scale)
@@ -212,7 +214,7 @@ class SteadyRolling:
         b = solver.to_box(self.rigid(creepage, spin, centre), box) / s_ref
         newton = SteadyNewton(lambda v: conv(v) / k00, lambda v: pc(v) * k00, g / q_ref, b, self.comm, nx,
                               self.axis, self.sign, self.order, total)
-        q0 = np.zeros_like(b) if start is None else solver.to_box(start, box) / q_ref
+        q0 = None if start is None else solver.to_box(start, box) / q_ref
         at, iterations = newton.solve(q0, np.zeros(m), tol)
         self.applications += newton.applications
         q = at.q * q_ref

@@ -184,6 +184,65 @@ class SteadyNewton:
             out[c] = self.lines.to_grid(np.where(mask, sums, lines))
         return out
 
+    # -- a first guess: Kalker's simplified theory -------------------------------------------------------
+    def simplified(self) -> tuple[np.ndarray, np.ndarray]:
+        """A cold start (q, w): Kalker's simplified theory (FASTSIM's marching) on the window, the operator
+        replaced by a local flexibility, H v ~ v / lam: from the front of each line along the motion
+        q_t = P(a1 q_t+1 + a2 q_t+2 - (b + w)_t lam) (the disk's projection; a = (1, 0) or (4/3, -1/3)),
+        lam fitted by least squares to the operator's response to the unbounded march (one application);
+        under force control w found so that sum q = total (Newton on the marches, which need no
+        convolution)."""
+        q_free = self._march(-self.b, None)
+        v = self.apply(q_free - self.shifted(q_free))
+        self.applications += 1
+        vb, vv = self._sum_pair(np.vdot(v, self.b), np.vdot(v, v))
+        lam = -vv / vb if vb < 0 else 1.0  # b + v / lam ~ 0: the flexibility lam = 1/(its fit)
+        lam = 1.0 / lam if lam > 0 else 1.0
+        w = np.zeros(self.m)
+        if self.total is None:
+            return self._march(-self.b * lam, self.g), w
+        for _ in range(30):
+            q = self._march(-(self.b + w[:, None, None]) * lam, self.g)
+            error = self.sums(q) - self.total
+            if np.abs(error).max() <= 1e-12 * max(self.capacity, 1e-300):
+                break
+            jac = np.empty((self.m, self.m))
+            h = 1e-6 * (1.0 + np.abs(w).max())
+            for k in range(self.m):
+                dw = w.copy()
+                dw[k] += h
+                jac[:, k] = (self.sums(self._march(-(self.b + dw[:, None, None]) * lam, self.g)) - self.total
+                             - error) / h
+            step = np.linalg.lstsq(jac, -error, rcond=1e-12)[0]
+            w = w + step
+        return q, w
+
+    def _sum_pair(self, a: float, b: float) -> tuple[float, float]:
+        out = np.array([a, b], dtype=float)
+        self.comm.Allreduce(MPI.IN_PLACE, out, op=MPI.SUM)
+        return float(out[0]), float(out[1])
+
+    def _march(self, source: np.ndarray, bound: np.ndarray | None) -> np.ndarray:
+        """q from the front of each line: q_t = P(a1 q_t+1 + a2 q_t+2 + source_t) on the contact cells (the
+        disks of ``bound``; None: unbounded), 0 elsewhere."""
+        coefficients = (1.0, 0.0) if self.order == 1 else (4.0 / 3.0, -1.0 / 3.0)
+        inside = self.lines.from_grid(self.inside.astype(float)) > 0.5
+        src = np.stack([self.lines.from_grid(f) for f in source])
+        g = None if bound is None else self.lines.from_grid(bound)
+        q = np.zeros_like(src)
+        n = src.shape[2]
+        for t in range(n - 1, -1, -1):
+            value = src[:, :, t].copy()
+            if t + 1 < n:
+                value += coefficients[0] * q[:, :, t + 1]
+            if t + 2 < n:
+                value += coefficients[1] * q[:, :, t + 2]
+            if g is not None:
+                norm = np.sqrt((value * value).sum(axis=0))
+                value *= np.where(norm > g[:, t], g[:, t] / np.where(norm > 0, norm, 1.0), 1.0)
+            q[:, :, t] = np.where(inside[:, t], value, 0.0)
+        return np.stack([self.lines.to_grid(f) for f in q])
+
     # -- the residual and its Newton systems -----------------------------------------------------------
     def point(self, q: np.ndarray, w: np.ndarray) -> _Point:
         self.applications += 1
@@ -253,9 +312,11 @@ class SteadyNewton:
     before it settles; measured on Carter's problem from q = 0: 8-13 iterations with full steps against
     8-19 with a monotone backtracking line search); beyond, the step is halved until the merit falls."""
 
-    def solve(self, q: np.ndarray, w: np.ndarray, tol: float, max_newton: int = 100):
-        """Newton's iterations from (q, w) until max |F| <= tol (and |sum q - total| <= tol sum g).
-        Returns the last point and the Newton iterations."""
+    def solve(self, q: np.ndarray | None, w: np.ndarray, tol: float, max_newton: int = 100):
+        """Newton's iterations from (q, w) (q None: the simplified theory's) until max |F| <= tol (and
+        |sum q - total| <= tol sum g). Returns the last point and the Newton iterations."""
+        if q is None:
+            q, w = self.simplified()
         at = self.point(q, w)
         recent, forcing = [at.merit], 0.1
         for iteration in range(max_newton + 1):

@@ -67,20 +67,30 @@ def _timed(call):
     return out, time.perf_counter() - start
 
 
-def normal_reference(n: int, comm: MPI.Comm) -> tuple[int, float]:
-    """The normal QP of the benchmark's sphere under load control (pk, from Hertz's pressure): its
-    applications and wall time."""
+def normal_reference(n: int, comm: MPI.Comm) -> list[tuple[int, float]]:
+    """The normal QP of the benchmark's sphere under load control (pk): (applications, wall time) from
+    Hertz's pressure (a cold step), and from the previous step's pressure moved one cell with the body
+    (a rolling step of an elastic run)."""
     from petroll.solver.contact import ContactSolver
+    from petroll.solver.partition import shift_field
 
     dx = 1.0 / n
-    half = (n + 4) * dx
-    grid = Grid(2 * (n + 4), 2 * (n + 4), -half, half, -half, half)
+    cells = n + max(4, n // 2)  # the load-control guess's interference must stay off the edge
+    half = cells * dx
+    grid = Grid(2 * cells + 1, 2 * cells, -half, half + dx, -half, half)
     radius, compliance = 100.0, 1.0
     solver = ContactSolver(grid, comm, tol=1e-8)
     x, y = grid.x[solver.r0 : solver.r1, None], grid.y[None, :]
     load = 4 / (3 * radius * compliance)  # a = 1
-    solution, seconds = _timed(lambda: solver.solve_load((x * x + y * y) / (2 * radius), compliance, load, radius))
-    return solution.applications, seconds
+
+    def solve(centre: float, warm=None):
+        height = ((x - centre) ** 2 + y * y) / (2 * radius)
+        return _timed(lambda: solver.solve_load(height, compliance, load, radius, warm=warm))
+
+    cold, cold_time = solve(0.0)
+    moved = shift_field(cold.pressure, 1, 0, solver.rows, comm)
+    warm, warm_time = solve(dx, moved)
+    return [(cold.applications, cold_time), (warm.applications, warm_time)]
 
 
 def bench_friction(out: pathlib.Path | None = None, quick: bool = False, comm: MPI.Comm = MPI.COMM_WORLD,
@@ -91,9 +101,11 @@ def bench_friction(out: pathlib.Path | None = None, quick: bool = False, comm: M
     if quick:
         n = 4
     rows = []
-    apps, seconds = normal_reference(n, comm)
+    (apps, seconds), (moved, moved_seconds) = normal_reference(n, comm)
     rows.append(dict(case="normal QP, load control (reference)", applications=apps, fft_pairs=apps,
                      seconds=seconds, iterations="", note="pk from Hertz's pressure"))
+    rows.append(dict(case="normal QP, rolling step (reference)", applications=moved, fft_pairs=moved,
+                     seconds=moved_seconds, iterations="", note="from the last pressure, moved"))
     lengths = 1 if quick else 3
     grid, solver, bound = hertz_case(n, comm, length=2 * lengths)
     force = np.array([-0.5 * _force(comm, bound(), grid), 0.0])
