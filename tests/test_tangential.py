@@ -290,8 +290,8 @@ def test_cattaneo_mindlin_shift_and_stick_radius(comm, ratio):
 def test_a_body_of_the_same_material_doubles_the_shift_and_steps_add_up(comm):
     """Quasi-identical bodies of one material: the compliance doubles, the tractions do not change and the
     shift doubles (Johnson: twice the rigid sphere's). Loading in four steps to the same force ends where one
-    step does (monotonic loading: the slip annulus only grows; to 2e-4 of the shift, measured 6e-5: the
-    discrete slip directions differ by their small y components)."""
+    step does (monotonic loading: the slip annulus only grows; to 1e-4 of the shift: the
+    discrete slip directions differ by their small y components; measured 7e-6)."""
     from petroll.solver.friction import Stepping
     from petroll.solver.tangential import TangentialSolver
 
@@ -307,7 +307,7 @@ def test_a_body_of_the_same_material_doubles_the_shift_and_steps_add_up(comm):
         results.append((stepping.shift_total[0], solution.traction))
     assert results[1][0] == pytest.approx(2 * results[0][0], rel=1e-8)
     assert np.abs(results[1][1] - results[0][1]).max(initial=0.0) <= 1e-8 * 0.3
-    assert results[2][0] == pytest.approx(results[0][0], rel=2e-4)
+    assert results[2][0] == pytest.approx(results[0][0], rel=1e-4)
 
 
 def carter(x, frac, mu_p0):
