@@ -199,20 +199,15 @@ class SteadyRolling:
         box = solver.box(bound > 0)
         if box is None:
             raise SolverError("steady rolling with friction: no contact")
-        box = self._behind(box)
-        g = solver.to_box(bound, box)
-        q_ref = self.comm.allreduce(float(g.max(initial=0.0)), op=MPI.MAX)
-        nx, ny = box[1] - box[0], box[3] - box[2]
-        conv, pc = solver.operator.window(nx, ny), solver.operator.window(nx, ny, inverse=True)
-        k00 = conv.diagonal
-        s_ref = solver.compliance * k00 * q_ref
+        problem = solver.scaled(bound, self._behind(box))
+        box, g, q_ref, s_ref = problem.box, problem.g, problem.q_ref, problem.s_ref
         total = None
         if force is not None:
             force = np.asarray(force, dtype=float).reshape(m)
             total = force / (solver.grid.cell_area * q_ref)
             creepage = (0.0, 0.0)
         b = solver.to_box(self.rigid(creepage, spin, centre), box) / s_ref
-        newton = SteadyNewton(lambda v: conv(v) / k00, lambda v: pc(v) * k00, g / q_ref, b, self.comm, nx,
+        newton = SteadyNewton(problem.apply, problem.precondition, g / q_ref, b, self.comm, problem.nx,
                               self.axis, self.sign, self.order, total)
         q0 = None if start is None else solver.to_box(start, box) / q_ref
         at, iterations = newton.solve(q0, np.zeros(m), tol)

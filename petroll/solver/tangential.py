@@ -403,6 +403,25 @@ class TangentialSolution:
     window: tuple[int, int, int, int]
 
 
+@dataclass
+class Scaled:
+    """A window's problem in the solvers' units: tractions over ``q_ref`` (the largest bound), slips over
+    ``s_ref`` = c K_00 q_ref (the slip that bound causes on its own cell), so that ``apply`` (H = K/K_00,
+    unit diagonal) and ``precondition`` (its inverse block circulant) act on (m, window rows, ny) fields.
+    ``g``: the bounds (window rows, ny), Pa; ``nx``, ``ny``: the window's shape; ``norm``: a bound of
+    |H|_inf; ``box``: the window on the grid."""
+
+    box: tuple[int, int, int, int]
+    g: np.ndarray
+    q_ref: float
+    s_ref: float
+    nx: int
+    ny: int
+    apply: object
+    precondition: object
+    norm: float
+
+
 class TangentialSolver:
     """Tangential problems (module docstring) on ``grid`` (rows split over ``comm``), Poisson's ratio ``nu``
     and the bodies' summed shear compliance ``compliance`` (1/Pa: 1/(2 G) for a rigid body on the
@@ -483,6 +502,17 @@ class TangentialSolver:
         conv = self.operator.window(box[1] - box[0], box[3] - box[2])
         return self.from_box(self.compliance * conv(self.to_box(traction, box)), box)
 
+    def scaled(self, bound: np.ndarray, box) -> Scaled:
+        """The problem on ``box`` of the traction bound ``bound`` (Pa, this rank's grid rows) in scaled units
+        (:class:`Scaled`; its operators take (m, window rows, ny) fields)."""
+        g = self.to_box(bound, box)
+        q_ref = self.comm.allreduce(float(g.max(initial=0.0)), op=MPI.MAX)
+        nx, ny = box[1] - box[0], box[3] - box[2]
+        conv, pc = self.operator.window(nx, ny), self.operator.window(nx, ny, inverse=True)
+        k00 = conv.diagonal
+        return Scaled(box, g, q_ref, self.compliance * k00 * q_ref, nx, ny, lambda v: conv(v) / k00,
+                      lambda v: pc(v) * k00, conv.row_sum / k00)
+
     # -- the QP ------------------------------------------------------------------------------------------
     def solve(self, bound: np.ndarray, rigid: np.ndarray | None = None, previous: np.ndarray | None = None,
               warm: np.ndarray | None = None, force: np.ndarray | None = None,
@@ -503,31 +533,25 @@ class TangentialSolver:
             return TangentialSolution(zero, zero.copy(), zero.copy(), np.zeros(self.local_shape, bool),
                                       np.zeros(self.m), np.zeros(self.m), 0, 0, 0.0, (0, 0, 0, 0))
         area = self.grid.cell_area
-        g = self.to_box(bound, box)
+        problem = self.scaled(bound, box)
+        g, q_ref, s_ref, m, ny = problem.g, problem.q_ref, problem.s_ref, self.m, problem.ny
         b = zero.copy() if rigid is None else np.array(rigid, dtype=float)
         if previous is not None:
             b -= previous
         b = self.to_box(b, box)
-        q_ref = self.comm.allreduce(float(g.max(initial=0.0)), op=MPI.MAX)
-        nx, ny = box[1] - box[0], box[3] - box[2]
-        conv = self.operator.window(nx, ny)
-        pc = self.operator.window(nx, ny, inverse=True)
-        k00 = conv.diagonal
-        s_ref = self.compliance * k00 * q_ref  # the slip of the largest bound on its own cell
         total = None
         if force is not None:
-            force = np.asarray(force, dtype=float).reshape(self.m)
+            force = np.asarray(force, dtype=float).reshape(m)
             capacity = self.comm.allreduce(float(g.sum()), op=MPI.SUM) * area
             if np.hypot.reduce(force) > capacity * (1 + 1e-12):
                 raise SolverError(f"the tangential force {np.hypot.reduce(force):.6g} N exceeds the friction "
                                   f"bound mu x force = {capacity:.6g} N: the body slides")
             total = force / (area * q_ref)
-        shape = (self.m, -1)
-        start = np.zeros((self.m, g.size)) if warm is None else self.to_box(warm, box).reshape(shape) / q_ref
-        result = DiskPCG(lambda d: (conv(d.reshape(self.m, -1, ny)) / k00).reshape(shape),
-                         lambda r: (pc(r.reshape(self.m, -1, ny)) * k00).reshape(shape), g.ravel() / q_ref,
-                         self.comm, tol, self.max_iterations, total, conv.row_sum / k00,
-                         monitor=self.monitor).solve(start, b.reshape(shape) / s_ref)
+        start = np.zeros((m, g.size)) if warm is None else self.to_box(warm, box).reshape(m, -1) / q_ref
+        result = DiskPCG(lambda d: problem.apply(d.reshape(m, -1, ny)).reshape(m, -1),
+                         lambda r: problem.precondition(r.reshape(m, -1, ny)).reshape(m, -1), g.ravel() / q_ref,
+                         self.comm, tol, self.max_iterations, total, problem.norm,
+                         monitor=self.monitor).solve(start, b.reshape(m, -1) / s_ref)
         self.work[0] += result.iterations
         self.work[1] += result.applications
         q = result.q.reshape(self.m, -1, ny) * q_ref

@@ -201,21 +201,15 @@ def fista(apply, g: np.ndarray, b: np.ndarray, norm: float, tol: float, comm: MP
     return q, applications
 
 
-def _scaled_problem(solver: TangentialSolver, bound: np.ndarray, rigid: np.ndarray, previous=None):
-    """The scaled QP of ``solver.solve`` on the bound's box: (apply, precondition, g, b, norm)."""
-    box = solver.box(bound > 0)
-    g = solver.to_box(bound, box)
-    q_ref = solver.comm.allreduce(float(g.max(initial=0.0)), op=MPI.MAX)
-    nx, ny = box[1] - box[0], box[3] - box[2]
-    conv, pc = solver.operator.window(nx, ny), solver.operator.window(nx, ny, inverse=True)
-    k00 = conv.diagonal
-    s_ref = solver.compliance * k00 * q_ref
-    b = rigid if previous is None else rigid - previous
-    b = solver.to_box(b, box).reshape(solver.m, -1) / s_ref
-    shape = (solver.m, -1, ny)
-    return (lambda d: (conv(d.reshape(shape)) / k00).reshape(solver.m, -1),
-            lambda r: (pc(r.reshape(shape)) * k00).reshape(solver.m, -1), g.ravel() / q_ref, b,
-            conv.row_sum / k00)
+def _scaled_problem(solver: TangentialSolver, bound: np.ndarray, rigid: np.ndarray):
+    """The scaled QP of ``solver.solve`` on the bound's box: (apply, precondition, g, b, norm) on flattened
+    (m, cells) arrays."""
+    problem = solver.scaled(bound, solver.box(bound > 0))
+    m, ny = solver.m, problem.ny
+    b = solver.to_box(rigid, problem.box).reshape(m, -1) / problem.s_ref
+    return (lambda d: problem.apply(d.reshape(m, -1, ny)).reshape(m, -1),
+            lambda r: problem.precondition(r.reshape(m, -1, ny)).reshape(m, -1), problem.g.ravel() / problem.q_ref,
+            b, problem.norm)
 
 
 def compare_solvers(comm: MPI.Comm = MPI.COMM_WORLD, n: int = 16, tol: float = 1e-8) -> list[dict]:
