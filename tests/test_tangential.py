@@ -507,6 +507,14 @@ def test_two_ranks_agree_with_one(comm):
         assert np.abs(a - b).max() <= 1e-10 * 0.3
     for a, b in zip(values, alone):
         assert np.asarray(a) == pytest.approx(np.asarray(b), rel=1e-10, abs=1e-20)
+    line = hertz_grid(12, line=True)
+    forces = []
+    for c in (comm, MPI.COMM_SELF):
+        solver = TangentialSolver(line, c, 0.5, 0.5, tol=1e-13)
+        p = hertz_pressure(line, solver.r0, solver.r1)
+        steady = SteadyRolling(solver, 0, 1).solve(0.3 * p, creepage=(-1e-3, 0.0))
+        forces.append(steady.solution.force[0])
+    assert forces[0] == pytest.approx(forces[1], rel=1e-10)
 
 
 def test_the_friction_benchmark_and_the_solvers_comparison_run(comm, shared_dir):
