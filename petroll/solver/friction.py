@@ -15,22 +15,19 @@ adds its compliance to c (quasi-identical bodies: no coupling with the normal pr
 Steady rolling (:class:`SteadyRolling`) is stationary in the body's frame, where the material streams
 backwards through the contact: with one cell rolled per step (the transient run's steps_per_cell = 1 on
 square cells, as the normal problem's steady mode) the point now at cell i was at the cell ahead of it a
-step earlier, so u'_i = u_{i+1} (i + 1 ahead along the motion) and the steady state is the fixed point
-q = G(q) of the step's QP with u' = S c K q (S the shift by one cell from ahead): solved by Anderson
-mixing of the fixed point, each residual mapped by (I - S)^-1 on the stick cells (the map's Jacobian there
-is (c K_II)^-1 (S c K)_I ~ S: a cumulative sum from the front of each run of stick cells along the motion),
-the residual kept on slip cells.
+step earlier, so u'_i = u_{i+1} (i + 1 ahead along the motion; order 2: the second-order upwind
+difference) and the steady tractions are those of the step's QP with u' read from their own displacement:
+a nonsymmetric problem, solved by the semismooth Newton method of petroll.solver.steady_friction.
 
 Rigid slip of a step at the cell centred at (x, y) in the body's frame (reference point at the origin),
 rolling a distance dq along the motion: W = dq (xi - phi y_m, eta + phi x_m) with (x_m, y_m) the point's
-mean position over the step (it moves from dq ahead to the cell), creepages xi, eta (rigid slip velocity
-of the body relative to the half-space over the rolling speed) and spin phi (1/m). A shift: W the body's
-rigid tangential displacement over the step.
+mean position over the step (it moves from dq ahead to the cell; order 2: its position at the step's end),
+creepages xi, eta (rigid slip velocity of the body relative to the half-space over the rolling speed) and
+spin phi (1/m). A shift: W the body's rigid tangential displacement over the step.
 """
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
