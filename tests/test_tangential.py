@@ -531,3 +531,34 @@ def test_the_friction_benchmark_and_the_solvers_comparison_run(comm, shared_dir)
     table = compare_solvers(MPI.COMM_SELF, n=4)
     assert {row["solver"] for row in table} >= {"DiskPCG", "FISTA (restarted)", "TAO pk"}
     assert all(row["applications"] for row in table if row["solver"].startswith("DiskPCG ("))
+
+
+@pytest.mark.ranks4
+@pytest.mark.parametrize("nx, ny", [(9, 7), (16, 5), (1, 6), (12, 1)])
+def test_the_coupling_convolution_and_its_transpose_equal_the_dense_matrix(comm, nx, ny):
+    """The normal-tangential coupling (odd kernels: complex spectra) on 1, 2 and 4 ranks against the dense
+    matrix of the closed forms (each entry from its own offset), and its transpose against the matrix's;
+    line contact's strips (ny = 1 grids with the strip kernel) too."""
+    from petroll.solver.kernels.cerruti import Coupling
+    from petroll.solver.tangential import CouplingConvolution
+
+    dx, dy = 0.3, 0.2
+    line = ny == 1
+    kernel = Coupling(dx, dy, line)
+    ix, iy = np.divmod(np.arange(nx * ny), ny)
+    ox, oy = ix[:, None] - ix[None, :], iy[:, None] - iy[None, :]
+    if line:
+        blocks = strip_coupling(ox, dx)[None]
+    else:
+        blocks = np.stack([coupling_table(np.array([a]), np.array([b]), dx, dy)[:, 0, 0]
+                           for a, b in zip(ox.ravel(), oy.ravel())], axis=1).reshape(2, nx * ny, nx * ny)
+    dense = np.concatenate(list(blocks), axis=1)  # (n, m n): normal from the traction's components
+    rng = np.random.default_rng(5)
+    t = rng.standard_normal((kernel.components, nx, ny))
+    p = rng.standard_normal((nx, ny))
+    r0, r1 = RowPartition(nx, comm.size).range(comm.rank)
+    conv = CouplingConvolution(kernel, nx, ny, comm)
+    normal = (dense @ t.reshape(-1)).reshape(nx, ny)
+    tangential = (dense.T @ p.ravel()).reshape(kernel.components, nx, ny)
+    assert np.abs(conv.normal(t[:, r0:r1]) - normal[r0:r1]).max(initial=0.0) <= 1e-13 * np.abs(normal).max()
+    assert np.abs(conv.tangential(p[r0:r1]) - tangential[:, r0:r1]).max(initial=0.0) <= 1e-13 * np.abs(tangential).max()

@@ -88,6 +88,31 @@ class BlockConvolution:
         return out
 
 
+class CouplingConvolution:
+    """The normal-tangential coupling on an (nx, ny) block of cells (rows split over ``comm``): ``normal(t)``
+    = sum_j K_zj t_j (t of shape (m, local rows, ny)) and its transpose ``tangential(p)`` = (K_zj^T p)_j,
+    K the kernels of petroll.solver.kernels.cerruti.Coupling (odd along their own axis: complex spectra;
+    the transpose's are their conjugates). Signs and factors: a traction t on the half-space moves its
+    surface into it by (1 - 2 nu)/(4 G) normal(t); a pressure p moves it tangentially by
+    -(1 - 2 nu)/(4 G) tangential(p)."""
+
+    def __init__(self, kernel, nx: int, ny: int, comm: MPI.Comm = MPI.COMM_SELF, workers: int = 1):
+        self.nx, self.ny, self.m = nx, ny, kernel.components
+        self.fft = Convolution(None, nx, ny, comm, workers=workers)
+        self.r0, self.r1 = self.fft.r0, self.fft.r1
+        self.spectra = self.fft.kernel_spectrum(kernel.values)
+
+    def normal(self, t: np.ndarray) -> np.ndarray:
+        tally(self.m * self.fft.cost)
+        total = sum(self.spectra[j] * self.fft.forward(t[j]) for j in range(self.m))
+        return self.fft.backward(total, overwrite=True)
+
+    def tangential(self, p: np.ndarray) -> np.ndarray:
+        tally(self.m * self.fft.cost)
+        transform = self.fft.forward(p)
+        return np.stack([self.fft.backward(np.conj(self.spectra[j]) * transform) for j in range(self.m)])
+
+
 def _invert(blocks: list[list[np.ndarray]], comm: MPI.Comm) -> list[list[np.ndarray]]:
     """The per-frequency inverse of a symmetric m x m (m = 1, 2) block symbol, eigenvalues floored at 1e-12
     of the largest over all ranks."""

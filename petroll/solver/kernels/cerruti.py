@@ -170,6 +170,22 @@ class TangentialStrips(Tangential):
         return [[stack[0]]]
 
 
+class Coupling:
+    """The normal-tangential coupling kernels of a grid (module docstring): ``values(ox, oy)`` the stack
+    (K_zx, K_zy) at signed integer offsets (3-D) or (K_zx,) (line contact's strips), m per unit traction
+    per unit (1 - 2 nu)/2 x 1/(2 G); the normal displacement (into the half-space) of a tangential
+    traction applied to the half-space is (1 - 2 nu)/(4 G) sum_j K_zj t_j."""
+
+    def __init__(self, dx: float, dy: float, line: bool = False):
+        self.dx, self.dy, self.line = dx, dy, line
+        self.components = 1 if line else 2
+
+    def values(self, ox, oy) -> np.ndarray:
+        if self.line:
+            return strip_coupling(np.ravel(ox), self.dx)[None, :, None] * np.ones((1, 1, np.size(oy)))
+        return coupling_table(np.ravel(ox), np.ravel(oy), self.dx, self.dy)
+
+
 def tangential_kernel(grid, nu: float) -> Tangential:
     """The tangential kernel of a (non-periodic) ``grid`` for Poisson's ratio nu: Cerruti's rectangles, or
     the strips with the grid's datum on a line-contact grid."""
