@@ -406,6 +406,8 @@ def test_full_slip_at_large_creepage(comm):
             assert 0 < deficits[1] <= 1e-7 and deficits[0] / deficits[1] == pytest.approx(100, rel=0.05)
         with pytest.raises(SolverError, match="exceeds the friction bound"):
             Stepping(solver).shift(mu * p, force=1.001 * mu * force * direction)
+        with pytest.raises(SolverError, match="exceeds the friction bound"):
+            SteadyRolling(solver, 0, 1).solve(mu * p, force=1.001 * mu * force * direction)
 
 
 def test_steady_force_control_finds_the_creepage_of_creepage_control(comm):

@@ -200,8 +200,7 @@ class SteadyRolling:
         box, g, q_ref, s_ref = problem.box, problem.g, problem.q_ref, problem.s_ref
         total = None
         if force is not None:
-            force = np.asarray(force, dtype=float).reshape(m)
-            total = force / (solver.grid.cell_area * q_ref)
+            total = solver.scaled_force(force, problem)
             creepage = (0.0, 0.0)
         b = solver.to_box(self.rigid(creepage, spin, centre), box) / s_ref
         newton = SteadyNewton(problem.apply, problem.precondition, g / q_ref, b, self.comm, problem.nx,

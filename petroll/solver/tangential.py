@@ -538,6 +538,17 @@ class TangentialSolver:
         return Scaled(box, g, q_ref, self.compliance * k00 * q_ref, nx, ny, lambda v: conv(v) / k00,
                       lambda v: pc(v) * k00, conv.row_sum / k00)
 
+    def scaled_force(self, force, problem: Scaled) -> np.ndarray:
+        """A tangential force (N, an m-vector) as the scaled sum of tractions; SolverError when it exceeds
+        the friction bound mu x the normal force (the body slides)."""
+        force = np.asarray(force, dtype=float).reshape(self.m)
+        area = self.grid.cell_area
+        capacity = self.comm.allreduce(float(problem.g.sum()), op=MPI.SUM) * area
+        if np.hypot.reduce(force) > capacity * (1 + 1e-12):
+            raise SolverError(f"the tangential force {np.hypot.reduce(force):.6g} N exceeds the friction bound "
+                              f"mu x force = {capacity:.6g} N: the body slides")
+        return force / (area * problem.q_ref)
+
     # -- the QP ------------------------------------------------------------------------------------------
     def solve(self, bound: np.ndarray, rigid: np.ndarray | None = None, previous: np.ndarray | None = None,
               warm: np.ndarray | None = None, force: np.ndarray | None = None,
@@ -564,14 +575,7 @@ class TangentialSolver:
         if previous is not None:
             b -= previous
         b = self.to_box(b, box)
-        total = None
-        if force is not None:
-            force = np.asarray(force, dtype=float).reshape(m)
-            capacity = self.comm.allreduce(float(g.sum()), op=MPI.SUM) * area
-            if np.hypot.reduce(force) > capacity * (1 + 1e-12):
-                raise SolverError(f"the tangential force {np.hypot.reduce(force):.6g} N exceeds the friction "
-                                  f"bound mu x force = {capacity:.6g} N: the body slides")
-            total = force / (area * q_ref)
+        total = None if force is None else self.scaled_force(force, problem)
         start = np.zeros((m, g.size)) if warm is None else self.to_box(warm, box).reshape(m, -1) / q_ref
         result = DiskPCG(lambda d: problem.apply(d.reshape(m, -1, ny)).reshape(m, -1),
                          lambda r: problem.precondition(r.reshape(m, -1, ny)).reshape(m, -1), g.ravel() / q_ref,
