@@ -22,8 +22,10 @@
                             --steady: steady solves; bench sliding --ranks/--sides: the rough solve's memory
                             per rank
     petroll material fit DMA.csv [--terms N | --per-decade K] [--nu NU] [--shift LAW|auto:T_REF]
-                            [--tolerance K] [--einf E | --einf-from-data] [--out FILE.toml]
-                            a Prony series fitted to DMA data: the [material] block (docs/materials.md)
+                            [--tolerance K] [--einf E | --einf-from-data] [--columns C=NAME,...]
+                            [--units C=UNIT,...] [--out FILE.toml]
+                            a Prony series fitted to DMA data (petroll's CSV, or as pyvisco and
+                            instruments export it): the [material] block (docs/materials.md)
 
 Options that argparse does not know are handed to PETSc's options database. A user mistake (bad scene,
 unreachable load, solver failure) prints one line ``petroll: error: ...`` and exits with status 2 (a bad
@@ -145,10 +147,12 @@ def _material_fit(args: argparse.Namespace) -> None:
     from petroll.plot import plot_fit, plot_shifts  # matplotlib imported only when drawing
 
     shift = dma.parse_shift(args.shift) if args.shift else None
-    data = dma.read_dma(args.csv, shift, args.tolerance)
+    columns = dma.parse_mapping("--columns", args.columns, "NAME") if args.columns else None
+    units = dma.parse_mapping("--units", args.units, "UNIT") if args.units else None
+    data = dma.read_dma(args.csv, shift, args.tolerance, columns, units)
     einf = "data" if args.einf_from_data else args.einf
-    fit = dma.fit_prony(data.reduced, data.storage, data.loss, args.terms, args.per_decade, args.nu, einf)
-    text = dma.material_toml(fit, data.shift, args.csv, data.T_ref)
+    fit, warnings = dma.fit_dma(data, args.terms, args.per_decade, args.nu, einf)
+    text = dma.material_toml(fit, data.shift, args.csv, data.T_ref, warnings, data.found)
     report = sys.stdout
     if args.out:
         out = pathlib.Path(args.out)
@@ -177,6 +181,8 @@ def _material_fit(args: argparse.Namespace) -> None:
         raise dma.DMAError(f"--plot {png}: cannot write it ({exc.strerror})") from None
     print(dma.report(data, fit) + f" Block: {args.out or 'printed above'}; plot: "
           f"{', '.join(str(p) for p in drawn) or 'none (--plot PNG draws one)'}", file=report)
+    for line in warnings:  # also in the block, as comments
+        print(f"petroll: warning: {line}", file=sys.stderr)
 
 
 def main(argv: list[str] | None = None) -> int:
