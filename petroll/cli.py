@@ -335,8 +335,10 @@ def _main(args: argparse.Namespace, comm) -> int:
                           estimate_error=getattr(args, "estimate_error", False))
     except RunInterrupted as exc:
         if comm.rank == 0:
-            print(f"petroll: {scene.source}: {exc}; continue with: petroll restart {exc.checkpoint}",
-                  file=sys.stderr)
+            estimate = " --estimate-error" if getattr(args, "estimate_error", False) else ""
+            how = (f"continue with: petroll restart {exc.checkpoint}{estimate}" if exc.checkpoint is not None
+                   else f"run it again: petroll run {scene.source}{estimate}")
+            print(f"petroll: {scene.source}: {exc}; {how}", file=sys.stderr)
         return exc.exit_code
     except RunFailed as exc:  # the summary of the steps kept, then the one-line error
         if comm.rank == 0:

@@ -393,7 +393,7 @@ def check_time(scene, found: TimeResolution | None) -> str | None:
     shown = f"{key} = {value:g}" + (" (the default)" if key.endswith("steps_per_cell")
                                     and scene.time.steps_per_cell is None else "")
     longest = max(g.x1 - g.x0, 0.0 if g.line else g.y1 - g.y0)
-    step = f"the body moves {found.cells:.3g} cells per step"
+    step = f"the body moves {found.cells:.3g} cell{'s' * (f'{found.cells:.3g}' != '1')} per step"
     if found.cells * g.cell > longest:
         raise SceneError(scene.source, key, value, f"{step}, {found.cells * g.cell:.3g} m, farther than the grid "
                          f"is long ({longest:.3g} m): no run can use such a step; {found.at_most(longest)} keeps "
