@@ -115,6 +115,7 @@ def _info(args: argparse.Namespace) -> None:
     else:
         lines.append("  checkpoints: none")
     lines.append(f"  other files: {', '.join(found.others) or 'none'}")
+    lines += [f"  warning: {line}" for line in r.warnings]
     print("\n".join(lines))
 
 
@@ -213,6 +214,8 @@ def main(argv: list[str] | None = None) -> int:
             return _main(args, comm)
     except PetrollError as exc:
         return _failed(comm, errors, "petroll: error: " + " ".join(str(exc).splitlines()), 2)
+    except KeyboardInterrupt:  # SIGINT before a run handles it (or a second one during it)
+        return _failed(comm, errors, "petroll: interrupted by SIGINT", 130)
     except MemoryError:
         return _failed(comm, errors, "petroll: error: out of memory: the scene needs more memory than this "
                        "machine has; use fewer cells ([grid] nx, ny) or more ranks (mpirun -n)", 2)
