@@ -223,3 +223,14 @@ def test_a_body_far_along_a_periodic_axis_is_its_image_on_the_grid(comm):
     check_run(far)
     a, b = (list(Simulation(s, comm).steps())[-1] for s in (here, far))
     assert b.force == pytest.approx(a.force, rel=1e-9) and b.mu_r == pytest.approx(a.mu_r, rel=1e-6)
+
+
+def test_a_transient_whose_steps_would_not_finish_is_refused_naming_max_steps(cli_main, tmp_path):
+    """runs/sphere.toml to [time] end = 0.4 s at a million steps per cell (4e8 steps) with max_steps =
+    1000: its [time] steady stop needs one contact length of rolling (0.89 mm) and the 1000 steps roll
+    3.75e-8 m, so the run would stop at max_steps unfinished: refused before step 1, naming the bound."""
+    scene = load_scene(shipped_scene("sphere.toml")).replace(
+        {"time.distance": None, "time.end": 0.4, "time.steps_per_cell": 1e6, "time.max_steps": 1000})
+    err = refused(cli_main, tmp_path, scene)
+    assert ("[time] max_steps = 1000: the run to [time] end = 0.4 s with [time] steps_per_cell = 1e+06 takes "
+            "more steps (its clock walked: more than 1000); it would stop there unfinished") in err

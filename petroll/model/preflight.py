@@ -557,7 +557,10 @@ def check_run(scene) -> Preflight:
     """The checks a run makes before step 1: :func:`check` (a body that never touches refused); SceneError
     (naming the [grid] key) below LEAST_CELLS cells per contact half-width unless [grid] allow_coarse =
     true; SceneError for a path that leaves the grid (naming [grid] x or y; under load control with the
-    glassy penetration, the least the run will have); the time step's refusals (:func:`check_time`,
+    glassy penetration, the least the run will have); SceneError (naming [time] max_steps) for a run
+    whose clock takes more than max_steps steps, unless a [time] steady stop may end it sooner (it needs
+    one contact length of rolling, two smallest half-widths, within them; else the run would stop there
+    unfinished); the time step's refusals (:func:`check_time`,
     naming [time] steps_per_cell or dt); a warning (PetrollWarning, one line, kept in the returned
     Preflight's ``warned``) where a contact half-width has fewer than GOOD_CELLS cells along an axis or
     GOOD_STEPS steps along the motion, or where under load control the rubbery contact would leave the grid
@@ -586,6 +589,14 @@ def check_run(scene) -> Preflight:
     if found.creeping is not None:
         why = "as the contact creeps under the load" if scene.load is not None else "as the layer bulges"
         short.append(f"[grid] {found.creeping[0]}: {why} {found.creeping[1]}")
+    patch = 2 * min(w for w in found.contact.smallest if not math.isnan(w))  # the steady stop's least rolling
+    if not found.path.complete and (scene.time.steady is None or found.path.distance[-1] < patch):
+        tm = scene.time  # it would stop at max_steps, unfinished: no steady stop can come before
+        step = f"[time] dt = {tm.dt:g}" if tm.dt is not None else f"[time] steps_per_cell = {tm.steps_per_cell:g}"
+        to = f"[time] end = {tm.end:g} s" if tm.end is not None else f"[time] distance = {tm.distance:g} m"
+        raise SceneError(scene.source, "[time] max_steps", tm.max_steps,
+                         f"the run to {to} with {step} takes more steps (its clock walked: more than "
+                         f"{tm.max_steps}); it would stop there unfinished: raise max_steps or the time step")
     coarse_time = check_time(scene, found.time)
     if coarse_time is not None:
         short.append(coarse_time)
