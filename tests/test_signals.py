@@ -102,7 +102,8 @@ class Child:
         _, status = os.waitpid(self.pid, 0)
         os.close(self.read)
         code = -os.WTERMSIG(status) if os.WIFSIGNALED(status) else os.WEXITSTATUS(status)
-        return code, self.err_path.read_text(encoding="utf-8")
+        said = self.err_path.read_text(encoding="utf-8") if self.err_path.exists() else ""  # killed at once
+        return code, said
 
 
 def _pause_estimate(pipe: int, at: int, pause: float) -> None:

@@ -20,7 +20,8 @@ import pytest
 import petroll
 from petroll.errors import SceneError
 from petroll.model.limits import PetrollWarning
-from petroll.model.preflight import GOOD_STEPS, LEAST_STEPS, check, check_run
+from petroll.model.preflight import check, check_run
+from petroll.model.timestep import GOOD_STEPS, LEAST_STEPS
 from petroll.model.scene import dumps, load_scene, parse_scene, shipped_scene
 from petroll.solver.simulation import Simulation
 
@@ -44,16 +45,20 @@ def mu_r(scene, comm) -> float:
     return list(Simulation(scene, comm).steps())[-1].mu_r
 
 
-def refused(cli_main, tmp_path, scene, name="scene.toml", verb="run") -> str:
-    """``petroll VERB`` on the scene's TOML: exit 2 with one line on stderr and nothing on stdout, nothing
-    written; that line."""
-    path = tmp_path / name
-    path.write_text(dumps(scene.raw), encoding="utf-8")
-    code, out, err = cli_main([verb, str(path), "--out", str(tmp_path / "out")] if verb == "run" else
+def refused(cli_main, directory, scene, comm, verb="run") -> str:
+    """``petroll VERB`` on the scene's TOML in ``directory`` (the same on every rank): exit 2 with one line
+    on rank 0's stderr and nothing on stdout, nothing written; that line (on every rank)."""
+    path = directory / "scene.toml"
+    if comm.rank == 0:
+        path.write_text(dumps(scene.raw), encoding="utf-8")
+    comm.Barrier()
+    code, out, err = cli_main([verb, str(path), "--out", str(directory / "out")] if verb == "run" else
                               [verb, str(path)])
-    assert code == 2 and out == "" and err.count("\n") == 1 and err.startswith("petroll: error: "), (code, out, err)
-    assert not (tmp_path / "out" / "results.h5").exists()
-    return err
+    assert code == 2 and out == "", (code, out, err)
+    if comm.rank == 0:
+        assert err.count("\n") == 1 and err.startswith("petroll: error: "), err
+    assert not (directory / "out" / "results.h5").exists()
+    return comm.bcast(err, root=0)
 
 
 def one_warning(caught, text: str) -> str:
@@ -88,13 +93,13 @@ def test_petroll_check_prints_cells_per_step_and_the_verdict(cli_main, tmp_path)
     assert code == 0 and "107 cells per step at most" in out and "a run is refused: gives 0.11 steps" in out
 
 
-def test_steady_rolling_steps_are_warned_and_refused_where_mu_r_is_off(comm, shared_dir, cli_main, tmp_path):
+def test_steady_rolling_steps_are_warned_and_refused_where_mu_r_is_off(comm, shared_dir, cli_main):
     """Steady runs/sphere.toml: 0.1 step per cell (1.2 steps per half-width) is refused, naming
     steps_per_cell and the value giving 8 steps (0.671); there mu_r is 37 % off the fine step's (16 per
     cell, the oracle: 2e-5 from its limit), 0.5 per cell (6 steps) is warned and 1.8 % off, the named
     value runs without a time warning and within 1.5 %, and the shipped 1 per cell within 0.5 %."""
     fine = mu_r(steady_sphere(**{"time.steps_per_cell": 16}), comm)
-    err = refused(cli_main, tmp_path, steady_sphere(**{"time.steps_per_cell": 0.1}))
+    err = refused(cli_main, shared_dir, steady_sphere(**{"time.steps_per_cell": 0.1}), comm)
     assert ("[time] steps_per_cell = 0.1: gives 1.2 steps per contact half-width along the motion (the body "
             "moves 10 cells per step; estimated half-width 0.000447 m); at least 2 are needed: steps_per_cell "
             ">= 0.671 gives 8, or set [time] allow_coarse = true to run anyway") in err
@@ -115,12 +120,12 @@ def test_steady_rolling_steps_are_warned_and_refused_where_mu_r_is_off(comm, sha
     assert abs(mu_r(steady_sphere(), comm) / fine - 1) < 0.005
 
 
-def test_a_transient_step_across_the_whole_track_is_refused_and_would_be_wrong(comm, shared_dir, cli_main, tmp_path):
+def test_a_transient_step_across_the_whole_track_is_refused_and_would_be_wrong(comm, shared_dir, cli_main):
     """runs/sphere.toml at steps_per_cell = 1e-9: one step rolls the whole 4 mm (107 cells, 0.11 steps per
     half-width): refused in one line; run anyway (allow_coarse) its mu_r is 1000 times too small against the
     shipped 1 step per cell's (itself within 0.4 % of 16 steps per cell, docs/accuracy.md)."""
     scene = load_scene(shipped_scene("sphere.toml"))
-    err = refused(cli_main, tmp_path, scene.replace("time.steps_per_cell", 1e-9))
+    err = refused(cli_main, shared_dir, scene.replace("time.steps_per_cell", 1e-9), comm)
     assert "[time] steps_per_cell = 1e-09: gives 0.11 steps per contact half-width" in err
     assert "steps_per_cell >= 0.671 gives 8" in err
     with pytest.warns(PetrollWarning, match="0.11 steps per contact half-width"):
@@ -131,13 +136,12 @@ def test_a_transient_step_across_the_whole_track_is_refused_and_would_be_wrong(c
     assert jump.series["mu_r"][-1] < 0.01 * shipped
 
 
-def test_steady_sliding_steps_are_refused_or_warned_against_the_single_contacts(comm, shared_dir, cli_main,
-                                                                               tmp_path):
+def test_steady_sliding_steps_are_refused_or_warned_against_the_single_contacts(comm, shared_dir, cli_main):
     """A rough surface sliding on 32^2 cells: its single contacts are about a cell wide (rms slope / rms
     curvature), so 1 step per cell (0.98 steps per contact) is refused, mu_r 15 % off the fine step's (64 per
     cell); the value named for 8 steps runs within 0.6 % of it."""
     fine = mu_r(rough(**{"time.steps_per_cell": 64}), comm)
-    err = refused(cli_main, tmp_path, rough(**{"time.steps_per_cell": 1}))
+    err = refused(cli_main, shared_dir, rough(**{"time.steps_per_cell": 1}), comm)
     assert "[time] steps_per_cell = 1.0: gives 0.98 steps per contact half-width" in err
     named = float(err.split("steps_per_cell >= ")[1].split()[0])
     assert 7 < named < 9
@@ -149,12 +153,12 @@ def test_steady_sliding_steps_are_refused_or_warned_against_the_single_contacts(
     assert abs(results.series["mu_r"][0] / fine - 1) < 0.006
 
 
-def test_steps_too_fine_or_longer_than_the_grid_are_refused_naming_the_bound(comm, cli_main, tmp_path):
+def test_steps_too_fine_or_longer_than_the_grid_are_refused_naming_the_bound(comm, cli_main, shared_dir):
     """steps_per_cell = 2^63 - 1 sliding (a step of 1e-21 of the grid; issue 35: mu_r 5.9e-5 for 0.025) is
-    refused naming the finest it takes, which runs within 1e-6 of 1e5 steps per cell (converged to 1e-9); 1e-25 (a step 1e20
-    m long; a ValueError before) is refused even with allow_coarse, in steady rolling and sliding; a steady
-    memory beyond 2^24 steps is refused naming that bound."""
-    err = refused(cli_main, tmp_path, rough(**{"time.steps_per_cell": 2**63 - 1}))
+    refused naming the finest it takes, which runs within 1e-6 of 1e5 steps per cell (converged to 1e-9);
+    1e-25 (a step 1e20 m long; a ValueError before) is refused even with allow_coarse, in steady rolling
+    and sliding; a steady memory beyond 2^24 steps is refused naming that bound."""
+    err = refused(cli_main, shared_dir, rough(**{"time.steps_per_cell": 2**63 - 1}), comm)
     assert "the steady sliding step moves the body" in err and "below 1e-10 of it the solve loses its digits" in err
     finest = float(err.split("steps_per_cell <= ")[1].split()[0])
     assert finest == pytest.approx(1e10 / 32, rel=1e-2)
@@ -162,10 +166,10 @@ def test_steps_too_fine_or_longer_than_the_grid_are_refused_naming_the_bound(com
         mu_r(rough(**{"time.steps_per_cell": 1e5}), comm), rel=1e-6)
     for scene in (steady_sphere(**{"time.steps_per_cell": 1e-25, "time.allow_coarse": True}),
                   rough(**{"time.steps_per_cell": 1e-25, "time.allow_coarse": True})):
-        err = refused(cli_main, tmp_path, scene)
+        err = refused(cli_main, shared_dir, scene, comm)
         assert "[time] steps_per_cell = 1e-25: the body moves 1e+25 cells per step" in err
         assert "farther than the grid is long" in err
-    err = refused(cli_main, tmp_path, steady_sphere(**{"time.steps_per_cell": 65536}))
+    err = refused(cli_main, shared_dir, steady_sphere(**{"time.steps_per_cell": 65536}), comm)
     assert "the steady memory would span 2.01e+07 steps" in err and "at most 16777216 are kept" in err
 
 
@@ -203,12 +207,12 @@ def test_negative_sliding_friction_of_a_dissipative_material_is_warned_and_kept_
 
 
 # -- a body outside its grid -------------------------------------------------------------------------------
-def test_a_body_placed_outside_its_grid_is_refused_by_check_and_run(cli_main, tmp_path):
+def test_a_body_placed_outside_its_grid_is_refused_by_check_and_run(cli_main, shared_dir, comm):
     """runs/hertz.toml's sphere at [1, 1] m, its grid +-0.8 mm (issue 35: "no contact, force 0", and check
     said the contact stays inside): one line naming [body] position, from check and run alike."""
     scene = load_scene(shipped_scene("hertz.toml")).replace("body.position", [1.0, 1.0])
     for verb in ("check", "run"):
-        err = refused(cli_main, tmp_path, scene, verb=verb)
+        err = refused(cli_main, shared_dir, scene, comm, verb=verb)
         assert "[body] position = [1.0, 1.0]: the body lies outside the grid [-0.0008, 0.0008] x [-0.0008, " \
                "0.0008] m" in err and "more than the largest penetration 2e-05 m" in err
     with pytest.raises(SceneError, match=r"\[body\] position"):
@@ -225,12 +229,12 @@ def test_a_body_far_along_a_periodic_axis_is_its_image_on_the_grid(comm):
     assert b.force == pytest.approx(a.force, rel=1e-9) and b.mu_r == pytest.approx(a.mu_r, rel=1e-6)
 
 
-def test_a_transient_whose_steps_would_not_finish_is_refused_naming_max_steps(cli_main, tmp_path):
+def test_a_transient_whose_steps_would_not_finish_is_refused_naming_max_steps(cli_main, shared_dir, comm):
     """runs/sphere.toml to [time] end = 0.4 s at a million steps per cell (4e8 steps) with max_steps =
     1000: its [time] steady stop needs one contact length of rolling (0.89 mm) and the 1000 steps roll
     3.75e-8 m, so the run would stop at max_steps unfinished: refused before step 1, naming the bound."""
     scene = load_scene(shipped_scene("sphere.toml")).replace(
         {"time.distance": None, "time.end": 0.4, "time.steps_per_cell": 1e6, "time.max_steps": 1000})
-    err = refused(cli_main, tmp_path, scene)
+    err = refused(cli_main, shared_dir, scene, comm)
     assert ("[time] max_steps = 1000: the run to [time] end = 0.4 s with [time] steps_per_cell = 1e+06 takes "
             "more steps (its clock walked: more than 1000); it would stop there unfinished") in err

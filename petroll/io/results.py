@@ -39,7 +39,7 @@ import numpy as np
 
 from petroll import __version__
 from petroll.errors import PetrollError, reason
-from petroll.io.hdf5 import RowFile, chunk_rows
+from petroll.io.hdf5 import RowFile, add_strings, chunk_rows, string_list
 from petroll.io.journal import copy_committed, reading, sync_directory
 
 FORMAT_VERSION = 1
@@ -182,7 +182,7 @@ class Results:
                        bool(f.attrs.get("complete", True)), bool(f.attrs.get("line_contact", False)),
                        tuple(name for name in FIELD_UNITS if name in fields), bool(f.attrs.get("steady", False)),
                        str(f.attrs.get("scene_file", "")), str(f.attrs.get("petroll_version", "")),
-                       str(f.attrs.get("run_id", "")), estimate, rough, stored_warnings(f))
+                       str(f.attrs.get("run_id", "")), estimate, rough, string_list(f, "warnings"))
 
     def field(self, name: str) -> np.ndarray:
         """The saved fields ``name`` (a key of FIELD_UNITS), (n_saved, nx, ny), read from the file."""
@@ -199,19 +199,6 @@ class Results:
         """The last step's force (N), mu_r and other values, with their relative change over the last
         contact length of rolling (computed from the series: the same for a reopened file)."""
         return steady_state(self.series, self.scene_text)
-
-
-def stored_warnings(f: h5py.File) -> tuple[str, ...]:
-    """The attribute ``warnings`` of an open results file: the run's warnings, one line each (() if none)."""
-    return tuple(str(w.decode() if isinstance(w, bytes) else w) for w in f.attrs.get("warnings", ()))
-
-
-def _add_warnings(h: h5py.File, lines) -> None:
-    """Add ``lines`` (one-line warnings) to the attribute ``warnings``, those not there yet, in order."""
-    held = list(stored_warnings(h))
-    new = [line for line in lines if line not in held]
-    if new:
-        h.attrs["warnings"] = np.array(held + new, dtype=h5py.string_dtype())
 
 
 ROUGH_UNITS = {"area_fraction": "-", "mean_gap": "m", "q": "rad/m", "spectrum": "Pa^2 m^2", "modes": "-"}
@@ -344,11 +331,10 @@ class ResultsFile:
                describe: bool = False, rough=None, warnings=()) -> None:
         """Append the series of ``records`` (StepRecords) not yet in the file and, with ``saved`` ({field
         name: this rank's rows}), the fields of the last record's step (and with them, on a periodic grid,
-        ``rough``: its petroll.solver.rough.RoughOutputs); then mark the file (``complete``:
-        the run is over). ``warnings`` (rank 0's lines) are added to the attribute warnings (those not
-        there yet). ``describe`` rewrites results.xdmf too (atomically). The first append of a file
-        neither created nor resumed creates it with these records (so a run failing in its first step
-        leaves none)."""
+        ``rough``: its petroll.solver.rough.RoughOutputs) and rank 0's ``warnings`` lines not there yet
+        (attribute warnings); then mark the file (``complete``: the run is over). ``describe`` rewrites
+        results.xdmf too (atomically). The first append of a file neither created nor resumed creates it
+        with these records (so a run failing in its first step leaves none)."""
         first = not self.started
         if first:
             self.steps, self.field_steps = 0, []
@@ -380,7 +366,7 @@ class ResultsFile:
                 if f.writer:
                     _field_views(h, self.fields, k)
             if f.writer:
-                _add_warnings(h, warnings)
+                add_strings(h, "warnings", warnings)  # the run's warnings so far, each once
                 h.flush()  # the data first, then the marks that make them count
                 self._mark(h, n, k, complete)
 
@@ -417,9 +403,8 @@ class ResultsFile:
     def write_error_estimate(self, quantities: dict[str, dict], attrs: dict, complete: bool = False) -> None:
         """The group ``error_estimate`` (replaced if present): ``attrs`` on the group, one subgroup per
         quantity with its attributes (value, extrapolated, error, order, ...; docs/results.md); with
-        ``complete``, the file is marked complete in the same commit (a run with an estimate is finished
-        only once its estimate is written). Written through the journaled session like an append;
-        collective (OutputError on every rank)."""
+        ``complete``, the file marked complete in the same commit (a run with an estimate is finished once
+        it is written). Journaled like an append; collective (OutputError on every rank)."""
         def work(f: RowFile):
             if f.writer:
                 h = f.file
@@ -429,9 +414,7 @@ class ResultsFile:
                 group.attrs.update(attrs)
                 for name, values in quantities.items():
                     group.create_group(name).attrs.update(values)
-                if complete:
-                    h.flush()
-                    h.attrs["complete"] = True
+                h.attrs["complete"] = complete or bool(h.attrs["complete"])  # one commit: estimate and mark
 
         self._guarded(lambda: self._write(self.path, "r+", work))
 
