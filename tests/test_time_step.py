@@ -238,3 +238,19 @@ def test_a_transient_whose_steps_would_not_finish_is_refused_naming_max_steps(cl
     err = refused(cli_main, shared_dir, scene, comm)
     assert ("[time] max_steps = 1000: the run to [time] end = 0.4 s with [time] steps_per_cell = 1e+06 takes "
             "more steps (its clock walked: more than 1000); it would stop there unfinished") in err
+
+
+def test_a_sweep_to_a_step_longer_than_the_grid_is_refused_naming_the_value_given(cli_main, shared_dir, comm):
+    """``petroll sweep --vary time.steps_per_cell=1e-300,1`` on the steady sphere whose scene writes
+    steps_per_cell = 1 (a TOML integer; issue 35: a ValueError, and a number key was rounded to 0 as if it
+    were an integer one): one line naming 1e-300, exit 2."""
+    path = shared_dir / "steady.toml"
+    if comm.rank == 0:
+        path.write_text(dumps({**steady_sphere().raw, "time": {"mode": "steady", "steps_per_cell": 1}}),
+                        encoding="utf-8")
+    comm.Barrier()
+    code, out, err = cli_main(["sweep", str(path), "--vary", "time.steps_per_cell=1e-300,1", "--out",
+                               str(shared_dir / "sweep"), "--quiet"])
+    assert code == 2
+    if comm.rank == 0:
+        assert err.count("\n") == 1 and "[time] steps_per_cell = 1e-300: the body moves 1e+300 cells" in err, err

@@ -243,7 +243,7 @@ def _transient_point(scene: Scene, key: str, value: float) -> Scene:
     elif key == "motion.velocity" and current is None:
         raise SweepError(f"--vary {key}: the scene gives no velocity, hence no direction; write "
                          "velocity = [1.0, 0.0] (any magnitude) in its [motion]")
-    elif isinstance(current, int) and not isinstance(current, bool):
+    elif getattr(SCHEMA.get(section, {}).get(name), "kind", "") == "integer":  # (a number key written 1: not)
         if abs(value - round(value)) > 1e-9 * max(abs(value), 1.0):
             raise SweepError(f"--vary {key}: {value!r} is not an integer, and {key} is one")
         new = int(round(value))
