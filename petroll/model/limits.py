@@ -143,9 +143,11 @@ def negative_friction(scene, mu_r: float) -> str | None:
     solve, or the last step of a transient at constant velocity, penetration or load): a body moving
     steadily over such a material loses energy to it, so the resisting force is > 0 and a negative one is
     numerical (a time step or grid too coarse for the contact, docs/accuracy.md). None otherwise (an
-    elastic material, or a transient whose motion changes: energy stored earlier may push the body on)."""
+    elastic material, a body at rest, or a transient whose motion changes: energy stored earlier may push
+    the body on)."""
     material = scene.material
-    if not (mu_r < -NEGATIVE_ROUND_OFF and material.Jinf > material.J0 * (1 + 1e-9)):
+    moving = bool(np.any(np.asarray(scene.velocity(0.0), dtype=float)))
+    if not (mu_r < -NEGATIVE_ROUND_OFF and moving and material.Jinf > material.J0 * (1 + 1e-9)):
         return None
     held = [p for p in (scene.velocity, scene.penetration, scene.load) if p is not None]
     if scene.time.mode != "steady" and not all(isinstance(p, motion.Constant) for p in held):

@@ -86,8 +86,9 @@ def contact_scale(body) -> float:
 
 def time_resolution(scene, size, walked: Path) -> TimeResolution | None:
     """The run's :class:`TimeResolution`: each step's move (petroll.model.clock.moves) against the smallest
-    contact half-widths along X and Y (``size``: petroll.model.preflight.ContactSize) (combined along the move's direction: an ellipse's radius; a rough
-    surface's no wider than :func:`contact_scale`); None for a run of one step at t = 0 or a body at rest."""
+    contact half-widths along X and Y of ``size`` (petroll.model.preflight.ContactSize), combined along the
+    move's direction (an ellipse's radius; a rough surface's no wider than :func:`contact_scale`); None for
+    a run of one step at t = 0 or a body at rest."""
     d = moves(scene, walked)
     if not len(d):
         return None
