@@ -254,3 +254,24 @@ def test_a_sweep_to_a_step_longer_than_the_grid_is_refused_naming_the_value_give
     assert code == 2
     if comm.rank == 0:
         assert err.count("\n") == 1 and "[time] steps_per_cell = 1e-300: the body moves 1e+300 cells" in err, err
+
+
+def test_negative_friction_is_warned_only_where_the_material_must_resist():
+    """The warning's conditions (petroll.model.limits.negative_friction): a dissipative material moving at
+    a steady state (a steady solve, or a transient at constant velocity and penetration) with mu_r below
+    -1e-12; not an elastic material, a body at rest (its mu_r is the grid's alignment), a speed that
+    varies (stored energy may push the body on), or round-off."""
+    from petroll.model.limits import negative_friction
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", PetrollWarning)
+        sphere = load_scene(shipped_scene("sphere.toml"))
+        elastic = sphere.replace({"material.model": "elastic", "material.E": 10e6, "material.E0": None,
+                                  "material.Einf": None, "material.tau_relax": None})
+        rest = sphere.replace({"motion.velocity": [0.0, 0.0], "time.distance": None, "time.end": 0.1,
+                               "time.steps_per_cell": None, "time.dt": 0.01, "time.steady": None})
+        varying = load_scene(shipped_scene("sphere-sinusoidal.toml"))
+    assert negative_friction(sphere, -1e-3).startswith(f"{sphere.source}: mu_r = -0.001 < 0 from a dissipative")
+    assert negative_friction(steady_sphere(), -1e-3) is not None
+    for scene, value in ((sphere, -1e-13), (sphere, 1e-3), (elastic, -1e-3), (rest, -1e-3), (varying, -1e-3)):
+        assert negative_friction(scene, value) is None
