@@ -117,6 +117,7 @@ def _info(args: argparse.Namespace) -> None:
     else:
         lines.append("  checkpoints: none")
     lines.append(f"  other files: {', '.join(found.others) or 'none'}")
+    lines += [f"  warning: {line}" for line in r.warnings]
     print("\n".join(lines))
 
 
@@ -219,6 +220,8 @@ def main(argv: list[str] | None = None) -> int:
             return _main(args, comm)
     except PetrollError as exc:
         return _failed(comm, errors, "petroll: error: " + " ".join(str(exc).splitlines()), 2)
+    except KeyboardInterrupt:  # SIGINT before a run handles it (or a second one during it)
+        return _failed(comm, errors, "petroll: interrupted by SIGINT", 130)
     except MemoryError:
         return _failed(comm, errors, "petroll: error: out of memory: the scene needs more memory than this "
                        "machine has; use fewer cells ([grid] nx, ny) or more ranks (mpirun -n)", 2)
@@ -341,8 +344,10 @@ def _main(args: argparse.Namespace, comm) -> int:
                           estimate_error=getattr(args, "estimate_error", False))
     except RunInterrupted as exc:
         if comm.rank == 0:
-            print(f"petroll: {scene.source}: {exc}; continue with: petroll restart {exc.checkpoint}",
-                  file=sys.stderr)
+            estimate = " --estimate-error" if getattr(args, "estimate_error", False) else ""
+            how = (f"continue with: petroll restart {exc.checkpoint}{estimate}" if exc.checkpoint is not None
+                   else f"run it again: petroll run {scene.source}{estimate}")
+            print(f"petroll: {scene.source}: {exc}; {how}", file=sys.stderr)
         return exc.exit_code
     except RunFailed as exc:  # the summary of the steps kept, then the one-line error
         if comm.rank == 0:

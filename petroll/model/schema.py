@@ -388,6 +388,9 @@ SCHEMA: dict[str, dict[str, Key]] = {
         "steady": Key("number > 0", "stop early once force and mu_r change by less than this (relative) "
                       "over one contact length of rolling", _positive, default=None),
         "max_steps": Key("integer", "refuse scenes that would take more steps", _count, default=100000),
+        "allow_coarse": Key("boolean", "run even with fewer than 2 steps per estimated contact half-width "
+                            "along the motion (refused otherwise; below 8 a run warns: docs/accuracy.md)",
+                            _flag, default=False),
     },
     "solver": {
         "tao_type": Key("string", "TAO bound-constrained solver for each contact QP (command line: "
