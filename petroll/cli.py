@@ -22,8 +22,10 @@
                             --steady: steady solves; bench sliding --ranks/--sides: the rough solve's memory
                             per rank
     petroll material fit DMA.csv [--terms N | --per-decade K] [--nu NU] [--shift LAW|auto:T_REF]
-                            [--tolerance K] [--einf E | --einf-from-data] [--out FILE.toml]
-                            a Prony series fitted to DMA data: the [material] block (docs/materials.md)
+                            [--tolerance K] [--einf E | --einf-from-data] [--columns C=NAME,...]
+                            [--units C=UNIT,...] [--out FILE.toml]
+                            a Prony series fitted to DMA data (petroll's CSV, or as pyvisco and
+                            instruments export it): the [material] block (docs/materials.md)
 
 Options that argparse does not know are handed to PETSc's options database. A user mistake (bad scene,
 unreachable load, solver failure) prints one line ``petroll: error: ...`` and exits with status 2 (a bad
@@ -115,6 +117,7 @@ def _info(args: argparse.Namespace) -> None:
     else:
         lines.append("  checkpoints: none")
     lines.append(f"  other files: {', '.join(found.others) or 'none'}")
+    lines += [f"  warning: {line}" for line in r.warnings]
     print("\n".join(lines))
 
 
@@ -146,10 +149,12 @@ def _material_fit(args: argparse.Namespace) -> None:
     from petroll.plot import plot_fit, plot_shifts  # matplotlib imported only when drawing
 
     shift = dma.parse_shift(args.shift) if args.shift else None
-    data = dma.read_dma(args.csv, shift, args.tolerance)
+    columns = dma.parse_mapping("--columns", args.columns, "NAME") if args.columns else None
+    units = dma.parse_mapping("--units", args.units, "UNIT") if args.units else None
+    data = dma.read_dma(args.csv, shift, args.tolerance, columns, units)
     einf = "data" if args.einf_from_data else args.einf
-    fit = dma.fit_prony(data.reduced, data.storage, data.loss, args.terms, args.per_decade, args.nu, einf)
-    text = dma.material_toml(fit, data.shift, args.csv, data.T_ref)
+    fit, warnings = dma.fit_dma(data, args.terms, args.per_decade, args.nu, einf)
+    text = dma.material_toml(fit, data.shift, args.csv, data.T_ref, warnings, data.found)
     report = sys.stdout
     if args.out:
         out = pathlib.Path(args.out)
@@ -177,6 +182,8 @@ def _material_fit(args: argparse.Namespace) -> None:
         drawn = ["none"]
     print(dma.report(data, fit) + f" Block: {args.out or 'printed above'}; plot: "
           f"{', '.join(str(p) for p in drawn) or 'none (--plot PNG draws one)'}", file=report)
+    for line in warnings:  # also in the block, as comments
+        print(f"petroll: warning: {line}", file=sys.stderr)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -213,6 +220,8 @@ def main(argv: list[str] | None = None) -> int:
             return _main(args, comm)
     except PetrollError as exc:
         return _failed(comm, errors, "petroll: error: " + " ".join(str(exc).splitlines()), 2)
+    except KeyboardInterrupt:  # SIGINT before a run handles it (or a second one during it)
+        return _failed(comm, errors, "petroll: interrupted by SIGINT", 130)
     except MemoryError:
         return _failed(comm, errors, "petroll: error: out of memory: the scene needs more memory than this "
                        "machine has; use fewer cells ([grid] nx, ny) or more ranks (mpirun -n)", 2)
@@ -335,8 +344,10 @@ def _main(args: argparse.Namespace, comm) -> int:
                           estimate_error=getattr(args, "estimate_error", False))
     except RunInterrupted as exc:
         if comm.rank == 0:
-            print(f"petroll: {scene.source}: {exc}; continue with: petroll restart {exc.checkpoint}",
-                  file=sys.stderr)
+            estimate = " --estimate-error" if getattr(args, "estimate_error", False) else ""
+            how = (f"continue with: petroll restart {exc.checkpoint}{estimate}" if exc.checkpoint is not None
+                   else f"run it again: petroll run {scene.source}{estimate}")
+            print(f"petroll: {scene.source}: {exc}; {how}", file=sys.stderr)
         return exc.exit_code
     except RunFailed as exc:  # the summary of the steps kept, then the one-line error
         if comm.rank == 0:

@@ -126,7 +126,7 @@ def _material_verbs(verbs) -> None:
     fit = material_verbs.add_parser("fit", help="fit a Maxwell (relaxation) Prony series with non-negative "
                                     "moduli to DMA data; write the scene's [material] block and its figure")
     fit.add_argument("csv", help="DMA table: header frequency,storage,loss[,temperature][,set] (Hz, Pa, Pa, "
-                     "K, a label)")
+                     "K, a label; or the names pyvisco and instruments export), optionally a units row")
     density = fit.add_mutually_exclusive_group()
     density.add_argument("--terms", type=_positive(int), help="candidate relaxation times in all, evenly in "
                          "log (the fit keeps at most N terms)")
@@ -144,6 +144,12 @@ def _material_verbs(verbs) -> None:
                      "auto:T_ref (the factors found from the data, kept as a table law; WLF and Arrhenius "
                      "fitted to them are reported), wlf:C1,C2,T_ref or arrhenius:Ea,T_ref (C2, T_ref in K; Ea "
                      "in J/mol) or a TOML file whose [material] shift gives it")
+    fit.add_argument("--columns", help="which header names hold petroll's columns, e.g. frequency=f,storage="
+                     "E_stor,loss=E_loss,temperature=T,set=Set (default: petroll's names and those pyvisco and "
+                     "instruments write, recognised; with --columns, other columns are ignored)")
+    fit.add_argument("--units", help="the columns' units, e.g. frequency=Hz,storage=MPa,loss=MPa,temperature=C "
+                     "(Hz or rad/s; Pa, kPa, MPa or GPa; K or C; default: a units row under the header, or Hz, "
+                     "Pa, K)")
     fit.add_argument("--tolerance", type=float, default=0.5, help="temperatures (K) within which rows belong "
                      "to one measurement set, without a set column (default 0.5)")
     fit.add_argument("--out", help="write the [material] block here (atomically, its folder made if need "

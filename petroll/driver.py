@@ -13,6 +13,7 @@ import pathlib
 import sys
 import time as clock
 import uuid
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -23,6 +24,7 @@ from petroll.io.checkpoint import RunInterrupted, checkpoint_dir, fingerprint, r
 from petroll.io.checkpoint_writer import remove_foreign_checkpoints, write_checkpoint
 from petroll.io.results import OutputError, Results, ResultsFile, results_identity
 from petroll.io.rundir import DirectoryBusy, RunLock, clean_temporaries
+from petroll.model.limits import PetrollWarning, negative_friction
 from petroll.model.preflight import check_run
 from petroll.model.scene import Scene
 from petroll.solver.rough import BINS
@@ -93,6 +95,7 @@ def _run(scene: Scene, comm: MPI.Comm, out: pathlib.Path, identity: tuple[str, s
     fingerprint of the material and body (rank 0's; :func:`_run_identity`); ``preflight``: the scene's
     checks (petroll.model.preflight.Preflight) where the run made them, for the error estimate."""
     run_id, inputs = identity
+    warned = [preflight.warned] if preflight is not None and preflight.warned else []  # stored in results.h5
     sim = Simulation(scene, comm)
     sim.steady_start = steady_start
     g = scene.grid
@@ -121,16 +124,23 @@ def _run(scene: Scene, comm: MPI.Comm, out: pathlib.Path, identity: tuple[str, s
         stop_now = sim.dt_next is None
         save = not resumed and (stop_now or record.step == 0
                                 or bool(scene.every and record.step % scene.every == 0))
+        if stop_now and (negative := negative_friction(scene, record.mu_r)) is not None:
+            warnings.warn(PetrollWarning(negative), stacklevel=2)
+            warned.append(negative)
         if on_step is not None:
             on_step(record)
         signum = stop.agreed(comm) if stop is not None else 0
         interrupted = bool(signum) and not stop_now
         every = 0 if steady else scene.checkpoint_every  # a steady solve is one step: nothing to resume
         due = every and not resumed and ((record.step > 0 and record.step % every == 0) or stop_now)
+        # a run with an error estimate keeps its last step's checkpoint: the estimate can be resumed from it
+        due = due or (estimate_error and stop_now and not steady and not resumed)
         if progress and comm.rank == 0:
             _show_progress(scene, record, clock.perf_counter() - wall)
         if save or due or interrupted or stop_now:  # the results first: a checkpoint's fields are in them
-            _append(results, sim, save, stop_now, bool(due or interrupted or stop_now), newest)
+            # with an error estimate the run is complete once the estimate is written, not before
+            _append(results, sim, save, stop_now and not estimate_error, bool(due or interrupted or stop_now),
+                    newest, warned)
         if (record.step == 0 or resumed) and comm.rank == 0:  # results.h5 is this run's now: so are they
             remove_foreign_checkpoints(checkpoint_dir(out), run_id)
         if due or interrupted:
@@ -148,19 +158,27 @@ def _run(scene: Scene, comm: MPI.Comm, out: pathlib.Path, identity: tuple[str, s
         from petroll.solver.estimate import estimate_error as estimate
 
         run_wall = clock.perf_counter() - wall  # the run alone: its steps and output, not the estimate
-        per, attrs = as_attributes(estimate(scene, sim.records[-1], comm, preflight))
-        results.write_error_estimate(per, {**attrs, "run_wall_s": run_wall})
+        last = sim.records[-1]
+
+        def agreed_stop():  # after each step of the coarser runs, as after each of the run's
+            signum = stop.agreed(comm) if stop is not None else 0
+            if signum:
+                raise RunInterrupted(signum, last.step, last.t, newest, estimating=True)
+
+        per, attrs = as_attributes(estimate(scene, last, comm, preflight, after_step=agreed_stop))
+        results.write_error_estimate(per, {**attrs, "run_wall_s": run_wall}, complete=True)
     return Results.open(results.path)
 
 
 def _append(results: ResultsFile, sim: Simulation, save: bool, complete: bool, describe: bool,
-            newest: pathlib.Path | None) -> None:
-    """Bring results.h5 up to the newest step; a failure (OutputError, every rank) says what the file
-    holds and how the run continues (``newest``: this run's newest checkpoint)."""
+            newest: pathlib.Path | None, warned=()) -> None:
+    """Bring results.h5 up to the newest step, with the run's warnings so far (``warned``, one line each:
+    the attribute warnings); a failure (OutputError, every rank) says what the file holds and how the run
+    continues (``newest``: this run's newest checkpoint)."""
     try:
         rough = sim.rough_outputs() if save and results.rough is not None else None
         results.append(sim.records, saved_fields(sim) if save else None, complete=complete, describe=describe,
-                       rough=rough)
+                       rough=rough, warnings=warned)
     except OutputError as exc:
         n = results.steps
         kept = f"results.h5 holds steps 0 to {n - 1}" if n else "no results file was written"

@@ -270,7 +270,7 @@ def test_material_fit_writes_a_block_ready_to_paste_and_the_figure(comm, capsys,
 
 @pytest.mark.parametrize("content, line, allowed", [
     ("frequency,storage\n1,2e6\n", 1, "missing column 'loss'"),
-    ("# DMA\nfrequency,storage,loss,temp\n1,2e6,1e5,300\n", 2, "unknown column 'temp'"),
+    ("# DMA\nfrequency,storage,loss,tempreature\n1,2e6,1e5,300\n", 2, "unknown column 'tempreature'"),
     ("frequency,storage,loss\n1,2e6,1e5\n-2,2e6,1e5\n", 3, "frequency = '-2': must be a finite number > 0 (Hz)"),
     ("frequency,storage,loss\n1,2e6,1e5\n2,nan,1e5\n", 3, "storage = 'nan': must be a finite number > 0 (Pa)"),
     ("frequency,storage,loss\n1,2e6,1e5\n2,2e6\n", 3, "2 values for the 3 columns"),

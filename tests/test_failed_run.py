@@ -8,6 +8,7 @@ import pytest
 
 import petroll
 from petroll.driver import RunFailed
+from petroll.errors import SceneError
 from petroll.model.scene import dumps, load_scene, shipped_scene
 
 
@@ -44,18 +45,26 @@ def test_a_contact_reaching_the_edge_mid_run_keeps_every_step_solved(comm, share
         np.testing.assert_allclose(kept.series[name][:107], reference.series[name][:107], rtol=1e-12, atol=0)
 
 
-def test_a_run_beyond_max_steps_keeps_its_steps(comm, shared_dir):
-    """runs/sphere-sinusoidal.toml (speed varying in time) rolled 0.5 mm needs 18 steps; [time] max_steps =
-    15 passes the check of the scene (distance / (peak speed x dt) = 13.9 steps at least) and stops the run
-    mid-way: RunFailed naming the key after the 16 steps solved (steps 0-15), all in results.h5, complete =
-    false."""
+def test_a_run_beyond_max_steps_is_refused_or_keeps_its_steps(comm, shared_dir):
+    """runs/sphere-sinusoidal.toml (speed varying in time) rolled 0.5 mm needs 18 steps; with [time]
+    max_steps = 15 it passes the scene's own check (distance / (peak speed x dt) = 13.9 steps at least), and
+    the clock walked before step 1 refuses it, naming the key: it would stop unfinished. runs/sphere.toml
+    to [time] end = 0.4 s (107 steps) with max_steps = 30 (1.1 mm of rolling, more than the 0.89 mm contact length its [time] steady stop
+    needs, which comes at step 53) may stop early, so it runs, and stops mid-way: RunFailed naming the key
+    after the 31 steps solved (steps 0-30), all in results.h5, complete = false."""
     scene = load_scene(shipped_scene("sphere-sinusoidal.toml")).replace(
         {"time.end": None, "time.distance": 0.5e-3, "time.max_steps": 15, "output.every": None})
-    with pytest.raises(RunFailed, match=r"step 16 .* \[time\] max_steps .* holds the 16 steps") as info:
+    with pytest.raises(SceneError, match=r"\[time\] max_steps = 15: the run to \[time\] distance = 0.0005 m with "
+                       r"\[time\] dt = 0.002 takes more steps .* unfinished"):
+        petroll.run(scene, comm, out=shared_dir / "refused")
+    assert not (shared_dir / "refused" / "results.h5").exists()
+    scene = load_scene(shipped_scene("sphere.toml")).replace(
+        {"time.distance": None, "time.end": 0.4, "time.max_steps": 30, "output.every": None})
+    with pytest.raises(RunFailed, match=r"step 31 .* \[time\] max_steps .* holds the 31 steps") as info:
         petroll.run(scene, comm, out=shared_dir / "capped")
-    assert info.value.steps == 16 and info.value.checkpoint is None
+    assert info.value.steps == 31 and info.value.checkpoint is None
     kept = petroll.Results.open(shared_dir / "capped" / "results.h5")
-    assert not kept.complete and len(kept.series["t"]) == 16
+    assert not kept.complete and len(kept.series["t"]) == 31
 
 
 def creeping_scene(**changes):

@@ -123,19 +123,88 @@ def test_bad_keys_name_the_key(change, key):
     assert key in str(err.value)
 
 
-def test_tabulated_spectrum_of_a_generated_surface():
-    """A power law is exact under log-log interpolation; the spectrum measured from a generated surface
-    gives back its rms slope (2 pi integral q^3 C dq, by quadrature of the table) within 5 %."""
+def test_a_table_interpolates_in_log_log_and_jumps_where_a_wavenumber_is_repeated():
     law = SelfAffinePSD(0.8, 1e3, 1e6, q_long=1e3)
     table = TabulatedPSD(np.geomspace(1e3, 1e6, 7), law(np.geomspace(1e3, 1e6, 7)))
     q = np.geomspace(1e3, 1e6, 101)
     np.testing.assert_allclose(table(q), law(q), rtol=1e-12)
     assert table(0.5e3) == 0.0 and table(2e6) == 0.0
-    keys = {"hurst": 0.8, "rolloff": L / 8, "cutoff": L / 64, "rms_slope": 0.1, "seed": 2}
-    measured = TabulatedPSD.of(self_affine_heights(keys, (N, N), (H, H)), (H, H))
-    s = np.linspace(np.log(measured.q_long), np.log(measured.q_cutoff), 20001)
-    slope2 = 2 * np.pi * integrate.trapezoid(np.exp(4 * s) * measured(np.exp(s)), s)
-    assert math.isclose(math.sqrt(slope2), 0.1, rel_tol=0.05), math.sqrt(slope2)
+    # q = 1, 2, 2, 4, 8: C = q from 1 to just below 2, 32 / q^2 from 2 to 4; a segment ending in C = 0 is 0
+    jump = TabulatedPSD([1.0, 2.0, 2.0, 4.0, 8.0], [1.0, 2.0, 8.0, 2.0, 0.0])
+    np.testing.assert_allclose(jump([1.0, 1.5, 2.0 - 1e-9, 2.0, 3.0, 4.0 - 1e-9]),
+                               [1.0, 1.5, 2.0, 8.0, 32 / 9, 2.0], rtol=1e-8)
+    assert jump(6.0) == 0.0
+    for q_bad, c_bad in (([1.0, 2.0, 2.0, 2.0], [1.0] * 4), ([2.0, 1.0], [1.0, 1.0]), ([0.0, 1.0], [1.0, 1.0]),
+                         ([1.0, 2.0], [1.0, -1.0]), ([1.0], [1.0])):
+        with pytest.raises(ValueError):
+            TabulatedPSD(q_bad, c_bad)
+
+
+def table_moments(table: TabulatedPSD) -> tuple[float, float]:
+    """2 pi integral q C dq and 2 pi integral q^3 C dq of a table, segment by segment (C is smooth between
+    its nodes), by 24-point Gauss-Legendre in ln q."""
+    x, w = np.polynomial.legendre.leggauss(24)
+    total = np.zeros(2)
+    for lo, hi in zip(table.q[:-1], table.q[1:]):
+        if hi > lo:
+            s = np.log(lo) + (x + 1) / 2 * np.log(hi / lo)
+            q, weight = np.exp(s), w / 2 * np.log(hi / lo)
+            c = table(q * (1 - 1e-13) + lo * 1e-13)  # inside the segment, not at its jump
+            total += [np.sum(weight * q**2 * c), np.sum(weight * q**4 * c)]
+    return 2 * np.pi * total[0], 2 * np.pi * total[1]
+
+
+def field_moments(field, cell):
+    """(mean square height about the mean, mean square slope of the trigonometric interpolant), from a
+    full complex FFT (Parseval; independent of the table's half spectrum)."""
+    nx, ny = field.shape
+    power = np.abs(np.fft.fft2(field) / field.size) ** 2
+    power[0, 0] = 0.0
+    kx = 2 * np.pi * np.fft.fftfreq(nx, cell[0])
+    ky = 2 * np.pi * np.fft.fftfreq(ny, cell[1])
+    return power.sum(), np.sum(power * (kx[:, None] ** 2 + ky[None, :] ** 2))
+
+
+@pytest.mark.parametrize("shape, cell", [((128, 128), (H, H)), ((256, 64), (H, H)), ((33, 129), (3 * H, H)),
+                                         ((128, 96), (H, 3 * H))])
+@pytest.mark.parametrize("surface", ["self-affine", "white"])
+def test_a_measured_spectrum_keeps_the_surfaces_mean_square_height_and_slope(shape, cell, surface):
+    """TabulatedPSD.of at 5-40 bins a decade: h_rms^2 and the mean square slope of the table (integrated
+    segment by segment) are the surface's (Parseval sums of the full FFT) to 1e-9, for a self-affine
+    surface with a rolloff (most of its height in the few longest modes) and for white noise (power up to
+    the corners of the lattice, Nyquist modes included), on square, elongated and anisotropic grids.
+    (A log-log interpolation through the bins' mean C lost 4-44 % of h_rms^2 and 2-8 % of the slope.)"""
+    longest = max(shape[0] * cell[0], shape[1] * cell[1])
+    if surface == "white":
+        heights = 1e-6 * np.random.default_rng(7).standard_normal(shape) + 3e-6
+    else:
+        keys = {"hurst": 0.8, "rolloff": longest / 4, "cutoff": 2 * max(cell), "rms_slope": 0.08, "seed": 1}
+        heights = self_affine_heights(keys, shape, cell)
+    height2, slope2 = field_moments(heights, cell)
+    for per_decade in (5, 10, 20, 40):
+        table = TabulatedPSD.of(heights, cell, per_decade)
+        m0, m2 = table_moments(table)
+        assert m0 == pytest.approx(height2, rel=1e-9) and m2 == pytest.approx(slope2, rel=1e-9), per_decade
+        assert table.q_long < 2 * np.pi / longest  # the longest modes' power is kept, below them
+    with pytest.raises(ValueError, match="flat"):
+        TabulatedPSD.of(np.full(shape, 1e-6), cell)
+
+
+def test_a_measured_spectrum_follows_the_prescribed_one():
+    """The tables of 4 generated surfaces (10 bins a decade), averaged per half decade of the self-affine
+    range (geometric means), against the continuum spectrum of their keys (self_affine_psd) within 5 %
+    (measured 1.4 %; surfaces of Hurst exponent 0.7 or 0.9 at the same rms slope are 8 % off): the table
+    is the surface's spectrum, not only its moments."""
+    keys = {"hurst": 0.8, "rolloff": L / 8, "cutoff": L / 64, "rms_slope": 0.1}
+    psd = self_affine_psd(keys, (N, N), (H, H))
+    edges = np.geomspace(2 * psd.q_rolloff, psd.q_cutoff / 1.5, 4)
+    s = np.linspace(np.log(edges[0]), np.log(edges[-1]), 30001)
+    band = [(s >= np.log(lo)) & (s <= np.log(hi)) for lo, hi in zip(edges[:-1], edges[1:])]
+    tables = [TabulatedPSD.of(self_affine_heights({**keys, "seed": seed}, (N, N), (H, H)), (H, H))
+              for seed in range(4)]
+    measured = np.mean([[np.mean(np.log(t(np.exp(s[b])))) for b in band] for t in tables], axis=0)
+    prescribed = np.array([np.mean(np.log(psd(np.exp(s[b])))) for b in band])
+    np.testing.assert_allclose(np.exp(measured - prescribed), 1.0, atol=0.05)
 
 
 def test_the_continuum_spectrum_of_the_keys_has_the_surfaces_level():

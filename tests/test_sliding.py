@@ -212,7 +212,7 @@ def test_a_sliding_run_writes_the_contact_fraction_mean_gap_and_pressure_spectru
     from petroll.model.roughness import radial_psd
     from petroll.solver.rough import spectrum_edges
 
-    raw = {**rough_raw(comm, shared_dir), "time": {"mode": "steady"},
+    raw = {**rough_raw(comm, shared_dir), "time": {"mode": "steady", "steps_per_cell": 8},
            "output": {"fields": ["pressure", "displacement", "gap"]}}
     scene = parse_scene(raw)
     results = petroll.run(scene, comm, out=shared_dir / "out")

@@ -80,12 +80,17 @@ class CheckpointError(PetrollError):
 
 
 class RunInterrupted(Exception):
-    """The run stopped early on a signal after writing ``checkpoint`` (step ``step``, time ``t``)."""
+    """The run stopped early on a signal after writing ``checkpoint`` (step ``step``, time ``t``; None: a
+    steady solve, which keeps none: it is run again). ``estimating``: during its error estimate, after its
+    last step (a restart from ``checkpoint`` with --estimate-error makes it)."""
 
-    def __init__(self, signum: int, step: int, t: float, checkpoint: pathlib.Path):
+    def __init__(self, signum: int, step: int, t: float, checkpoint: pathlib.Path | None,
+                 estimating: bool = False):
         self.signum, self.step, self.t, self.checkpoint = int(signum), step, t, checkpoint
-        super().__init__(f"interrupted by {self.signal_name} after step {step} (t = {t:.6g} s); checkpoint "
-                         f"{checkpoint}")
+        self.estimating = estimating
+        where = "during the error estimate, " if estimating else ""
+        kept = f"checkpoint {checkpoint}" if checkpoint is not None else "no checkpoint (a steady solve keeps none)"
+        super().__init__(f"interrupted by {self.signal_name} {where}after step {step} (t = {t:.6g} s); {kept}")
 
     @property
     def signal_name(self) -> str:

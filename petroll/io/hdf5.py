@@ -37,6 +37,20 @@ BLOCK_BYTES = 1 << 22
 _noticed = []
 
 
+def string_list(f: h5py.File, name: str) -> tuple[str, ...]:
+    """The attribute ``name`` of an open file as a tuple of strings (() if absent): e.g. a results file's
+    ``warnings``, one line each."""
+    return tuple(str(v.decode() if isinstance(v, bytes) else v) for v in f.attrs.get(name, ()))
+
+
+def add_strings(f: h5py.File, name: str, lines) -> None:
+    """Append ``lines`` not already there, in order, to the string-list attribute ``name`` of ``f``."""
+    held = list(string_list(f, name))
+    new = [line for line in lines if line not in held]
+    if new:
+        f.attrs[name] = np.array(held + new, dtype=h5py.string_dtype())
+
+
 def parallel_hdf5(comm: MPI.Comm) -> bool:
     """True when several ranks can open one HDF5 file together (h5py has MPI and comm has > 1 rank)."""
     return comm.size > 1 and bool(h5py.get_config().mpi)

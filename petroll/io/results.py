@@ -39,7 +39,7 @@ import numpy as np
 
 from petroll import __version__
 from petroll.errors import PetrollError, reason
-from petroll.io.hdf5 import RowFile, chunk_rows
+from petroll.io.hdf5 import RowFile, add_strings, chunk_rows, string_list
 from petroll.io.journal import atomic_write, copy_committed, reading, sync_directory  # noqa: F401 - atomic_write: here too
 
 FORMAT_VERSION = 1
@@ -162,6 +162,7 @@ class Results:
     run_id: str = ""  # the run's identifier, shared with its checkpoints ("" in files written before them)
     error_estimate: dict | None = None  # group error_estimate: {quantity: {attribute: value}, "": group attrs}
     rough: dict[str, np.ndarray] | None = None  # a periodic grid's group rough (ROUGH_UNITS), per saved field
+    warnings: tuple[str, ...] = ()  # the run's warnings (attribute warnings), one line each
 
     @classmethod
     def open(cls, path: str | pathlib.Path) -> "Results":
@@ -181,7 +182,7 @@ class Results:
                        bool(f.attrs.get("complete", True)), bool(f.attrs.get("line_contact", False)),
                        tuple(name for name in FIELD_UNITS if name in fields), bool(f.attrs.get("steady", False)),
                        str(f.attrs.get("scene_file", "")), str(f.attrs.get("petroll_version", "")),
-                       str(f.attrs.get("run_id", "")), estimate, rough)
+                       str(f.attrs.get("run_id", "")), estimate, rough, string_list(f, "warnings"))
 
     def field(self, name: str) -> np.ndarray:
         """The saved fields ``name`` (a key of FIELD_UNITS), (n_saved, nx, ny), read from the file."""
@@ -327,13 +328,13 @@ class ResultsFile:
 
     # -- growing ----------------------------------------------------------------------------------------
     def append(self, records: list, saved: dict[str, np.ndarray] | None = None, complete: bool = False,
-               describe: bool = False, rough=None) -> None:
+               describe: bool = False, rough=None, warnings=()) -> None:
         """Append the series of ``records`` (StepRecords) not yet in the file and, with ``saved`` ({field
         name: this rank's rows}), the fields of the last record's step (and with them, on a periodic grid,
-        ``rough``: its petroll.solver.rough.RoughOutputs); then mark the file (``complete``:
-        the run is over). ``describe`` rewrites results.xdmf too (atomically). The first append of a file
-        neither created nor resumed creates it with these records (so a run failing in its first step
-        leaves none)."""
+        ``rough``: its petroll.solver.rough.RoughOutputs) and rank 0's ``warnings`` lines not there yet
+        (attribute warnings); then mark the file (``complete``: the run is over). ``describe`` rewrites
+        results.xdmf too (atomically). The first append of a file neither created nor resumed creates it
+        with these records (so a run failing in its first step leaves none)."""
         first = not self.started
         if first:
             self.steps, self.field_steps = 0, []
@@ -365,6 +366,7 @@ class ResultsFile:
                 if f.writer:
                     _field_views(h, self.fields, k)
             if f.writer:
+                add_strings(h, "warnings", warnings)  # the run's warnings so far, each once
                 h.flush()  # the data first, then the marks that make them count
                 self._mark(h, n, k, complete)
 
@@ -398,10 +400,11 @@ class ResultsFile:
             dtype = np.int64 if name == "modes" else np.float64
             f.put(f"rough/{name}", (k - 1,), 0, np.asarray(getattr(rough, name) if mine else [], dtype=dtype))
 
-    def write_error_estimate(self, quantities: dict[str, dict], attrs: dict) -> None:
+    def write_error_estimate(self, quantities: dict[str, dict], attrs: dict, complete: bool = False) -> None:
         """The group ``error_estimate`` (replaced if present): ``attrs`` on the group, one subgroup per
-        quantity with its attributes (value, extrapolated, error, order, ...; docs/results.md). Written
-        through the journaled session like an append; collective (OutputError on every rank)."""
+        quantity with its attributes (value, extrapolated, error, order, ...; docs/results.md); with
+        ``complete``, the file marked complete in the same commit (a run with an estimate is finished once
+        it is written). Journaled like an append; collective (OutputError on every rank)."""
         def work(f: RowFile):
             if f.writer:
                 h = f.file
@@ -411,6 +414,7 @@ class ResultsFile:
                 group.attrs.update(attrs)
                 for name, values in quantities.items():
                     group.create_group(name).attrs.update(values)
+                h.attrs["complete"] = complete or bool(h.attrs["complete"])  # one commit: estimate and mark
 
         self._guarded(lambda: self._write(self.path, "r+", work))
 
@@ -508,13 +512,13 @@ def _resumable(source: pathlib.Path, steps: int, field_steps: list[int], check=N
 
 
 def results_identity(path: str | pathlib.Path) -> dict | None:
-    """Of a results file: its ``scene`` text, ``run_id`` and ``fingerprint`` ("" if it has none) and whether
-    it is ``complete``; None if it cannot be read as one."""
+    """Of a results file: its ``scene`` text, ``run_id`` and ``fingerprint`` ("" if it has none), whether
+    it is ``complete`` and whether it holds an ``error_estimate``; None if it cannot be read as one."""
     try:
         with reading(path) as f:
             return {"scene": str(f.attrs["scene"]), "run_id": str(f.attrs.get("run_id", "")),
                     "fingerprint": str(f.attrs.get("fingerprint", "")),
-                    "complete": bool(f.attrs.get("complete", True))}
+                    "complete": bool(f.attrs.get("complete", True)), "estimated": "error_estimate" in f}
     except (OSError, KeyError):
         return None
 

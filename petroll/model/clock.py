@@ -2,7 +2,9 @@
 
 The time loop (petroll.solver.simulation) takes its steps from :func:`step_length`; :func:`path` walks the
 same clock without solving anything, so that the steps and the path are known before step 1 (``petroll
-check``, the path check of petroll.model.preflight). Times in s, lengths in m.
+check``, the path check of petroll.model.preflight). A steady solve ([time] mode = "steady") has no clock,
+only its integrator's step (:func:`steady_dt`). :func:`moves`: how far the body goes in each step, what
+the time-resolution check of petroll.model.preflight weighs against the contact. Times in s, lengths in m.
 """
 
 from __future__ import annotations
@@ -80,3 +82,26 @@ def path(scene) -> Path:
         dt = step_length(scene, t, distance)
     xy = np.array(points)
     return Path(np.array(times), xy[:, 0], xy[:, 1], np.array(rolled), complete)
+
+
+def steady_dt(scene) -> float:
+    """The integrator's step (s) of a steady solve ([time] mode = "steady", petroll.solver.steady and
+    petroll.solver.sliding): [time] dt, else the time to cross min(dx, dy) over [time] steps_per_cell
+    (default 1) at the speed |V(0)| (which must be > 0: the scene checks it)."""
+    tm = scene.time
+    if tm.dt is not None:
+        return tm.dt
+    speed = float(np.hypot(*scene.velocity(0.0)))
+    return scene.grid.cell / ((tm.steps_per_cell or 1.0) * speed)
+
+
+def moves(scene, walked: Path) -> np.ndarray:
+    """(steps, 2): the body's displacement (m, along X and Y) over each step of the run: those of
+    ``walked`` (its path, :func:`path`), or a steady solve's V(0) times :func:`steady_dt` (one row). Empty
+    for a run of one step at t = 0 (no [time] step) or a steady solve at rest."""
+    if scene.time.mode == "steady":
+        velocity = np.asarray(scene.velocity(0.0), dtype=float)
+        if not np.any(velocity):
+            return np.zeros((0, 2))
+        return (velocity * steady_dt(scene))[None, :]
+    return np.column_stack([np.diff(walked.sx), np.diff(walked.sy)])

@@ -16,32 +16,41 @@ The Prony fit itself is :func:`petroll.model.prony_fit.fit_prony` (also reachabl
 ``dma.fit_prony``).
 
 The CSV (:func:`read_dma`): a header line naming the columns ``frequency,storage,loss`` (any order; optional
-``temperature`` and ``set``), then one row per measurement; lines starting with ``#`` and blank lines are
-skipped.
+``temperature`` and ``set``), optionally a units row, then one row per measurement; lines starting with
+``#`` and blank lines are skipped, a UTF-8 byte-order mark is ignored, and tabs or semicolons separate the
+fields where the header holds them. Besides petroll's names, the names pyvisco and common instruments
+export are recognised (:data:`NAMES`; ``columns`` maps others), other quantities they export are ignored
+(:data:`EXTRA`), and a unit is read from a units row, from the header name (``E' (MPa)``) or from
+``units`` (:data:`UNITS`); values are converted to Hz, Pa and K, then checked for plausibility
+(:mod:`petroll.model.dma_columns`).
 """
 
 from __future__ import annotations
 
-import csv
 import math
 import pathlib
 from dataclasses import dataclass
 
 import numpy as np
 
-from petroll.errors import DMAError, SceneError, shown
-from petroll.model.limits import MAGNITUDES, scale_message
+from petroll.errors import DMAError, SceneError
 from petroll.model import materials, tts
+from petroll.model.dma_columns import (  # noqa: F401
+    ALLOWED,
+    COLUMNS,
+    EXTRA,
+    NAMES,
+    PLAUSIBLE,
+    SHEAR,
+    UNITS,
+    likely_units,
+    parse_mapping,
+    read_columns,
+    unit_hint,
+)
 from petroll.model.prony_fit import TOLERANCE, PronyFit, candidate_times, fit_prony, storage_loss  # noqa: F401
 from petroll.model.scene import dumps
 from petroll.model.toml_file import load_scene_table
-
-COLUMNS = {"frequency": "Hz", "storage": "Pa", "loss": "Pa", "temperature": "K", "set": "a label"}
-"""The CSV's columns and their units; temperature and set are optional."""
-
-ALLOWED = ("a CSV with the header frequency,storage,loss and optionally temperature and set (Hz, Pa, Pa, K, "
-           "a label naming the measurement set), then rows of finite numbers > 0 (the set: any text); lines "
-           "starting with # are comments")
 
 DEFAULT_TOLERANCE = 0.5
 """Temperatures (K) within which rows, taken in order of temperature, belong to one set (no set column)."""
@@ -89,6 +98,8 @@ class DMAData:
     reduced: np.ndarray  # Hz at T_ref
     tolerance: float | None = None  # K, when the sets were found by temperature
     found: tts.ShiftFit | None = None  # the factors found from the data (--shift auto)
+    columns: dict | None = None  # {column: (its header name, the unit read)}
+    ignored: tuple[str, ...] = ()  # header names of the columns not used
 
     @property
     def T_ref(self) -> float | None:
@@ -98,15 +109,18 @@ class DMAData:
         return None if self.shift is None else self.shift.T_ref
 
 
-def read_dma(path: str | pathlib.Path, shift=None, tolerance: float = DEFAULT_TOLERANCE) -> DMAData:
+def read_dma(path: str | pathlib.Path, shift=None, tolerance: float = DEFAULT_TOLERANCE,
+             columns: dict[str, str] | None = None, units: dict[str, str] | None = None) -> DMAData:
     """Read a DMA table (module docstring) and group its rows into sets (:func:`group_sets`); with a
     temperature column, ``shift`` (required: a law of materials.make_shift, or :class:`AutoShift` to find
-    the factors from the data) gives each row's reduced frequency. DMAError naming the file, the line and
-    what is allowed for anything else."""
+    the factors from the data) gives each row's reduced frequency. ``columns`` maps petroll's columns
+    (frequency, storage, loss, temperature, set) to header names (the others are then ignored), ``units``
+    gives their units (:data:`UNITS`; over a units row's). DMAError naming the file, the line and what is
+    allowed for anything else."""
     path = pathlib.Path(path)
     if not 0 < tolerance < math.inf:
         raise DMAError(f"--tolerance {tolerance!r}: must be a finite number > 0 (K)")
-    lines, column = _read_columns(path)
+    lines, column, used, ignored = read_columns(path, columns or {}, units or {})
     temperature, labels = column.get("temperature"), column.get("set")
     if labels is not None and temperature is None:
         raise DMAError(f"{path}: a set column needs a temperature column (the sets are isotherms); must be "
@@ -124,7 +138,7 @@ def read_dma(path: str | pathlib.Path, shift=None, tolerance: float = DEFAULT_TO
         reduced = reduced * _factors(path, lines, shift, temperature)
     by_temperature = temperature is not None and labels is None
     return DMAData(str(path), column["frequency"], column["storage"], column["loss"], temperature, sets,
-                   shift, reduced, tolerance if by_temperature else None, found)
+                   shift, reduced, tolerance if by_temperature else None, found, used, ignored)
 
 
 def _found(path, column: dict, sets: tuple[DMASet, ...], T_ref: float) -> tuple[tts.ShiftFit, np.ndarray]:
@@ -153,62 +167,6 @@ def _factors(path, lines: list[int], shift, temperature: np.ndarray) -> np.ndarr
         except ValueError as exc:
             raise DMAError(f"{path}, line {lines[i]}: temperature = {T:g} K: the shift law {exc}") from None
     return factors
-
-
-def _read_columns(path: pathlib.Path) -> tuple[list[int], dict]:
-    """(the data rows' line numbers, {name: values}): numbers, and the set labels as text."""
-    try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        why = exc.strerror if isinstance(exc, OSError) else "not UTF-8 text"
-        raise DMAError(f"{path}: cannot read it ({why}); must be {ALLOWED}") from None
-    text = text.removeprefix("\ufeff")  # a byte-order mark (spreadsheets write one): not the header's
-    try:
-        rows = [(number, fields) for number, fields in
-                enumerate(csv.reader(text.splitlines()), start=1)
-                if fields and "".join(fields).strip() and not fields[0].lstrip().startswith("#")]
-    except csv.Error as exc:  # a field longer than csv's limit (131072 characters)
-        raise DMAError(f"{path}: not a CSV table ({exc}); must be {ALLOWED}") from None
-    if not rows:
-        raise DMAError(f"{path}: no header line; must be {ALLOWED}")
-    header_line, header = rows[0]
-    names = [name.strip().lower() for name in header]
-    unknown = [n for n in names if n not in COLUMNS]
-    missing = [n for n in ("frequency", "storage", "loss") if n not in names]
-    if unknown or missing or len(set(names)) != len(names):
-        what = (f"unknown column {unknown[0]!r}" if unknown else f"missing column {missing[0]!r}" if missing
-                else "a column named twice")
-        raise DMAError(f"{path}, line {header_line}: header {','.join(header)!r}: {what}; must be {ALLOWED}")
-    if len(rows) < 3:
-        raise DMAError(f"{path}: {len(rows) - 1} data row(s); a fit needs at least 2; must be {ALLOWED}")
-    values = {name: [] for name in names}
-    for number, fields in rows[1:]:
-        if len(fields) != len(names):
-            raise DMAError(f"{path}, line {number}: {len(fields)} values for the {len(names)} columns "
-                           f"{','.join(names)}; must be {ALLOWED}")
-        for name, field in zip(names, fields):
-            values[name].append(_value(path, number, name, field))
-    column = {name: (v if name == "set" else np.array(v)) for name, v in values.items()}
-    return [number for number, _ in rows[1:]], column
-
-
-def _value(path, line: int, name: str, field: str):
-    if name == "set":
-        if not field.strip():
-            raise DMAError(f"{path}, line {line}: set is empty: must name the row's measurement set; the "
-                           f"file must be {ALLOWED}")
-        return field.strip()
-    try:
-        value = float(field)
-    except ValueError:
-        value = math.nan
-    if not 0 < value < math.inf:
-        raise DMAError(f"{path}, line {line}: {name} = {shown(field.strip())}: must be a finite number > 0 "
-                       f"({COLUMNS[name]}); the file must be {ALLOWED}")
-    if name != "temperature" and not MAGNITUDES[0] <= value <= MAGNITUDES[1]:
-        raise DMAError(f"{path}, line {line}: {name} = {shown(field.strip())}: "
-                       f"{scale_message(value, COLUMNS[name])}")
-    return value
 
 
 def group_sets(path, lines: list[int], frequency: np.ndarray, temperature: np.ndarray | None,
@@ -242,6 +200,102 @@ def group_sets(path, lines: list[int], frequency: np.ndarray, temperature: np.nd
         rows = rows[np.argsort(frequency[rows], kind="stable")]
         sets.append(DMASet(name or str(rank), rows, float(np.mean(T)), spread))
     return tuple(sets)
+
+
+RMS_BOUND, MAX_BOUND = 0.03, 0.15
+"""The fit's relative error warned of: rms above 3 % (three times a DMA's usual 1 % scatter) or the largest
+above 15 % (five times that)."""
+
+WLF_RANGE = {"C1": (1.0, 60.0), "C2": (10.0, 400.0)}
+"""WLF constants within which a law is physical. WLF's 'universal' constants at Tg are C1 = 17.44 and
+C2 = 51.6 K (Williams, Landel and Ferry, J. Am. Chem. Soc. 77, 3701, 1955), the law holding from Tg to
+about Tg + 100 K (IUPAC Gold Book, 'WLF equation'); referred to another T_ref, C2 = C2g + T_ref - Tg and
+C1 = C1g C2g / C2. Constants 3 times smaller or larger than the universal ones at Tg, referred to any
+T_ref from Tg - 5 K to Tg + 350 K, stay within these ranges; constants beyond them describe no polymer:
+a degenerate fit (C1 and C2 growing together make the law a straight line, Arrhenius-like) or a law
+fitted to too few or noisy factors."""
+
+RIPPLE = 1e-3
+"""A fitted E'' that goes up and down between two neighbouring data frequencies by more than this
+(decades: 0.23 %) while the data there are monotone is warned of as a ripple of the Maxwell terms."""
+
+RIPPLE_WINDOW = 2
+"""Points on each side of a gap whose log10 E'' must be monotone (with the gap's two) for the data to be
+smooth there."""
+
+
+def fit_dma(data: DMAData, terms: int | None = None, per_decade: float | None = None, nu: float = 0.5,
+            einf: float | str | None = None) -> tuple[PronyFit, list[str]]:
+    """The Prony fit of ``data`` (:func:`fit_prony` on the reduced frequencies) and its warnings
+    (:func:`fit_warnings`). DMAError when the relaxed modulus is below 1 kPa (PLAUSIBLE), naming the
+    unit the data are likely in."""
+    fit = fit_prony(data.reduced, data.storage, data.loss, terms, per_decade, nu, einf)
+    low = PLAUSIBLE["storage"][0]
+    if fit.Einf < low:
+        name, unit = (data.columns or {}).get("storage", ("storage", "Pa"))
+        factor = UNITS["storage"][unit]
+        raise DMAError(f"{data.source}: the relaxed modulus Einf = {fit.Einf:.4g} Pa ({fit.einf_how}) is below "
+                       f"{low:g} Pa, softer than any solid petroll can roll on, with storage ({name!r}) in "
+                       f"{unit}" + unit_hint(likely_units(data.storage / factor, fit.Einf / factor)))
+    return fit, fit_warnings(data, fit)
+
+
+def fit_warnings(data: DMAData, fit: PronyFit) -> list[str]:
+    """One line for each thing the user should look at: the fit's error beyond RMS_BOUND or MAX_BOUND, a
+    WLF law (given, or fitted to the factors found) beyond WLF_RANGE, ripples of E'' (:func:`ripples`),
+    shift factors with a standard error above tts.SIGMA_WARN."""
+    lines = []
+    if fit.rms_error > RMS_BOUND or fit.max_error > MAX_BOUND:
+        lines.append(f"the fit's relative error (rms {100 * fit.rms_error:.3g} %, max {100 * fit.max_error:.3g} "
+                     f"%) exceeds {100 * RMS_BOUND:g} % rms or {100 * MAX_BOUND:g} % max: check the units, the "
+                     "shift (sets that do not superpose) and the data's scatter, or fix the density "
+                     "(--per-decade)")
+    laws = [("the shift law given", data.shift)] if isinstance(data.shift, materials.WLF) else []
+    if data.found is not None and data.found.wlf.law is not None:
+        laws.append(("WLF fitted to the factors found", data.found.wlf.law))
+    for what, law in laws:
+        bad = [f"{name} = {getattr(law, name):.4g}" for name, (lo, hi) in WLF_RANGE.items()
+               if not lo <= getattr(law, name) <= hi]
+        if bad:
+            ranges = ", ".join(f"{name} {lo:g} ... {hi:g}" for name, (lo, hi) in WLF_RANGE.items())
+            lines.append(f"{what} is degenerate: {', '.join(bad)}, beyond the physical ranges ({ranges} K; "
+                         "docs/materials.md): the factors do not determine it (a straight line in T, or too "
+                         "few or noisy factors)")
+    found = ripples(data, fit)
+    if found:
+        bump, lo, hi = found[0]
+        denser = (f"--per-decade {2 * fit.per_decade:g}" if math.isfinite(fit.per_decade) else
+                  f"--terms {2 * fit.candidates}")
+        lines.append(f"the fitted E'' ripples between neighbouring data frequencies where the data are "
+                     f"monotone: {len(found)} gap(s), the largest {100 * (10**bump - 1):.2g} % at {lo:.4g} ... "
+                     f"{hi:.4g} Hz (too few terms: {denser}, or more data there)")
+    if data.found is not None:
+        lines += data.found.warnings()
+    return lines
+
+
+def ripples(data: DMAData, fit: PronyFit) -> list[tuple[float, float, float]]:
+    """(bump in decades, lower and upper frequency in Hz) of every gap between neighbouring reduced
+    frequencies (rows within 1e-6 decade merged, their log10 E'' averaged) where the fit's log10 E''
+    rises above or falls below both ends by more than RIPPLE, though the data's log10 E'' is monotone over
+    the gap and RIPPLE_WINDOW points on each side; largest first."""
+    x, y = np.log10(data.reduced), np.log10(data.loss)
+    order = np.argsort(x, kind="stable")
+    x, y = x[order], y[order]
+    group = np.cumsum(np.concatenate([[True], np.diff(x) > 1e-6])) - 1
+    count = np.bincount(group)
+    x, y = np.bincount(group, x) / count, np.bincount(group, y) / count
+    inside = np.linspace(0.0, 1.0, 17)
+    found = []
+    for i in range(len(x) - 1):
+        step = np.diff(y[max(i - RIPPLE_WINDOW, 0):i + 2 + RIPPLE_WINDOW])
+        if not (np.all(step > 0) or np.all(step < 0)):
+            continue
+        z = np.log10(fit.dynamic(10 ** (x[i] + inside * (x[i + 1] - x[i])))[1])
+        bump = max(z.max() - max(z[0], z[-1]), min(z[0], z[-1]) - z.min())
+        if bump > RIPPLE:
+            found.append((float(bump), float(10 ** x[i]), float(10 ** x[i + 1])))
+    return sorted(found, reverse=True)
 
 
 def parse_shift(text: str):
@@ -279,9 +333,11 @@ def parse_shift(text: str):
         raise DMAError(f"--shift {text}: {exc}") from None
 
 
-def material_toml(fit: PronyFit, shift=None, source: str | None = None, T_ref: float | None = None) -> str:
+def material_toml(fit: PronyFit, shift=None, source: str | None = None, T_ref: float | None = None,
+                  warnings=(), found: tts.ShiftFit | None = None) -> str:
     """The [material] block of ``fit`` as TOML, with comment lines saying where it comes from; with a
-    shift law, at ``T_ref`` (K, default the law's)."""
+    shift law, at ``T_ref`` (K, default the law's); each of ``warnings`` as a comment line "# warning:
+    ..."; with shift factors ``found`` from the data, their standard errors as comment lines."""
     lo, hi = fit.frequency_range
     where = f" from {source}" if source else ""
     if shift is not None and T_ref is None:
@@ -290,28 +346,49 @@ def material_toml(fit: PronyFit, shift=None, source: str | None = None, T_ref: f
     head = (f"# Generalized Maxwell series fitted by petroll material fit{where}: {len(fit.moduli)} terms\n"
             f"# (of {fit.candidates} candidate times), to E', E'' over {lo:.4g} ... {hi:.4g} Hz{at}; "
             f"relative error rms {100 * fit.rms_error:.3g} %, max {100 * fit.max_error:.3g} %.\n")
+    if found is not None:
+        head += ("# The shift factors' standard errors (decades of log10 a_T; each pair's overlap, chained to "
+                 "T_ref), per set:\n"
+                 f"#   T = {[round(float(t), 4) for t in found.temperatures]}\n"
+                 f"#   log10_aT_error = {[float(f'{s:.3g}') for s in found.sigma]}\n")
+    head += "".join(f"# warning: {line}\n" for line in warnings)
     return head + dumps({"material": fit.table(shift, T_ref)})
+
+
+def describe_columns(data: DMAData) -> str:
+    """How the table's columns were read, where that is not petroll's own format (other names, units or
+    columns ignored); "" otherwise."""
+    used = data.columns or {}
+    own = all(name == column and unit == COLUMNS[column] for column, (name, unit) in used.items())
+    if own and not data.ignored:
+        return ""
+    read = ", ".join(f"{name!r} as {column}" + ("" if column == "set" else f" ({unit})")
+                     for column, (name, unit) in used.items())
+    ignored = f"; ignored: {', '.join(repr(n) for n in data.ignored)}" if data.ignored else ""
+    return f"columns read: {read} (converted to Hz, Pa, K){ignored}."
 
 
 def describe_sets(data: DMAData) -> str:
     """The sets of ``data`` as a table of text lines: label, rows, mean temperature, spread, frequencies;
-    with factors found from the data, each set's log10 a_T, and the shift to the next set, the overlap it
-    leaves and the misfit there (tts.pair_shift)."""
+    with factors found from the data, each set's log10 a_T and its standard error (+-, decades, chained
+    to T_ref), and the shift to the next set, its standard error, the overlap it leaves and the misfit
+    there (tts.pair_shift)."""
     how = ("the set column" if data.tolerance is None else
            f"temperatures within {data.tolerance:g} K of their neighbours")
     found = data.found
     head = f"  {'set':>8} {'rows':>5} {'T (K)':>9} {'spread (K)':>10}   {'frequency (Hz)':<17}"
     if found is not None:
-        head += f" {'log10 a_T':>10} {'to next':>8} {'overlap':>8} {'misfit':>7}"
+        head += f" {'log10 a_T':>10} {'+-':>6} {'to next':>8} {'+-':>6} {'overlap':>8} {'misfit':>7}"
     lines = [f"{len(data.sets)} sets ({how}):", head.rstrip()]
     for k, s in enumerate(data.sets):
         f = data.frequency[s.rows]
         line = (f"  {s.label:>8} {len(s.rows):5d} {s.temperature:9.2f} {s.spread:10.3f}   "
                 f"{f'{f.min():.4g} ... {f.max():.4g}':<17}")
         if found is not None:
-            line += f" {found.log10_aT[k]:10.3f}"
+            line += f" {found.log10_aT[k]:10.3f} {found.sigma[k]:6.3f}"
             if k < len(found.shifts):
-                line += f" {found.shifts[k]:8.3f} {found.overlaps[k]:8.2f} {found.misfits[k]:7.2f}"
+                line += (f" {found.shifts[k]:8.3f} {found.shift_sigma[k]:6.3f} {found.overlaps[k]:8.2f} "
+                         f"{found.misfits[k]:7.2f}")
         lines.append(line.rstrip())
     return "\n".join(lines)
 
@@ -320,6 +397,9 @@ def report(data: DMAData, fit: PronyFit) -> str:
     """What ``petroll material fit`` says (lines starting ``petroll:``): the sets, the shift factors found
     and the laws fitted to them, and the fit's size and error."""
     lines = []
+    read = describe_columns(data)
+    if read:
+        lines.append(f"petroll: {data.source}: {read}")
     if data.temperature is not None:
         lines.append("petroll: " + describe_sets(data))
     if data.found is not None:

@@ -23,6 +23,7 @@ import warnings
 import numpy as np
 
 from petroll.errors import SceneError
+from petroll.model import motion
 
 SLOPE_WARN = 0.3
 SLOPE_MAX = 1.0
@@ -129,3 +130,29 @@ def check_scene(scene) -> None:
     if slope > SLOPE_WARN:
         warnings.warn(PetrollWarning(f"{scene.source}: {key}: {reason}; results lose accuracy above "
                                      f"{SLOPE_WARN:g}"), stacklevel=2)
+
+
+NEGATIVE_ROUND_OFF = 1e-12
+"""A resisting-force coefficient (mu_r, or the sliding friction) below -NEGATIVE_ROUND_OFF is negative
+beyond round-off (a symmetric contact's mu_r is a sum of terms that cancel to about 1e-18)."""
+
+
+def negative_friction(scene, mu_r: float) -> str | None:
+    """The warning (one line) for a resisting force that came out negative, ``mu_r`` < 0 beyond round-off,
+    from a dissipative material (J0 < Jinf: its loss is > 0 at every frequency) at a steady state (a steady
+    solve, or the last step of a transient at constant velocity, penetration or load): a body moving
+    steadily over such a material loses energy to it, so the resisting force is > 0 and a negative one is
+    numerical (a time step or grid too coarse for the contact, docs/accuracy.md). None otherwise (an
+    elastic material, a body at rest, or a transient whose motion changes: energy stored earlier may push
+    the body on)."""
+    material = scene.material
+    moving = bool(np.any(np.asarray(scene.velocity(0.0), dtype=float)))
+    if not (mu_r < -NEGATIVE_ROUND_OFF and moving and material.Jinf > material.J0 * (1 + 1e-9)):
+        return None
+    held = [p for p in (scene.velocity, scene.penetration, scene.load) if p is not None]
+    if scene.time.mode != "steady" and not all(isinstance(p, motion.Constant) for p in held):
+        return None
+    what = "sliding friction" if scene.time.mode == "steady" and any(scene.grid.periodic) else "mu_r"
+    return (f"{scene.source}: {what} = {mu_r:.4g} < 0 from a dissipative material at a steady state: the "
+            "material can only resist a steady motion, so this value is wrong (a time step or grid too "
+            "coarse for the contact: petroll check SCENE, docs/accuracy.md)")

@@ -15,17 +15,24 @@ Resolution. Cells per contact half-width along X and Y, the smaller over the com
 ``LEAST_CELLS`` it is refused unless ``[grid] allow_coarse = true``, above ``MOST_CELLS`` (a contact
 smaller than half the grid) it is refused (docs/accuracy.md: errors against cells per half-width).
 
+Time step. Steps per contact half-width along the motion, checked like the cells
+(petroll.model.timestep: below ``GOOD_STEPS`` a run warns, below ``LEAST_STEPS`` it is refused unless
+``[time] allow_coarse = true``; steps longer than the grid, or too fine for a steady sliding solve, are
+refused). ``petroll check`` prints the cells per step and the steps per half-width.
+
 Path. The body's reference point over the whole run (petroll.model.clock.path) carries the box of the
 cells it can interfere with: where it lies within delta_e of its lowest point (rubbery delta_e under load
 control; line contact: the contact, within delta_e / 2). A run whose box would reach the grid's edge cells
 at some step is refused, saying where it leaves the grid and the extent it needs (along a periodic axis
 the body wraps around: nothing to leave). A body that never presses (its largest penetration or load
-<= 0) or has no surface over the grid is refused, and on a periodic grid, whose contact problem covers
-every cell, a body without surface over some cells (:func:`check_surface`).
+<= 0), has no surface over the grid, or lies outside the grid (nowhere over it within the largest
+penetration of its own lowest point, :func:`check_over_grid`) is refused, and so is, on a periodic grid,
+whose contact problem covers every cell, a body without surface over some cells (:func:`check_surface`).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import warnings
 from dataclasses import dataclass
@@ -35,6 +42,7 @@ import numpy as np
 from petroll.errors import SceneError
 from petroll.model.clock import Path, path
 from petroll.model.limits import PetrollWarning, largest_penetration
+from petroll.model.timestep import GOOD_STEPS, TimeResolution, check_time, time_resolution
 
 GOOD_CELLS = 8
 """Cells per contact half-width below which a run warns (about 1 % in force and mu_r: docs/accuracy.md)."""
@@ -84,11 +92,22 @@ def _axis_points(scene, lowest, axis: int, offsets: np.ndarray) -> np.ndarray:
     return np.asarray(scene.body.height(x, y), dtype=float)
 
 
+def wrapped_position(scene) -> tuple[float, float]:
+    """[body] position (m) moved by whole periods into the grid along its periodic axes (the same body to
+    the solver: its offsets wrap around them)."""
+    g, (sx, sy) = scene.grid, scene.position
+    if g.periodic[0]:
+        sx = g.x0 + (sx - g.x0) % (g.x1 - g.x0)
+    if g.periodic[1] and not g.line:
+        sy = g.y0 + (sy - g.y0) % (g.y1 - g.y0)
+    return float(sx), float(sy)
+
+
 def lowest_point(scene) -> tuple[float, float]:
     """The body's lowest point over the grid at its start, relative to its reference point (m): the
     lowest of a 401-point lattice per axis, refined on a lattice 20 times finer around it. SceneError if
     the body has no surface over the grid."""
-    g, (sx, sy) = scene.grid, scene.position
+    g, (sx, sy) = scene.grid, wrapped_position(scene)
     span = [(g.x0 - sx, g.x1 - sx), (0.0, 0.0) if g.line else (g.y0 - sy, g.y1 - sy)]
     for _ in range(2):
         x = np.linspace(*span[0], 401)[:, None]
@@ -260,12 +279,31 @@ def check_touching(scene) -> None:
                          f"{control} > 0 ({'m' if control == 'penetration' else 'N'}) at some time")
 
 
+def check_over_grid(scene, lowest: tuple[float, float]) -> None:
+    """SceneError for a body placed outside its grid: at its start, the lowest it comes over the grid
+    (``lowest``: that point, m from its reference point, :func:`lowest_point`) is no nearer to its own
+    lowest point than the largest penetration (under load control the relaxed Hertz estimate, the most it
+    can press): it would touch no cell, and a run would report no contact (force 0) as if it were one."""
+    depth, exact = largest_penetration(scene)
+    with np.errstate(all="ignore"):
+        above = float(np.asarray(scene.body.height(np.array(lowest[0]), np.array(lowest[1])), dtype=float))
+    if above < depth:
+        return
+    g = scene.grid
+    extent = f"[{g.x0:g}, {g.x1:g}]" + ("" if g.line else f" x [{g.y0:g}, {g.y1:g}]")
+    what = "the largest penetration" if exact else "the penetration its largest load could reach (estimate)"
+    raise SceneError(scene.source, "[body] position", list(scene.position),
+                     f"the body lies outside the grid {extent} m: over the grid it comes no nearer than "
+                     f"{above:.4g} m to its own lowest point, more than {what} {depth:.4g} m, so it touches no "
+                     "cell; place the body over the grid (or move [grid] x, y to it)")
+
+
 def _edge_cells_reached(scene, depth: float, sx: float, sy: float) -> bool:
     """Whether the body at (sx, sy) interferes (lies below ``depth`` over its lowest point) with a cell
     centre of the grid's edge rows or columns (line contact: its end strips) along its non-periodic axes:
     the solver's condition."""
     g = scene.grid
-    x, y = g.x - sx, g.y - sy
+    x, y = g.offsets(g.x, g.y, sx, sy)  # along a periodic axis: to the nearest image
     points = [] if g.periodic[0] else [(x[[0, -1]][:, None], y[None, :])]
     if not g.line and not g.periodic[1]:
         points.append((x[:, None], y[[0, -1]][None, :]))
@@ -323,6 +361,8 @@ class Preflight:
     memory_mib: float
     leaves: tuple[str, str] | None  # (axis, where) the path's contact region reaches the grid's edge
     creeping: tuple[str, str] | None = None  # the same as the contact may grow (load: rubbery; layer: bulge)
+    time: TimeResolution | None = None  # the time step against the contact (None: one step, or at rest)
+    warned: str | None = None  # the warning check_run gave (one line), None: none
 
     def verdict(self) -> str:
         """What a run makes of the resolution: fine, warned or refused."""
@@ -343,6 +383,17 @@ class Preflight:
         extents = {"x": g.x1 - g.x0, "y": g.y1 - g.y0}
         return [(axis, n) for axis, n, width in zip("xy", self.cells, small)
                 if n > MOST_CELLS and width < extents[axis] / 2]
+
+    def time_verdict(self) -> str:
+        """What a run makes of the time step (:func:`check_time`): fine, warned or refused (and why)."""
+        try:
+            warned = check_time(self.scene, self.time)
+        except SceneError as exc:
+            return f"a run is refused: {exc.allowed}"
+        if warned is None:
+            return f"at least {GOOD_STEPS}, fine (docs/accuracy.md)"
+        return (f"fewer than {GOOD_STEPS}: a run warns; {self.time.giving(GOOD_STEPS)} gives {GOOD_STEPS} "
+                "(docs/accuracy.md)")
 
     def lines(self) -> list[str]:
         """The report of ``petroll check``, one fact per line."""
@@ -365,6 +416,10 @@ class Preflight:
                 f"{rubbery} m rubbery (Jinf)",
                 f"cells per contact half-width: {cells}: {self.verdict()}",
                 f"steps: {steps}",
+                *([] if self.time is None else [
+                    f"time step: {self.time.cells:.3g} cells per step at most ({self.time.key} = "
+                    f"{self.time.value:g}), {self.time.steps:.3g} steps per contact half-width along the motion "
+                    f"(estimated half-width {self.time.width:.3g} m): {self.time_verdict()}"]),
                 "path: " + (self.leaves[1] if self.leaves else f"the body's reference point goes from ({self.path.sx[0]:.4g}, "
                             f"{self.path.sy[0]:.4g}) to ({self.path.sx[-1]:.4g}, {self.path.sy[-1]:.4g}) m; "
                             "its contact region stays inside the grid"
@@ -429,10 +484,11 @@ def check_surface(scene, walked: Path) -> None:
 def check(scene, ranks: int = 1) -> Preflight:
     """Estimate, without running: contact size, resolution, the path and steps, memory per rank on
     ``ranks`` ranks (``petroll check``). Raises SceneError only for a body that never touches
-    (:func:`check_touching`, no surface over the grid) or, on a periodic grid, has no surface over some
-    cells (:func:`check_surface`); :func:`check_run` refuses the rest."""
+    (:func:`check_touching`, no surface over the grid, :func:`check_over_grid`) or, on a periodic grid,
+    has no surface over some cells (:func:`check_surface`); :func:`check_run` refuses the rest."""
     g = scene.grid
     check_touching(scene)
+    check_over_grid(scene, lowest_point(scene))
     walked = path(scene)
     check_surface(scene, walked)
     size = contact_size(scene)
@@ -442,16 +498,22 @@ def check(scene, ranks: int = 1) -> Preflight:
     leaves = path_leaves(scene, size, walked)
     growing = scene.load is not None or (scene.layer is not None and not g.line)  # load: creep; layer: bulge
     creeping = path_leaves(scene, size, walked, glassy=False) if leaves is None and growing else None
-    return Preflight(scene, size, cells, walked, ranks, memory, leaves, creeping)
+    return Preflight(scene, size, cells, walked, ranks, memory, leaves, creeping,
+                     time_resolution(scene, size, walked))
 
 
 def check_run(scene) -> Preflight:
     """The checks a run makes before step 1: :func:`check` (a body that never touches refused); SceneError
     (naming the [grid] key) below LEAST_CELLS cells per contact half-width unless [grid] allow_coarse =
-    true, and above MOST_CELLS (:meth:`Preflight.too_fine`); SceneError for a path that leaves the grid (naming [grid] x or y; under load control with the
-    glassy penetration, the least the run will have); a warning (PetrollWarning, one line) where a contact
-    half-width has fewer than GOOD_CELLS cells along an axis, or where under load control the rubbery
-    contact would leave the grid (the run may stop there as its contact creeps)."""
+    true, and above MOST_CELLS (:meth:`Preflight.too_fine`); SceneError for a path that leaves the grid
+    (naming [grid] x or y; under load control with the glassy penetration, the least the run will have); SceneError (naming [time] max_steps) for a run
+    whose clock takes more than max_steps steps, unless a [time] steady stop may end it sooner (it needs
+    one contact length of rolling, two smallest half-widths, within them; else the run would stop there
+    unfinished); the time step's refusals (:func:`check_time`,
+    naming [time] steps_per_cell or dt); a warning (PetrollWarning, one line, kept in the returned
+    Preflight's ``warned``) where a contact half-width has fewer than GOOD_CELLS cells along an axis or
+    GOOD_STEPS steps along the motion, or where under load control the rubbery contact would leave the grid
+    (the run may stop there as its contact creeps)."""
     found = check(scene)
     g = scene.grid
     for axis, n in found.too_fine():
@@ -484,6 +546,19 @@ def check_run(scene) -> Preflight:
     if found.creeping is not None:
         why = "as the contact creeps under the load" if scene.load is not None else "as the layer bulges"
         short.append(f"[grid] {found.creeping[0]}: {why} {found.creeping[1]}")
-    if short:
-        warnings.warn(PetrollWarning(f"{scene.source}: {'; '.join(short)} (docs/accuracy.md)"), stacklevel=2)
-    return found
+    patch = 2 * min(w for w in found.contact.smallest if not math.isnan(w))  # the steady stop's least rolling
+    if not found.path.complete and (scene.time.steady is None or found.path.distance[-1] < patch):
+        tm = scene.time  # it would stop at max_steps, unfinished: no steady stop can come before
+        step = f"[time] dt = {tm.dt:g}" if tm.dt is not None else f"[time] steps_per_cell = {tm.steps_per_cell:g}"
+        to = f"[time] end = {tm.end:g} s" if tm.end is not None else f"[time] distance = {tm.distance:g} m"
+        raise SceneError(scene.source, "[time] max_steps", tm.max_steps,
+                         f"the run to {to} with {step} takes more steps (its clock walked: more than "
+                         f"{tm.max_steps}); it would stop there unfinished: raise max_steps or the time step")
+    coarse_time = check_time(scene, found.time)
+    if coarse_time is not None:
+        short.append(coarse_time)
+    if not short:
+        return found
+    text = f"{scene.source}: {'; '.join(short)} (docs/accuracy.md)"
+    warnings.warn(PetrollWarning(text), stacklevel=2)
+    return dataclasses.replace(found, warned=text)

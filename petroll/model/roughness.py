@@ -22,6 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.fft
+import scipy.optimize
 
 from petroll.errors import MISSING, SceneError
 from petroll.model.limits import heights_out_of_scale
@@ -79,11 +80,28 @@ class SelfAffinePSD:
 
 @dataclass(frozen=True, eq=False)
 class TabulatedPSD:
-    """C(q) (m^4) given at wavenumbers ``q`` (rad/m, increasing), interpolated linearly in log-log, 0
-    outside [q_long, q_cutoff] = [q[0], q[-1]]: a measured surface's spectrum (:meth:`of`)."""
+    """C(q) (m^4) given at wavenumbers ``q`` (rad/m, non-decreasing), interpolated linearly in log-log, 0
+    outside [q_long, q_cutoff] = [q[0], q[-1]] and on a segment with an end where C = 0. A wavenumber given
+    twice is a jump: C's values just below and just above it. A measured surface's spectrum:
+    :meth:`of`."""
 
     q: np.ndarray
     C: np.ndarray
+
+    def __post_init__(self):
+        q, c = np.asarray(self.q, dtype=float), np.asarray(self.C, dtype=float)
+        if q.ndim != 1 or q.shape != c.shape or q.size < 2:
+            raise ValueError(f"q and C must be 1-D arrays of the same length >= 2, got shapes {q.shape}, "
+                             f"{c.shape}")
+        step = np.diff(q)
+        if not (np.all(np.isfinite(q)) and q[0] > 0.0 and np.all(step >= 0.0) and q[-1] > q[0]
+                and not np.any((step[1:] == 0.0) & (step[:-1] == 0.0))):
+            raise ValueError("q must be finite, > 0 and non-decreasing (a value at most twice: a jump), "
+                             f"got {q!r}")
+        if not np.all(np.isfinite(c) & (c >= 0.0)):
+            raise ValueError(f"C must be finite and >= 0, got {c!r}")
+        object.__setattr__(self, "q", q)
+        object.__setattr__(self, "C", c)
 
     @property
     def q_long(self) -> float:
@@ -96,20 +114,117 @@ class TabulatedPSD:
     def __call__(self, q) -> np.ndarray:
         q = np.asarray(q, dtype=float)
         inside = (q >= self.q[0]) & (q <= self.q[-1])
-        logq = np.log(np.clip(q, self.q[0], self.q[-1]))
-        return np.where(inside, np.exp(np.interp(logq, np.log(self.q), np.log(self.C))), 0.0)
+        at = np.clip(q, self.q[0], self.q[-1])
+        j = np.clip(np.searchsorted(self.q, at, side="right") - 1, 0, self.q.size - 2)  # q[j] < q[j + 1]
+        lo, hi = self.C[j], self.C[j + 1]
+        logq = np.log(self.q)
+        t = (np.log(at) - logq[j]) / (logq[j + 1] - logq[j])
+        positive = inside & (lo > 0.0) & (hi > 0.0)
+        log_lo, log_hi = np.log(np.where(positive, lo, 1.0)), np.log(np.where(positive, hi, 1.0))
+        return np.where(positive, np.exp(log_lo + t * (log_hi - log_lo)), 0.0)
 
     @classmethod
     def of(cls, heights: np.ndarray, cell: tuple[float, float], per_decade: int = 10) -> TabulatedPSD:
-        """The radially averaged spectrum of periodic ``heights`` (m) at spacing ``cell`` (m), in bins of
-        1/``per_decade`` decade from the longest wavelength of the shorter side to the Nyquist wavenumber
-        of the coarser spacing (bins without modes, or without power, left out)."""
-        q_low = 2.0 * np.pi / min(heights.shape[0] * cell[0], heights.shape[1] * cell[1])
-        q_high = np.pi / max(cell)
-        bins = max(int(np.ceil(per_decade * np.log10(q_high / q_low))), 1)
-        q, c, count = radial_psd(heights, cell, q_low * (q_high / q_low) ** (np.arange(bins + 1) / bins))
-        keep = (count > 0) & (c > 0)
-        return cls(q[keep], c[keep])
+        """The radially averaged spectrum of periodic ``heights`` (m) at spacing ``cell`` (m), with the
+        surface's mean square height and mean square slope (of its trigonometric interpolant) exactly.
+
+        Every mode of the grid but the mean is used (the lattice k = 2 pi (m / Lx, n / Ly), Nyquist and
+        corner modes included). Wavenumber bins 1/``per_decade`` decade wide, from the lowest mode to the
+        highest, are given the area in the plane of wavenumbers their modes stand for: a bin holding the
+        n-th to the m-th mode by |k| spans the radii r with pi r^2 = (n .. m + 1) dkx dky (the mean, the
+        0-th mode, holding the disc of radius sqrt(dkx dky / pi) at the origin), so that q_long is
+        sqrt(dkx dky / pi), 0.56 of the lowest wavenumber of a square cell. On each bin C is a power law
+        whose two moments 2 pi integral q C dq and 2 pi integral q^3 C dq are the bin's modes' sums of
+        |h_k|^2 and |k|^2 |h_k|^2 (a bin where that cannot be is merged with the next); C jumps at the bins'
+        edges. Bins holding less than 1e-20 of the total power (the round-off of a surface with no
+        roughness there) have C = 0, and are left out at the ends.
+
+        (A radial average interpolated in log-log through each bin's mean would lose 4-40 % of h_rms^2 and
+        2-8 % of the mean square slope: the table would start above the lowest modes and end below the
+        highest, a sparse bin's modes stand for more area than its annulus, and log-log interpolation
+        through noisy values takes their geometric mean, below their mean.)
+        """
+        nx, ny = heights.shape
+        area = nx * cell[0] * ny * cell[1]
+        kx, ky = _wavenumbers(heights.shape, cell)
+        q = np.broadcast_to(np.hypot(kx, ky), (nx, ny // 2 + 1))
+        # |h_k|^2 of every mode of the plane, each counted with its conjugate twin: the rfft2's columns ky = 0
+        # and (even ny) Nyquist hold both of a pair, the others one of two
+        weight = np.full(q.shape, 2.0)
+        weight[:, 0] = 1.0
+        if ny % 2 == 0:
+            weight[:, -1] = 1.0
+        power = np.abs(scipy.fft.rfft2(heights) / (nx * ny)) ** 2 * weight
+        mode = q > 0.0
+        q, power, weight = q[mode], power[mode], weight[mode]
+        order = np.argsort(q, kind="stable")
+        q, power, weight = q[order], power[order], weight[order]
+        total = power.sum()
+        if not total > _EMPTY * np.mean(heights**2):  # round-off of a constant
+            raise ValueError("a flat surface (every height the same) has no spectrum")
+        bins = max(int(np.ceil(per_decade * np.log10(q[-1] / q[0]))), 1)
+        nominal = q[0] * (q[-1] / q[0]) ** (np.arange(1, bins) / bins)
+        cuts = np.unique(np.concatenate([[0], np.searchsorted(q, nominal), [q.size]]))
+        before = np.concatenate([[1.0], 1.0 + np.cumsum(weight)])  # modes of the plane below, the mean's 1
+        dk2 = (2.0 * np.pi) ** 2 / area
+        radius = np.sqrt(before[cuts] * dk2 / np.pi)
+        radius[0] = min(radius[0], q[0] / math.sqrt(2.0))  # a cell over 1.6 times as long as wide
+        moment0 = np.add.reduceat(power, cuts[:-1])
+        moment2 = np.add.reduceat(power * q**2, cuts[:-1])
+        # a bin whose modes' mean |k|^2 no power law of exponent within +-_STEEPEST on its radii has is
+        # merged with the neighbour on the side of its mean (at the ends, the one neighbour)
+        while True:
+            full = moment0 > _EMPTY * total
+            mean = np.divide(moment2, moment0, out=np.zeros(moment0.shape), where=full)
+            span = np.log(radius[1:] / radius[:-1])
+            ratio = np.log(np.where(full, mean, 1.0) / radius[:-1] ** 2)
+            low = ratio < [_mean_log_ratio(-_STEEPEST, s) for s in span]
+            high = ratio > [_mean_log_ratio(_STEEPEST, s) for s in span]
+            bad = np.flatnonzero(full & (low | high))
+            if bad.size == 0:
+                break
+            if moment0.size == 1:
+                raise ValueError("no radial spectrum holds this surface's mean square slope: its power lies "
+                                 "at wavenumbers beyond the disc of its modes' area (e.g. a checkerboard)")
+            i = int(bad[0])
+            i = min(max(i - 1 if low[i] else i, 0), moment0.size - 2)  # merge bins i and i + 1
+            cuts, radius = np.delete(cuts, i + 1), np.delete(radius, i + 1)
+            moment0 = np.concatenate([moment0[:i], [moment0[i] + moment0[i + 1]], moment0[i + 2:]])
+            moment2 = np.concatenate([moment2[:i], [moment2[i] + moment2[i + 1]], moment2[i + 2:]])
+        left, right = np.zeros(moment0.size), np.zeros(moment0.size)
+        for i in np.flatnonzero(full):
+            alpha = scipy.optimize.brentq(lambda a: _mean_log_ratio(a, span[i]) - ratio[i], -_STEEPEST,
+                                          _STEEPEST, xtol=1e-13, rtol=1e-15)
+            left[i] = moment0[i] / (2.0 * np.pi * radius[i] ** 2 * math.exp(_log_integral(alpha + 1.0, span[i])))
+            right[i] = left[i] * math.exp(alpha * span[i])
+        first, last = np.flatnonzero(full)[[0, -1]]
+        keep = slice(first, last + 1)
+        q = np.repeat(radius, 2)[1:-1].reshape(-1, 2)[keep].ravel()
+        return cls(q, np.column_stack([left, right])[keep].ravel())
+
+
+_EMPTY = 1e-20
+"""A bin of :meth:`TabulatedPSD.of` holding less than this fraction of the surface's power is empty."""
+
+_STEEPEST = 24.0
+"""The largest |exponent| of :meth:`TabulatedPSD.of`'s power law on a bin (6 times a self-affine
+spectrum's steepest, q^-4); a bin that would need more is merged with a neighbour."""
+
+
+def _mean_log_ratio(alpha: float, span: float) -> float:
+    """ln(<q^2> / a^2) over [a, a e^span] weighted by q C(q) dq, C ~ q^alpha."""
+    return _log_integral(alpha + 3.0, span) - _log_integral(alpha + 1.0, span)
+
+
+def _log_integral(power: float, span: float) -> float:
+    """ln of integral_1^exp(span) x^power dx (span > 0), without overflow for any power."""
+    e = power + 1.0
+    y = e * span
+    if abs(y) < 1e-8:
+        return math.log(span) + math.log1p(y / 2.0)
+    if y > 0.0:
+        return y + math.log(-math.expm1(-y)) - math.log(e)
+    return math.log(-math.expm1(y)) - math.log(-e)
 
 
 def _wavenumbers(shape: tuple[int, int], cell: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:

@@ -49,6 +49,7 @@ class Time:
     steady: float | None
     max_steps: int
     mode: str = "transient"  # "steady": the steady state solved directly (one step)
+    allow_coarse: bool = False  # [time] allow_coarse: run below petroll.model.preflight.LEAST_STEPS
 
 
 @dataclass(frozen=True)
@@ -393,7 +394,7 @@ def _tabulated_material(v: dict, base_dir: pathlib.Path, source: str) -> materia
     return materials.Tabulated(tuple(t), tuple(value))
 
 
-STEADY_TIME_KEYS = ("mode", "steps_per_cell", "dt")
+STEADY_TIME_KEYS = ("mode", "steps_per_cell", "dt", "allow_coarse")
 """The [time] keys a scene with mode = "steady" may give (the integrator's step; no clock)."""
 
 

@@ -400,6 +400,9 @@ SCHEMA: dict[str, dict[str, Key]] = {
                       "over one contact length of rolling", _positive, default=None),
         "max_steps": Key("integer", f"refuse scenes that would take more steps (at most {MAX_STEPS})", _steps,
                          default=100000),
+        "allow_coarse": Key("boolean", "run even with fewer than 2 steps per estimated contact half-width "
+                            "along the motion (refused otherwise; below 8 a run warns: docs/accuracy.md)",
+                            _flag, default=False),
     },
     "solver": {
         "tao_type": Key("string", "TAO bound-constrained solver for each contact QP (command line: "

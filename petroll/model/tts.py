@@ -22,6 +22,16 @@ temperature wanders by tenths of a kelvin and each row is at its recorded temper
 moves every row by the first pass's law from its set's mean temperature to its own, and finds the shifts
 again.
 
+**Standard errors.** A pair's shift is a function of its two sets' rows. Its derivative with respect to
+each row's log10 E' and log10 E'' (the implicit function's: the slopes and curvatures of the other set's
+cubic at the compared rows, each cubic's own dependence on its set's rows, and the weights' dependence on
+the scatters), with each row scattering by its set's scatter about its cubic (for that modulus), gives
+each shift's variance and the covariance of neighbouring shifts (they share a set); from them follows
+the variance of every set's log10 a_T along the chain to T_ref (its dependence on the shifts taken
+through the PCHIP law that sets it to 0 at T_ref), to which RESOLUTION is added in quadrature. A standard
+error above SIGMA_WARN is warned of. The scatter includes what a cubic misses of the curve's shape, so
+exact data still get a small error.
+
 WLF (C1, C2 about T_ref) and Arrhenius (Ea) are fitted to the factors by least squares
 (``scipy.optimize.least_squares``; Arrhenius is linear in Ea); their residuals say how well each law
 describes the material. Temperatures in K, shifts in decades.
@@ -51,6 +61,18 @@ PASSES = 2
 
 MIN_ROWS = 5
 """The fewest rows (at 4 different frequencies or more) of a set whose shift is to be found."""
+
+SIGMA_WARN = 0.1
+"""A set's log10 a_T whose standard error exceeds this (decades) is warned of: the master curve is blurred
+there by more than a tenth of a decade of time."""
+
+FLOOR = 1e-6
+"""A scatter (decades of modulus) no measurement reaches (exact synthetic data): the least one taken."""
+
+RESOLUTION = 2e-3
+"""The method's own error (decades), added in quadrature to each set's standard error: on noise-free
+synthetic sweeps the factors err by 0.8e-3 (polymer) to 3e-3 (rubber, 6 sets from T_ref), and near T_ref
+the table law's interpolation to T_ref errs by a few 1e-4 where the noise adds nothing."""
 
 
 @dataclass(frozen=True)
@@ -86,11 +108,35 @@ class LawFit:
 
 
 @dataclass(frozen=True)
+class PairShift:
+    """The shift of one pair of neighbouring sets (:func:`pair_shift`): ``d`` (decades), the overlap it
+    leaves (decades), the misfit there, and, for its standard error, the change of d with each row's
+    log10 E' and log10 E'' (``colder_gradient``, ``warmer_gradient``: shape (2, rows), E' then E'') and
+    the two sets' scatters about their cubics (``colder_scatter``, ``warmer_scatter``: E', E'';
+    decades)."""
+
+    d: float
+    overlap: float
+    misfit: float
+    colder_gradient: np.ndarray
+    warmer_gradient: np.ndarray
+    colder_scatter: np.ndarray
+    warmer_scatter: np.ndarray
+
+    @property
+    def variance(self) -> float:
+        """Var(d), decades^2, from the rows' scatters (module docstring)."""
+        return float(np.sum((self.colder_gradient * self.colder_scatter[:, None]) ** 2)
+                     + np.sum((self.warmer_gradient * self.warmer_scatter[:, None]) ** 2))
+
+
+@dataclass(frozen=True)
 class ShiftFit:
-    """Shift factors found from the data: per set (by increasing temperature) its mean temperature (K) and
-    log10 a_T (0 at T_ref); per pair of neighbours the shift between them, the overlap it leaves (decades)
-    and the misfit there (:func:`pair_shift`); the tabulated law through the factors, WLF and Arrhenius
-    fitted to them, and log10 a_T of every row at its own temperature."""
+    """Shift factors found from the data: per set (by increasing temperature) its mean temperature (K),
+    log10 a_T (0 at T_ref) and its standard error (decades, chained to T_ref); per pair of neighbours the
+    shift between them, its standard error, the overlap it leaves (decades) and the misfit there
+    (:func:`pair_shift`); the tabulated law through the factors, WLF and Arrhenius fitted to them, and
+    log10 a_T of every row at its own temperature."""
 
     T_ref: float
     labels: tuple[str, ...]
@@ -103,6 +149,20 @@ class ShiftFit:
     wlf: LawFit
     arrhenius: LawFit
     row_log10_aT: tuple[np.ndarray, ...]  # each set's rows at their own temperatures (the last pass's law)
+    sigma: np.ndarray  # standard error of each set's log10_aT, decades
+    shift_sigma: np.ndarray  # standard error of each pair's shift, decades
+
+    def warnings(self) -> list[str]:
+        """One line if any set's log10 a_T has a standard error above SIGMA_WARN, else none."""
+        over = np.flatnonzero(self.sigma > SIGMA_WARN)
+        if over.size == 0:
+            return []
+        sets = ", ".join(f"set {self.labels[k]} ({self.temperatures[k]:.2f} K: {self.sigma[k]:.2g})"
+                         for k in over)
+        return [f"the shift factors of {over.size} of {len(self.labels)} sets have a standard error above "
+                f"{SIGMA_WARN:g} decade (chained to T_ref = {self.T_ref:g} K from each pair's overlap): {sets}; "
+                "the master curve is blurred there (noisy or flat data, little overlap, or sets far from "
+                "T_ref)"]
 
 
 def find_shifts(sets: list[Isotherm], T_ref: float) -> ShiftFit:
@@ -125,17 +185,47 @@ def find_shifts(sets: list[Isotherm], T_ref: float) -> ShiftFit:
     offsets = [np.zeros(len(s.frequency)) for s in sets]
     for _ in range(PASSES):
         pairs = [pair_shift(a, b, da, db) for a, b, da, db in zip(sets, sets[1:], offsets, offsets[1:])]
-        chained = np.concatenate([[0.0], -np.cumsum([p[0] for p in pairs])])
+        chained = np.concatenate([[0.0], -np.cumsum([p.d for p in pairs])])
         nodes, values = _nodes(temperatures, chained)
         law = PchipInterpolator(nodes, values, extrapolate=True)
         offsets = [law(s.row_temperature) - law(s.temperature) for s in sets]
     log10_aT = chained - float(law(T_ref))
     nodes, values = _nodes(temperatures, log10_aT)
     table = materials.TableShift(tuple(float(t) for t in nodes), tuple(float(v) for v in values))
-    shifts, overlaps, misfits = (np.array(column) for column in zip(*pairs))
+    shifts, overlaps, misfits = (np.array([getattr(p, name) for p in pairs]) for name in ("d", "overlap",
+                                                                                          "misfit"))
+    covariance = _shift_covariance(pairs)
+    chain = _chain_jacobian(temperatures, shifts, T_ref)
+    sigma = np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", chain, covariance, chain), 0.0) + RESOLUTION**2)
     laws = fit_wlf(temperatures, log10_aT, T_ref), fit_arrhenius(temperatures, log10_aT, T_ref)
     return ShiftFit(float(T_ref), tuple(s.label for s in sets), temperatures, log10_aT, shifts, overlaps,
-                    misfits, table, *laws, tuple(value + offset for value, offset in zip(log10_aT, offsets)))
+                    misfits, table, *laws, tuple(value + offset for value, offset in zip(log10_aT, offsets)),
+                    sigma, np.sqrt(np.diag(covariance)))
+
+
+def _shift_covariance(pairs: list[PairShift]) -> np.ndarray:
+    """The covariance of the pairs' shifts (decades^2): each its own variance, and neighbours through the
+    set they share (the warmer set of one is the colder of the next)."""
+    covariance = np.diag([p.variance for p in pairs])
+    for k, (a, b) in enumerate(zip(pairs, pairs[1:])):
+        shared = float(np.sum(a.warmer_gradient * b.colder_gradient * (a.warmer_scatter ** 2)[:, None]))
+        covariance[k, k + 1] = covariance[k + 1, k] = shared
+    return covariance
+
+
+def _chain_jacobian(temperatures: np.ndarray, shifts: np.ndarray, T_ref: float) -> np.ndarray:
+    """d log10_aT (each set) / d shift (each pair): the chain from the coldest set, less the PCHIP law's
+    value at T_ref (by central differences of 1e-6 decade; the law is smooth in its values)."""
+
+    def factors(d: np.ndarray) -> np.ndarray:
+        chained = np.concatenate([[0.0], -np.cumsum(d)])
+        nodes, values = _nodes(temperatures, chained)
+        return chained - float(PchipInterpolator(nodes, values, extrapolate=True)(T_ref))
+
+    step = 1e-6
+    columns = [(factors(shifts + step * e) - factors(shifts - step * e)) / (2 * step)
+               for e in np.eye(len(shifts))]
+    return np.array(columns).T
 
 
 def _nodes(temperatures: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -150,19 +240,20 @@ def _cubic(x: np.ndarray, y: np.ndarray) -> tuple[np.poly1d, float]:
     return cubic, math.sqrt(np.sum((y - cubic(x)) ** 2) / max(len(x) - 4, 1))
 
 
-def pair_shift(colder: Isotherm, warmer: Isotherm, colder_offset=0.0, warmer_offset=0.0):
-    """(d, overlap, misfit): the shift of ``colder`` onto ``warmer``, d = log10 a_T(colder) - log10
-    a_T(warmer), by least squares on their overlap (module docstring), the overlap it leaves (decades) and
-    the rms of the weighted differences there (about 1 where the sets superpose within their scatter). The
-    offsets (decades) move each row's log10 f first. DMAError when the best shift leaves too little
-    overlap."""
+def pair_shift(colder: Isotherm, warmer: Isotherm, colder_offset=0.0, warmer_offset=0.0) -> PairShift:
+    """The shift of ``colder`` onto ``warmer``, d = log10 a_T(colder) - log10 a_T(warmer), by least squares
+    on their overlap (module docstring), the overlap it leaves (decades), the rms of the weighted
+    differences there (about 1 where the sets superpose within their scatter) and what its standard error
+    needs (:class:`PairShift`). The offsets (decades) move each row's log10 f first. DMAError when the
+    best shift leaves too little overlap."""
     xa = np.log10(colder.frequency) + colder_offset
     xb = np.log10(warmer.frequency) + warmer_offset
     ya = np.log10([colder.storage, colder.loss])
     yb = np.log10([warmer.storage, warmer.loss])
     ca, cb = [_cubic(xa, y) for y in ya], [_cubic(xb, y) for y in yb]
-    floor = 1e-6  # decades: a scatter no measurement reaches (exact synthetic data)
-    weights = np.array([1 / (max(a[1], floor) ** 2 + max(b[1], floor) ** 2) for a, b in zip(ca, cb)])
+    scatter_a = np.array([max(c[1], FLOOR) for c in ca])
+    scatter_b = np.array([max(c[1], FLOOR) for c in cb])
+    weights = 1 / (scatter_a**2 + scatter_b**2)
     least = MIN_OVERLAP * min(np.ptp(xa), np.ptp(xb))
     lo, hi = xb.min() - xa.max() + least, xb.max() - xa.min() - least
 
@@ -189,7 +280,46 @@ def pair_shift(colder: Isotherm, warmer: Isotherm, colder_offset=0.0, warmer_off
                             method="bounded", options={"xatol": 1e-6})
     d = float(found.x)
     overlap = min(xa.max() + d, xb.max()) - max(xa.min() + d, xb.min())
-    return d, float(overlap), math.sqrt(float(objective(d)[0]))
+    gradient_a, gradient_b = _shift_gradient(xa, xb, ya, yb, d, ca, cb, weights)
+    return PairShift(d, float(overlap), math.sqrt(float(objective(d)[0])), gradient_a, gradient_b, scatter_a,
+                     scatter_b)
+
+
+def _shift_gradient(xa, xb, ya, yb, d: float, ca, cb, weights) -> tuple[np.ndarray, np.ndarray]:
+    """(dd/dya, dd/dyb), shape (2, rows) each: the change of the shift found with each row's log10 modulus
+    (the implicit function's derivative). The colder rows compared with the warmer's cubic have residuals
+    r1 = ya - pb(xa + d), the warmer's with the colder's r2 = yb - pa(xb - d), pa and pb the least-squares
+    cubics of the rows (linear in them: the coefficients P y, P the projection); d makes
+    g = sum_m w_m (J1.r1 + J2.r2) vanish, J = dr/dd (J1 = -pb'(xa + d), J2 = pa'(xb - d)), so
+    dd/dy = -(dg/dy) / (dg/dd), both taken exactly (with the cubics' slopes and curvatures)."""
+    ina = (xa + d >= xb.min()) & (xa + d <= xb.max())
+    inb = (xb - d >= xa.min()) & (xb - d <= xa.max())
+    u, v = xa[ina] + d, xb[inb] - d  # where each set's rows are read off the other's cubic
+    project_a, project_b = np.linalg.pinv(np.vander(xa, 4)), np.linalg.pinv(np.vander(xb, 4))
+    value_b, value_a = np.vander(u, 4) @ project_b, np.vander(v, 4) @ project_a  # p(x) = value @ y
+    slope_b = np.hstack([np.vander(u, 3) * [3.0, 2.0, 1.0], np.zeros((len(u), 1))]) @ project_b  # p'(x)
+    slope_a = np.hstack([np.vander(v, 3) * [3.0, 2.0, 1.0], np.zeros((len(v), 1))]) @ project_a
+    dg_dd, dg_da, dg_db = 0.0, [], []
+    for w, y_a, y_b, (pa, sa), (pb, sb) in zip(weights, ya, yb, ca, cb):
+        r1, r2 = y_a[ina] - pb(u), y_b[inb] - pa(v)
+        j1, j2 = -np.polyder(pb)(u), np.polyder(pa)(v)
+        dg_dd += w * (j1 @ j1 - np.polyder(pb, 2)(u) @ r1 + j2 @ j2 - np.polyder(pa, 2)(v) @ r2)
+        grad_a = np.zeros(len(xa))
+        grad_a[ina] += j1
+        grad_a += slope_a.T @ r2 - value_a.T @ j2
+        grad_b = np.zeros(len(xb))
+        grad_b[inb] += j2
+        grad_b += -slope_b.T @ r1 - value_b.T @ j1
+        # the weight w = 1 / (sa^2 + sb^2) moves with the rows too: d(s^2)/dy = 2 (y - p(x)) / (rows - 4)
+        g = j1 @ r1 + j2 @ r2
+        for grad, s, y, p, x in ((grad_a, sa, y_a, pa, xa), (grad_b, sb, y_b, pb, xb)):
+            if s > FLOOR:
+                grad -= w * g * 2 * (y - p(x)) / max(len(x) - 4, 1)
+        dg_da.append(w * grad_a)
+        dg_db.append(w * grad_b)
+    if not dg_dd > 0:  # not a minimum the data determine
+        return np.full((2, len(xa)), np.inf), np.full((2, len(xb)), np.inf)
+    return -np.array(dg_da) / dg_dd, -np.array(dg_db) / dg_dd
 
 
 def fit_wlf(T: np.ndarray, log10_aT: np.ndarray, T_ref: float) -> LawFit:

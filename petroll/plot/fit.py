@@ -61,14 +61,15 @@ def plot_shifts(data, path: str | pathlib.Path) -> pathlib.Path:
 
 def shift_figure(data):
     """The shift factors found from the data (``data.found``, petroll.model.tts): log10 a_T of each set
-    against its temperature with the table law through them and the WLF and Arrhenius laws fitted to
-    them (left), and each law's difference from the factors (right)."""
+    against its temperature, with error bars of one standard error, the table law through them and the
+    WLF and Arrhenius laws fitted to them (left), and each law's difference from the factors, the factors'
+    standard errors as a band about 0 (right)."""
     found = data.found
     figure = constrained_figure(11, 4.2)
     left, right = figure.subplots(1, 2)
     T = np.linspace(found.temperatures[0], found.temperatures[-1], 300)
-    left.plot(found.temperatures, found.log10_aT, "o", color="black", markersize=4,
-              label=f"found: {len(found.temperatures)} sets")
+    left.errorbar(found.temperatures, found.log10_aT, yerr=found.sigma, fmt="o", color="black", markersize=4,
+                  capsize=2, label=f"found: {len(found.temperatures)} sets, +- 1 standard error")
     left.plot(T, [found.law.log10(t) for t in T], "-", color="black", linewidth=1, label="table law (PCHIP)")
     for name, fit, style in (("WLF", found.wlf, "--"), ("Arrhenius", found.arrhenius, ":")):
         if fit.law is None:
@@ -82,6 +83,8 @@ def shift_figure(data):
     left.set_ylabel("log10 a_T")
     left.set_title(f"shift factors found from the data, T_ref = {found.T_ref:g} K", fontsize=10)
     right.axhline(0, color="black", linewidth=0.8)
+    right.fill_between(found.temperatures, -found.sigma, found.sigma, color="grey", alpha=0.3,
+                       label="+- the factors' standard error")
     right.set_xlabel("temperature (K)")
     right.set_ylabel("law - factors (decades)")
     right.set_title("residuals of the fitted laws", fontsize=10)

@@ -215,13 +215,14 @@ class ErrorEstimate:
 
 
 def estimate_error(scene: Scene, fine: StepRecord, comm: MPI.Comm = MPI.COMM_WORLD,
-                   preflight: Preflight | None = None) -> ErrorEstimate:
+                   preflight: Preflight | None = None, after_step=None) -> ErrorEstimate:
     """Solve ``scene`` on the 2x (and, where it still has THIRD_GRID_CELLS cells per contact half-width,
     in line contact SIGN_CELLS, 4x) coarser grids to the time of the fine run's last record ``fine`` and
     estimate the error of that record's values (collective). ``preflight``: the scene's checks
     (:func:`petroll.model.preflight.check`) where the run made them (else made here). A 2x run that fails
     (its contact at the coarser grid's edge) leaves ``failed`` set and no quantities; a 4x run that fails
-    is left out."""
+    is left out. ``after_step()``: called on every rank after each step of the coarser runs
+    (Simulation.last_step), e.g. to stop on a signal by raising (the exception goes through)."""
     began = clock.perf_counter()
     g = scene.grid
     end = end_time(scene, fine)
@@ -234,7 +235,7 @@ def estimate_error(scene: Scene, fine: StepRecord, comm: MPI.Comm = MPI.COMM_WOR
     for factor, shift in runs:
         coarse = coarser(scene, factor, end, shift)
         try:
-            record = Simulation(coarse, comm).last_step()  # diagnosed at the last step only
+            record = Simulation(coarse, comm).last_step(after_step)  # diagnosed at the last step only
         except PetrollError as exc:
             if factor == 4:
                 break

@@ -127,18 +127,22 @@ class Simulation:
         """Length of the step after time t (None: the run is over): petroll.model.clock.step_length."""
         return step_length(self.scene, t, distance)
 
-    def last_step(self) -> StepRecord:
+    def last_step(self, after_step=None) -> StepRecord:
         """Run the scene to the end of its clock and return the last step's record: the record
         :meth:`steps` ends with, but for its ``solve_time`` (the last step's), on a fresh simulation of a
         scene without [time] steady (whose stop needs every step's record; it is not applied here). The
         diagnostics (force, mu_r, the patch ...) are made for the last step only, and no record is kept in
         ``self.records``: what the error estimate reads of its coarser grids (petroll.solver.estimate).
         A steady solve ([time] mode = "steady") is its one step, solved by :meth:`steps` (which keeps its
-        record). RuntimeError on a simulation that has solved or restored steps. Collective."""
+        record). RuntimeError on a simulation that has solved or restored steps. ``after_step()``: called on
+        every rank after each step (e.g. to stop on a signal by raising). Collective."""
         if self.records:
             raise RuntimeError("last_step runs a fresh simulation: this one has solved or restored steps")
         if self.scene.time.mode == "steady":
-            return list(self.steps())[-1]
+            record = list(self.steps())[-1]
+            if after_step is not None:
+                after_step()
+            return record
         t, dt, n, distance, delta, where = 0.0, 0.0, 0, 0.0, None, None
         while True:
             self._within_max_steps(n)
@@ -146,6 +150,8 @@ class Simulation:
             if where is not None:
                 distance += float(np.hypot(sx - where[0], sy - where[1]))
             where, delta = (float(sx), float(sy)), solution.delta
+            if after_step is not None:
+                after_step()
             dt = self.next_dt(t, distance)
             if dt is None:
                 break

@@ -25,6 +25,7 @@ import numpy as np
 from mpi4py import MPI
 
 from petroll.errors import SceneError, SolverError
+from petroll.model.clock import steady_dt
 from petroll.model.materials import Prony
 from petroll.solver.memory import FarWake, Lines, Memory, memory_kernel, memory_steps, pulse_response
 
@@ -39,8 +40,8 @@ times over while it is made); more only with a time step far below the material'
 
 def steady_step(scene) -> tuple[np.ndarray, float]:
     """The constant velocity (m/s, taken at t = 0) of a steady solve and its integrator's step dt (s): [time]
-    dt, else the time to cross a cell over [time] steps_per_cell (default 1). SceneError for a material
-    that is not a Prony series or a zero velocity."""
+    dt, else the time to cross a cell over [time] steps_per_cell (default 1; petroll.model.clock.steady_dt).
+    SceneError for a material that is not a Prony series or a zero velocity."""
     if not isinstance(scene.material, Prony):
         raise SceneError(scene.source, "[material] model", "tabulated",
                          'the direct steady solve needs a Prony series: use [time] mode = "transient"')
@@ -49,7 +50,7 @@ def steady_step(scene) -> tuple[np.ndarray, float]:
     if speed == 0:
         raise SceneError(scene.source, "[motion] velocity", list(velocity),
                          "the steady solve needs a non-zero velocity")
-    return velocity, scene.time.dt or scene.grid.cell / ((scene.time.steps_per_cell or 1.0) * speed)
+    return velocity, steady_dt(scene)
 
 
 class SteadySolve:

@@ -24,8 +24,9 @@ a standard linear solid's angular integral is 2 pi dM / b (1 - 1/sqrt(1 + b^2)),
 relaxation time, dM = M(inf) - M(0)). The flash temperature (the heating of the rubber by the friction it
 makes) is left out: petroll's runs are isothermal.
 
-Quadrature: q on a uniform grid in ln q (``per_efold`` points per e-fold), G cumulated by the trapezoidal
-rule; M(omega) from a cubic spline in ln(omega) through 16 exact values per e-fold; the angle in two
+Quadrature: q on a uniform grid in ln q (``per_efold`` points per e-fold; a tabulated spectrum's nodes
+added, each with a point just below it, so that a jump of C is integrated exactly), G cumulated by the
+trapezoidal rule; M(omega) from a cubic spline in ln(omega) through 16 exact values per e-fold; the angle in two
 pieces, cos(phi) in [1/2, 1] by Gauss-Legendre in phi and cos(phi) in (0, 1/2] by Gauss-Legendre in
 ln cos(phi) down to 1e-16 (the integrands are smooth in ln(omega), where a relaxation time shows as a step
 of width ~1).
@@ -104,6 +105,10 @@ def persson(psd: SelfAffinePSD | TabulatedPSD, material: Prony, pressure: float,
         raise ValueError(f"the roughness needs 0 < q_long < q_cutoff, got {q0!r}, {q1!r}")
     count = max(int(math.ceil(per_efold * math.log(q1 / q0))), 8) + 1
     s = np.linspace(math.log(q0), math.log(q1), count)
+    knots = getattr(psd, "q", None)  # a table's: C is smooth between its nodes and may jump at them
+    if knots is not None:
+        inner = np.log(knots[(knots > q0) & (knots < q1)])
+        s = np.unique(np.concatenate([s, inner, inner - 1e-12]))  # each side of a node
     q = np.exp(s)
     q[0], q[-1] = q0, q1  # exactly: exp(log(q1)) may round past the cut-off, where C = 0
     c, weights = angular_rule(nodes)

@@ -254,7 +254,7 @@ def _transient_point(scene: Scene, key: str, value: float) -> Scene:
     elif key == "motion.velocity" and current is None:
         raise SweepError(f"--vary {key}: the scene gives no velocity, hence no direction; write "
                          "velocity = [1.0, 0.0] (any magnitude) in its [motion]")
-    elif isinstance(current, int) and not isinstance(current, bool):
+    elif getattr(SCHEMA.get(section, {}).get(name), "kind", "") == "integer":  # (a number key written 1: not)
         if abs(value - round(value)) > 1e-9 * max(abs(value), 1.0):
             raise SweepError(f"--vary {key}: {value!r} is not an integer, and {key} is one")
         new = int(round(value))
@@ -331,8 +331,9 @@ def sweep(scene: Scene, vary: Vary | str, out: str | pathlib.Path | None = None,
     each point. Every point's scene is built and validated before the first run. ``transient``: run every
     point from rest, even where its steady state can be solved directly (module docstring).
     ``estimate_error``: each point run also estimates its discretisation error (petroll.driver.run's
-    estimate_error): the table gains the columns ``<quantity>_error`` (NaN for a point kept from an earlier
-    call without one).
+    estimate_error): the table gains the columns ``<quantity>_error``; a point finished earlier without
+    its estimate (a call without it, or killed while it was made) is not finished: it is run again (from
+    its last checkpoint where it has one) and estimated.
     """
     from petroll.io.checkpoint import RunInterrupted
     from petroll.model.limits import PetrollWarning
@@ -358,7 +359,7 @@ def sweep(scene: Scene, vary: Vary | str, out: str | pathlib.Path | None = None,
         if signum:
             raise SweepInterrupted(signum, index, total, label)
         directory = out / "points" / name
-        results = _finished(directory, point, comm)
+        results = _finished(directory, point, comm, estimate_error)
         if results is None:
             try:
                 results = _run_point(point, directory, comm, progress, stop, start, estimate_error)
@@ -393,13 +394,17 @@ def sweep(scene: Scene, vary: Vary | str, out: str | pathlib.Path | None = None,
     return table
 
 
-def _finished(directory: pathlib.Path, scene: Scene, comm: MPI.Comm) -> Results | None:
-    """The point's results if its results.h5 is complete and holds this very scene (rank 0 decides)."""
+def _finished(directory: pathlib.Path, scene: Scene, comm: MPI.Comm, estimate_error: bool = False
+              ) -> Results | None:
+    """The point's results if its results.h5 is complete and holds this very scene, and with
+    ``estimate_error`` its error estimate (a point without it is not finished: it is run again, from its
+    last checkpoint where it has one, and estimated); rank 0 decides."""
     path = directory / "results.h5"
     done = False
     if comm.rank == 0 and path.is_file():
         held = results_identity(path)  # None: unreadable, run it again
-        done = held is not None and held["complete"] and held["scene"] == scene.text
+        done = (held is not None and held["complete"] and held["scene"] == scene.text
+                and (held["estimated"] or not estimate_error))
     if not comm.bcast(done, root=0):
         return None
     return Results.open(path)

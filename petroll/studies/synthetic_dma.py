@@ -19,6 +19,7 @@ it: each row is at its recorded temperature), and relative Gaussian noise on E' 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 import pathlib
 from dataclasses import dataclass, field
@@ -110,10 +111,22 @@ def sweeps(material: Synthetic, seed: int = 2026) -> dict[str, np.ndarray]:
     return {name: np.concatenate(values) for name, values in columns.items()}
 
 
-def write_table(material: Synthetic, path: str | pathlib.Path, seed: int = 2026, sets: bool = False) -> dict:
+def write_table(material: Synthetic, path: str | pathlib.Path, seed: int = 2026, sets: bool = False,
+                style: str = "petroll") -> dict:
     """Write :func:`sweeps` as a DMA CSV (atomically) with a comment header saying how it was made; with
-    ``sets``, a set column names each sweep. Returns the rows."""
+    ``sets``, a set column names each sweep. The noise is ``material.noise`` (``dataclasses.replace(
+    POLYMER, noise=0.1)`` for another). ``style="pyvisco"`` writes it as pyvisco's user format instead
+    (NREL/pyvisco, pyvisco/load.py): a UTF-8 byte-order mark (Excel's "CSV UTF-8"), the header
+    ``f,E_stor,E_loss,T,Set``, the units row ``Hz,MPa,MPa,C,-``, the moduli in MPa, the temperatures in
+    degrees Celsius, each sweep numbered from 0, no comment. Returns the rows (Hz, Pa, K)."""
     rows = sweeps(material, seed)
+    if style == "pyvisco":
+        body = [f"{f:.6g},{e1 / 1e6:.6g},{e2 / 1e6:.6g},{T - 273.15:.4f},{k}"
+                for f, e1, e2, T, k in zip(*(rows[n] for n in ("frequency", "storage", "loss", "temperature",
+                                                                 "sweep")))]
+        text = "\ufeff" + "\n".join(["f,E_stor,E_loss,T,Set", "Hz,MPa,MPa,C,-", *body]) + "\n"
+        atomic_write(pathlib.Path(path), lambda tmp: tmp.write_text(text, encoding="utf-8"))
+        return rows
     law = ", ".join(f"{k} = {v:g}" for k, v in vars(material.law).items())
     head = [f"# SYNTHETIC DMA table ({material.name}): not a measurement. Made by",
             f"#   .venv/bin/python -m petroll.studies.synthetic_dma {path} --material {material.name} --seed "
@@ -160,8 +173,16 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--material", choices=sorted(MATERIALS), default="polymer")
     parser.add_argument("--seed", type=int, default=2026, help="the noise's and the wander's seed")
     parser.add_argument("--sets", action="store_true", help="add a set column naming each sweep")
+    parser.add_argument("--noise", type=float, help="relative noise on E' and E'' (default: the material's, "
+                        "0.01)")
+    parser.add_argument("--style", choices=("petroll", "pyvisco"), default="petroll",
+                        help="petroll's CSV, or pyvisco's user format (BOM, f,E_stor,E_loss,T,Set, a units row "
+                        "Hz,MPa,MPa,C,-)")
     args = parser.parse_args(argv)
-    rows = write_table(MATERIALS[args.material], args.out, args.seed, args.sets)
+    material = MATERIALS[args.material]
+    if args.noise is not None:
+        material = dataclasses.replace(material, noise=args.noise)
+    rows = write_table(material, args.out, args.seed, args.sets, args.style)
     print(f"wrote {args.out}: {len(rows['frequency'])} rows")
 
 

@@ -15,6 +15,7 @@ rows of a grid, a surface holds those rows' coefficients, wherever the body has 
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import KW_ONLY, InitVar, dataclass, field
 
@@ -210,6 +211,25 @@ class PeriodicSurface(Body):
     def radius_hint(self) -> float:
         """1 / (rms curvature of the samples): a summit's radius, for first guesses only."""
         return self._radius_hint
+
+    @functools.cached_property
+    def contact_scale(self) -> float:
+        """sqrt(<|grad h|^2> / <|lap h|^2>) (m) of the samples' trigonometric interpolant (from their
+        spectrum: sqrt(sum q^2 |h_q|^2 / sum q^4 |h_q|^2)): the rms slope over the rms curvature, about the
+        half-width of one of the surface's single contacts (a sinusoid of wavelength L: L / 2 pi; a
+        self-affine surface: 0.2 to 0.3 times its short cut-off); inf for a flat surface. What the time
+        step is weighed against on a rough surface (petroll.model.preflight, docs/accuracy.md)."""
+        nx, ny = self.heights.shape
+        qx = 2.0 * np.pi * scipy.fft.fftfreq(nx, self.cell[0])
+        qy = 2.0 * np.pi * scipy.fft.rfftfreq(ny, self.cell[1])
+        q2 = qx[:, None] ** 2 + qy[None, :] ** 2
+        weight = np.full(len(qy), 2.0)  # the half spectrum: a column stands for its conjugate too
+        weight[0] = 1.0
+        if ny % 2 == 0:
+            weight[-1] = 1.0
+        power = np.abs(scipy.fft.rfft2(self.heights)) ** 2 * weight
+        curvature = float(np.sum(q2**2 * power))
+        return math.sqrt(float(np.sum(q2 * power)) / curvature) if curvature > 0.0 else math.inf
 
 
 @dataclass(frozen=True, eq=False)

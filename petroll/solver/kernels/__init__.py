@@ -5,6 +5,9 @@ coefficients the influence operator (petroll/solver/influence.py) applies.
   closed form); `Strips`, the plane-strain strips of line contact (relative to the grid's datum).
 - layer.py: a layer on a rigid base. `LayerRectangles`, `LayerStrips`: Love's or the strips'
   coefficients plus the layer's correction (its surface response L(|k| h) transformed to real space).
+- cerruti.py: the half-space's tangential kernels (friction): Cerruti's uniformly loaded rectangles (u_x,
+  u_y from q_x, q_y; the normal-tangential coupling, proportional to 1 - 2 nu) and line contact's strips,
+  per unit shear compliance 1/(2 G); `tangential_kernel` picks a grid's.
 - periodic.py: periodic grids. `HalfSpace`, `LayerSpectral`: the symbols 2/|k| and (2/|k|) L(|k| h) at the
   DFT wavenumbers of a grid periodic along both axes (a line-contact grid: along X); `HalfSpaceAlong`:
   Fourier along the one periodic axis, real space (cell-uniform) along the other.

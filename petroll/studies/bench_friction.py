@@ -1,0 +1,341 @@
+"""Friction benchmarks (docs/friction.md): what a tangential solve costs, for the verb ``petroll bench
+friction`` (:func:`bench_friction`), and the measurements behind the solvers' choice
+(:func:`compare_solvers`).
+
+The cases are Hertzian contacts with the pressure at the cell centres (a = 1, n cells per radius or
+half-width, a margin of 4 cells), nu = 0.3, two bodies of one material (compliance 1/G), mu = 0.3:
+
+- normal: the normal QP of the same sphere under load control (pk from Hertz's pressure, the default
+  solver's cold start): the reference of the "3 x the normal solve" target;
+- shift: Cattaneo's shift by Q = mu P/2 in one step (force control), and the same load in 4 steps;
+- transient: rolling one cell a step at that force after the shift, over three contact lengths (per step:
+  the first contact length, and the last, once steady);
+- steady: the steady state at that force solved directly (cold), and a 30-point creep-force curve (creepage
+  up to 3 times the linear theory's saturation, each point started from the last) at 16 cells per radius
+  (32 x 32 cells in the contact).
+
+Applications count the tangential operator (u = c K q on a window: two FFT pairs in 3-D, one in line
+contact), the normal's its own (one pair); ``fft pairs`` counts both alike. Times are wall times on this
+rank (the machine's load matters: say it where quoted).
+"""
+
+from __future__ import annotations
+
+import math
+import pathlib
+import time
+
+import numpy as np
+from mpi4py import MPI
+
+from petroll.model.grid import Grid, line_grid
+from petroll.solver.friction import SteadyRolling, Stepping
+from petroll.solver.tangential import DiskPCG, TangentialSolver, project
+from petroll.studies.tables import write_table
+
+NU, MU = 0.3, 0.3
+
+
+def hertz_case(n: int, comm: MPI.Comm, line: bool = False, length: float = 0.0, tol: float = 1e-8):
+    """(grid, tangential solver, bound(centre)) for a Hertz contact of radius (half-width) 1 with n cells per
+    radius, 4 cells of margin, ``length`` radii of track along +x; the bound mu p (p0 = 1)."""
+    dx = 1.0 / n
+    margin = 4
+    if line:
+        grid = line_grid(2 * (n + margin), -1 - margin * dx, 1 + margin * dx)
+    else:
+        nx = int(round(length * n)) + 2 * (n + margin)
+        grid = Grid(nx, 2 * (n + margin), -1 - margin * dx, -1 - margin * dx + nx * dx, -(n + margin) * dx,
+                    (n + margin) * dx)
+    solver = TangentialSolver(grid, comm, NU, 1.0, tol=tol)
+
+    def bound(centre: float = 0.0) -> np.ndarray:
+        x = grid.x[solver.r0 : solver.r1, None] - centre
+        r2 = x * x if line else x * x + grid.y[None, :] ** 2
+        return MU * np.sqrt(np.clip(1 - r2, 0.0, None))
+
+    return grid, solver, bound
+
+
+def _force(comm, field, grid) -> float:
+    return comm.allreduce(float(field.sum())) * grid.cell_area
+
+
+def _timed(call):
+    start = time.perf_counter()
+    out = call()
+    return out, time.perf_counter() - start
+
+
+def normal_reference(n: int, comm: MPI.Comm) -> list[tuple[int, float]]:
+    """The normal QP of the benchmark's sphere under load control (pk): (applications, wall time) from
+    Hertz's pressure (a cold step), and from the previous step's pressure moved one cell with the body
+    (a rolling step of an elastic run)."""
+    from petroll.solver.contact import ContactSolver
+    from petroll.solver.partition import shift_field
+
+    dx = 1.0 / n
+    cells = n + max(4, n // 2)  # the load-control guess's interference must stay off the edge
+    half = cells * dx
+    grid = Grid(2 * cells + 1, 2 * cells, -half, half + dx, -half, half)
+    radius, compliance = 100.0, 1.0
+    solver = ContactSolver(grid, comm, tol=1e-8)
+    x, y = grid.x[solver.r0 : solver.r1, None], grid.y[None, :]
+    load = 4 / (3 * radius * compliance)  # a = 1
+
+    def solve(centre: float, warm=None):
+        height = ((x - centre) ** 2 + y * y) / (2 * radius)
+        return _timed(lambda: solver.solve_load(height, compliance, load, radius, warm=warm))
+
+    cold, cold_time = solve(0.0)
+    moved = shift_field(cold.pressure, 1, 0, solver.rows, comm)
+    warm, warm_time = solve(dx, moved)
+    return [(cold.applications, cold_time), (warm.applications, warm_time)]
+
+
+def bench_friction(out: pathlib.Path | None = None, quick: bool = False, comm: MPI.Comm = MPI.COMM_WORLD,
+                   n: int = 16) -> list[dict]:
+    """The table of the module docstring (rows: case, applications, fft pairs, seconds, iterations, note)
+    at ``n`` cells per radius (``quick``: 4, a contact length of rolling, a 3-point curve: it runs and
+    measures nothing). Rank 0 prints it and writes DIR/friction.csv when ``out`` is given."""
+    if quick:
+        n = 4
+    rows = []
+    (apps, seconds), (moved, moved_seconds) = normal_reference(n, comm)
+    rows.append(dict(case="normal QP, load control (reference)", applications=apps, fft_pairs=apps,
+                     seconds=seconds, iterations="", note="pk from Hertz's pressure"))
+    rows.append(dict(case="normal QP, rolling step (reference)", applications=moved, fft_pairs=moved,
+                     seconds=moved_seconds, iterations="", note="from the last pressure, moved"))
+    lengths = 1 if quick else 3
+    grid, solver, bound = hertz_case(n, comm, length=2 * lengths)
+    force = np.array([-0.5 * _force(comm, bound(), grid), 0.0])
+    stepping = Stepping(solver)
+    solution, seconds = _timed(lambda: stepping.shift(bound(), force=force))
+    rows.append(dict(case="shift Q = mu P/2, one step", applications=solution.applications,
+                     fft_pairs=2 * solution.applications, seconds=seconds, iterations=solution.iterations,
+                     note=f"shift {stepping.shift_total[0]:.6g}"))
+    steps = Stepping(solver)
+    start, total = time.perf_counter(), 0
+    for k in range(1, 5):
+        total += steps.shift(bound(), force=force * k / 4).applications + 1
+    rows.append(dict(case="shift Q = mu P/2, 4 steps (per step)", applications=total / 4, fft_pairs=total / 2,
+                     seconds=(time.perf_counter() - start) / 4, iterations="", note="+1 a step: u'"))
+    rows += _transient(stepping, bound, force, n, lengths)
+    steady = SteadyRolling(solver, 0, 1)
+    result, seconds = _timed(lambda: steady.solve(bound(), force=force))
+    rows.append(dict(case="steady, force control, cold", applications=result.applications,
+                     fft_pairs=2 * result.applications, seconds=seconds, iterations=result.iterations,
+                     note=f"creepage {result.creepage[0]:.6g}"))
+    rows.append(creep_curve(n, comm, 3 if quick else 30))
+    if out is not None and comm.rank == 0:
+        out.mkdir(parents=True, exist_ok=True)
+        write_table(rows, out / "friction.csv")
+    return rows
+
+
+def _transient(stepping: Stepping, bound, force, n: int, lengths: int) -> list[dict]:
+    """Rolling one cell a step after the shift: per step over the first contact length and the last."""
+    dx = 1.0 / n
+    records = []
+    for k in range(1, 2 * lengths * n + 1):
+        solution, seconds = _timed(lambda: stepping.roll(bound(k * dx), (k * dx, 0.0), dx, (1.0, 0.0), force=force))
+        records.append((solution.applications + 1, seconds, solution.iterations))
+    rows = []
+    for name, part in (("first contact length", records[: 2 * n]), ("last contact length", records[-2 * n :])):
+        apps = sum(r[0] for r in part) / len(part)
+        rows.append(dict(case=f"transient rolling, {name} (per step)", applications=apps, fft_pairs=2 * apps,
+                         seconds=sum(r[1] for r in part) / len(part),
+                         iterations=sum(r[2] for r in part) / len(part), note="+1 a step: u'"))
+    return rows
+
+
+def creep_curve(n: int, comm: MPI.Comm, points: int = 30) -> dict:
+    """A steady creep-force curve of the circular contact (16 cells per radius: 32 x 32 in the contact):
+    ``points`` creepages up to 3 x mu p0/(G C11) (C11 = 4.12 nearly: nu = 0.3), each from the last."""
+    grid, solver, bound = hertz_case(n, comm)
+    steady = SteadyRolling(solver, 0, 1)
+    saturation = MU / 4.12
+    start, apps, newton, last = time.perf_counter(), 0, 0, []
+    forces = []
+    for xi in np.linspace(0.0, 3 * saturation, points + 1)[1:]:  # started from the last two, extrapolated
+        warm = None if not last else last[-1] if len(last) == 1 else 2 * last[-1] - last[-2]
+        result = steady.solve(bound(), creepage=(xi, 0.0), start=warm)
+        last = (last + [result.solution.traction])[-2:]
+        apps, newton = apps + result.applications, newton + result.iterations
+        forces.append(result.solution.force[0])
+    seconds = time.perf_counter() - start
+    capacity = _force(comm, bound(), grid)
+    return dict(case=f"creep curve, {points} points, steady, warm", applications=apps, fft_pairs=2 * apps,
+                seconds=seconds, iterations=newton, note=f"last F/mu P = {-forces[-1] / capacity:.4f}")
+
+
+# -- the solvers' choice -------------------------------------------------------------------------------------
+
+def fista(apply, g: np.ndarray, b: np.ndarray, norm: float, tol: float, comm: MPI.Comm,
+          max_iterations: int = 20000) -> tuple[np.ndarray, int]:
+    """The disk QP of petroll.solver.tangential by an accelerated projected gradient (FISTA, step 1/|H|_inf,
+    restarted when the objective's model rises: O'Donoghue and Candes 2015): the alternative measured
+    against the projected CG. Returns q and the applications to the natural residual ``tol`` (checked every
+    tenth iteration, at one more application)."""
+    q = np.zeros_like(b)
+    y, t = q.copy(), 1.0
+    r = apply(y) + b
+    applications = 1
+    for _ in range(max_iterations):
+        new = project(y - r / norm, g)
+        step = new - q
+        t_next = 0.5 * (1 + math.sqrt(1 + 4 * t * t))
+        if comm.allreduce(float(np.vdot(r, step)), op=MPI.SUM) > 0:  # restart the momentum
+            t_next, y = 1.0, new
+        else:
+            y = new + ((t - 1) / t_next) * step
+        q, t = new, t_next
+        r = apply(y) + b
+        applications += 1
+        if applications % 10 == 0:  # the natural residual at q, checked every tenth iteration
+            s = apply(q) + b
+            applications += 1
+            residual = comm.allreduce(float(np.abs(q - project(q - s, g)).max(initial=0.0)), op=MPI.MAX)
+            if residual <= tol:
+                return q, applications
+    return q, applications
+
+
+def _scaled_problem(solver: TangentialSolver, bound: np.ndarray, rigid: np.ndarray):
+    """The scaled QP of ``solver.solve`` on the bound's box: (apply, precondition, g, b, norm) on flattened
+    (m, cells) arrays."""
+    problem = solver.scaled(bound, solver.box(bound > 0))
+    m, ny = solver.m, problem.ny
+    b = solver.to_box(rigid, problem.box).reshape(m, -1) / problem.s_ref
+    return (lambda d: problem.apply(d.reshape(m, -1, ny)).reshape(m, -1),
+            lambda r: problem.precondition(r.reshape(m, -1, ny)).reshape(m, -1), problem.g.ravel() / problem.q_ref,
+            b, problem.norm)
+
+
+def compare_solvers(comm: MPI.Comm = MPI.COMM_WORLD, n: int = 16, tol: float = 1e-8) -> list[dict]:
+    """Applications to the natural residual ``tol`` of the disk QP by: the projected CG (DiskPCG, as
+    shipped), without its preconditioner, without the disk edge's curvature (kappa = 0: the step along a
+    slip cell's edge then ignores that turning pulls its traction inwards), and FISTA; on a 3-D shift
+    (creepage control: the rigid slip of Cattaneo's Q = mu P/2) and a spin-dominated shift, and in line
+    contact on the box by TAO (pk with the inverse circulant, bqnls, blmvm). Rows: case, solver,
+    applications (None: not converged within 2000 iterations)."""
+    rows = []
+    for name, spin in (("3-D shift, Cattaneo", 0.0), ("3-D shift with spin", 1.0)):
+        grid, solver, bound = hertz_case(n, comm)
+        x, y = grid.x[solver.r0 : solver.r1, None], grid.y[None, :]
+        reference = solver.solve(bound(), force=[-0.5 * _force(comm, bound(), grid), 0.0])
+        w = reference.shift[0]
+        rigid = np.stack(np.broadcast_arrays(w - spin * w * y, spin * w * x)).astype(float)
+        apply, precondition, g, b, norm = _scaled_problem(solver, bound(), rigid)
+        for label, kwargs in (("DiskPCG", {}), ("DiskPCG, no preconditioner", {"plain": True}),
+                              ("DiskPCG, kappa = 0", {"flat": True})):
+            rows.append(dict(case=name, solver=label,
+                             applications=_disk(apply, precondition, g, b, norm, comm, tol, **kwargs)))
+        rows.append(dict(case=name, solver="FISTA (restarted)",
+                         applications=_converged(*fista(apply, g, b, norm, tol, comm, 4000), 4000)))
+    rows += _tao_line(comm, n, tol)
+    return rows
+
+
+def _converged(q, applications, limit):
+    return None if applications >= limit else applications
+
+
+def _disk(apply, precondition, g, b, norm, comm, tol, plain=False, flat=False):
+    from petroll.errors import SolverError
+
+    solver = DiskPCG(apply, (lambda r: r) if plain else precondition, g, comm, tol, 2000, None, norm)
+    if flat:
+        solver.direction = _flat_direction(solver)
+    try:
+        return solver.solve(np.zeros_like(b), b).applications
+    except SolverError:
+        return None
+
+
+def _flat_direction(solver: DiskPCG):
+    """DiskPCG.direction with the disk edge's curvature left out (kappa = 0)."""
+    original = solver.direction
+
+    def direction(st, d, z_prev, pgz_prev):
+        d, z, pgz, kappa = original(st, d, z_prev, pgz_prev)
+        return d, z, pgz, np.zeros_like(kappa)
+
+    return direction
+
+
+def _tao_line(comm: MPI.Comm, n: int, tol: float) -> list[dict]:
+    """Line contact's QP (a shift at Cattaneo's Q = mu P/2 as creepage control) on the box -g <= q <= g:
+    DiskPCG against TAO's types on petroll's shell matrix (the normal QP's machinery: pk with the inverse
+    circulant, bqnls, blmvm), each to the natural residual ``tol`` (TAO's gatol tightened until met)."""
+    grid, solver, bound = hertz_case(n, comm, line=True)
+    reference = solver.solve(bound(), force=[-0.5 * _force(comm, bound(), grid)])
+    rigid = np.full((1, *solver.local_shape), reference.shift[0])
+    apply, precondition, g, b, norm = _scaled_problem(solver, bound(), rigid)
+    rows = [dict(case="line contact shift", solver="DiskPCG (box)",
+                 applications=_disk(apply, precondition, g, b, norm, comm, tol))]
+    for kind in ("pk", "bqnls", "blmvm"):
+        rows.append(dict(case="line contact shift", solver=f"TAO {kind}",
+                         applications=_tao_box(solver, bound(), b, g, kind, tol)))
+    return rows
+
+
+def _tao_box(solver: TangentialSolver, bound, b, g, kind: str, tol: float):
+    """Applications of TAO ``kind`` on the scaled box QP to the natural residual ``tol``."""
+    from petsc4py import PETSc
+
+    from petroll.solver.influence import Convolution, shell_matrix
+    from petroll.solver.kernels.cerruti import strip_tangential
+    from petroll.solver.pk import PolonskyKeer
+    from petroll.solver.precondition import CirculantInverse
+
+    box = solver.box(bound > 0)
+    nx = box[1] - box[0]
+    grid, comm = solver.grid, solver.comm
+    table = strip_tangential(2 * nx, grid.dx, grid.datum, NU)[:, None]
+    conv = Convolution(table, nx, 1, comm)
+    inverse = Convolution(table, nx, 1, comm, inverse=True)
+    mat = shell_matrix(conv, 1.0 / conv.diagonal, inverse)
+    x, rhs = mat.createVecs()
+    grad, lower, upper = x.duplicate(), x.duplicate(), x.duplicate()
+    lower.setArray(-g)
+    upper.setArray(g)
+    rhs.setArray(b[0])
+    applications = 0
+    for gatol in (tol, tol / 10, tol / 100):
+        tao = PETSc.TAO().create(comm)
+        if kind == "pk":
+            tao.setType("python")
+            tao.setPythonContext(PolonskyKeer())
+        else:
+            tao.setType(kind)
+
+        def objective_gradient(tao, v, out):
+            mat.mult(v, out)
+            out.axpy(1.0, rhs)
+            return 0.5 * (v.dot(out) + v.dot(rhs))
+
+        tao.setObjectiveGradient(objective_gradient, grad)
+        tao.setHessian(lambda *args: None, mat, mat)
+        tao.setVariableBounds((lower, upper))
+        tao.setTolerances(gatol=gatol, grtol=0.0, gttol=0.0)
+        tao.setMaximumIterations(2000)
+        tao.setFromOptions()
+        if kind == "pk":
+            tao.getKSP().getPC().setType("python")
+            tao.getKSP().getPC().setPythonContext(CirculantInverse())
+        x.set(0.0)
+        before = mat.getPythonContext().applications
+        tao.solve(x)
+        applications += mat.getPythonContext().applications - before
+        mat.mult(x, grad)
+        grad.axpy(1.0, rhs)
+        q, s = x.getArray(readonly=True), grad.getArray(readonly=True)
+        residual = comm.allreduce(float(np.abs(q - np.clip(q - s, -g, g)).max(initial=0.0)), op=MPI.MAX)
+        converged = tao.getConvergedReason() > 0
+        tao.destroy()
+        if residual <= tol or not converged:
+            break
+    for v in (x, rhs, grad, lower, upper, mat):
+        v.destroy()
+    return applications if residual <= tol else None
