@@ -143,7 +143,8 @@ def _material_fit(args: argparse.Namespace) -> None:
     """``petroll material fit``: read, fit, write the block (or print it), draw the figure, report."""
     import pathlib
 
-    from petroll.io.results import atomic_write
+    from petroll.io.journal import atomic_write
+    from petroll.io.rundir import clean_temporaries
     from petroll.model import dma
     from petroll.plot import plot_fit, plot_shifts  # matplotlib imported only when drawing
 
@@ -159,6 +160,7 @@ def _material_fit(args: argparse.Namespace) -> None:
         out = pathlib.Path(args.out)
         try:
             out.parent.mkdir(parents=True, exist_ok=True)
+            clean_temporaries(out.parent, [out.name])  # of a writer killed earlier
             atomic_write(out, lambda tmp: tmp.write_text(text, encoding="utf-8"))
         except OSError as exc:
             raise dma.DMAError(f"--out {out}: cannot write it ({exc.strerror})") from None
@@ -178,8 +180,6 @@ def _material_fit(args: argparse.Namespace) -> None:
     except ImportError:
         print("petroll: warning: matplotlib is not installed: no plot", file=sys.stderr)
         drawn = ["none"]
-    except OSError as exc:
-        raise dma.DMAError(f"--plot {png}: cannot write it ({exc.strerror})") from None
     print(dma.report(data, fit) + f" Block: {args.out or 'printed above'}; plot: "
           f"{', '.join(str(p) for p in drawn) or 'none (--plot PNG draws one)'}", file=report)
     for line in warnings:  # also in the block, as comments

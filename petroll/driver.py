@@ -20,9 +20,8 @@ import numpy as np
 from mpi4py import MPI
 
 from petroll.errors import PetrollError, SceneError, SolverError, reason
-from petroll.io.checkpoint import (RunInterrupted, checkpoint_dir, fingerprint, remove_foreign_checkpoints,
-                                   run_directory)
-from petroll.io.checkpoint_writer import write_checkpoint
+from petroll.io.checkpoint import RunInterrupted, checkpoint_dir, fingerprint, run_directory
+from petroll.io.checkpoint_writer import remove_foreign_checkpoints, write_checkpoint
 from petroll.io.results import OutputError, Results, ResultsFile, results_identity
 from petroll.io.rundir import DirectoryBusy, RunLock, clean_temporaries
 from petroll.model.limits import PetrollWarning, negative_friction
@@ -320,6 +319,8 @@ def _show_progress(scene: Scene, r: StepRecord, wall: float) -> None:
 
 
 AUTO_DEPTHS = 41
+MAX_DEPTHS = 1000
+"""The most depths ``petroll stress --depth`` takes (stress.h5 holds 8 fields of the grid's size per depth)."""
 """Depths of ``depths="auto"``: 0 to twice the contact's smaller half-width, evenly spaced (a/20 apart)."""
 
 
@@ -361,14 +362,18 @@ def stress(run_dir: str | pathlib.Path, step: int | None = None, depths=None, nu
     if not path.is_file():
         raise PetrollError(f"{path}: no results file (is {run_dir} the output directory of a run?)")
     saved = read_saved_pressure(path, step, comm)
-    raw = tomllib.loads(saved["scene"])
-    if raw["grid"].get("periodic", False):
-        raise PetrollError(f"{path}: [grid] periodic = {raw['grid']['periodic']!r}: the stresses below a "
+    try:
+        raw = tomllib.loads(saved["scene"])
+        g = dict(raw["grid"])
+    except (ValueError, RecursionError, KeyError, TypeError):  # TOMLDecodeError is a ValueError
+        raise PetrollError(f"{path}: not a readable petroll results file (its scene text is no scene)") from None
+    if g.get("periodic", False):
+        raise PetrollError(f"{path}: [grid] periodic = {g['periodic']!r}: the stresses below a "
                            "periodic surface are not computed (petroll stress sums an isolated pressure "
                            "field)")
     nu = _poisson_ratio(raw, nu)
     x, y, p = saved["x"], saved["y"], saved["pressure"]
-    g, line = raw["grid"], saved["line"]
+    line = saved["line"]
     dx = (g["x"][1] - g["x"][0]) / g["nx"]
     dy = 1.0 if line else (g["y"][1] - g["y"][0]) / g["ny"]
     r0, r1 = saved["rows"]
@@ -431,6 +436,9 @@ def _depths(depths, p: np.ndarray, x: np.ndarray, y: np.ndarray, dx: float, dy: 
         if isinstance(depths, str):
             raise PetrollError(f"--depths {depths!r}: only 'auto' is allowed (or give --depth z1,z2,...)")
         z = np.asarray(depths, dtype=float).ravel()
+        if z.size > MAX_DEPTHS:
+            raise PetrollError(f"--depth: {z.size} depths; at most {MAX_DEPTHS} (each one a field of the grid's "
+                               "size in stress.h5)")
         if z.size == 0 or not np.all(np.isfinite(z)) or np.any(z < 0):
             raise PetrollError(f"--depth {','.join(f'{v:g}' for v in z)}: depths must be finite numbers >= 0 "
                                "(m, below the surface)")

@@ -17,14 +17,40 @@ class _Missing:
 MISSING = _Missing()
 """Marks a key that the scene does not give."""
 
+class Shown:
+    """A value that an error message describes instead of writing it (one too deep or too long)."""
+
+    def __init__(self, text: str):
+        self.text = text
+
+    def __repr__(self) -> str:
+        return self.text
+
+
+SHOWN_CHARACTERS = 200
+"""The longest value an error message shows whole; a longer one is cut, saying how long it was."""
+
+
+def shown(value: object) -> str:
+    """``repr(value)`` for an error message, on one line: cut after SHOWN_CHARACTERS characters (a list of
+    a million numbers, a 4000-digit integer), or a description where it cannot be written (nested deeper
+    than Python's recursion allows)."""
+    try:
+        text = repr(value)
+    except (RecursionError, ValueError):  # nested too deep; an integer beyond Python's 4300 digits
+        return f"<{type(value).__name__} too deep or too long to show>"
+    if len(text) > SHOWN_CHARACTERS:
+        return f"{text[:SHOWN_CHARACTERS - 50]}... ({len(text)} characters)"
+    return text
+
 
 class SceneError(PetrollError):
     """An invalid scene: the message names the file, the key, the bad value and what is allowed."""
 
     def __init__(self, source: str, key: str, value: object, allowed: str):
         self.source, self.key, self.value, self.allowed = source, key, value, allowed
-        shown = source if str(source).isprintable() else repr(str(source))  # a file name with a newline...
-        super().__init__(f"{shown}: {key} = {value!r}: {allowed}")
+        shown_source = source if str(source).isprintable() else repr(str(source))  # a file name with a newline
+        super().__init__(f"{shown_source}: {key} = {shown(value)}: {allowed}")
 
 
 class SolverError(PetrollError):

@@ -13,6 +13,7 @@ import time
 import tomllib
 import warnings
 
+import numpy as np
 import pytest
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
@@ -295,3 +296,107 @@ def test_an_error_on_one_rank_ends_all_ranks_promptly(tmp_path, hook, code, text
     assert text in proc.stderr, proc.stderr
     assert wall < 60
     assert not (tmp_path / "o" / "results.h5").exists()
+
+
+# -- issue 35: crashes, tracebacks, hangs and misleading refusals at the edges -----------------------------
+def refused(cli_main, argv: list, *needles: str, seconds: float = 30.0) -> str:
+    """``petroll ARGV`` in this process with every warning an error (none may be printed before the
+    refusal): exit status 2 on every rank, one line naming ``needles`` (rank 0 prints it), within
+    ``seconds``. Returns the line ("" on other ranks)."""
+    from mpi4py import MPI
+
+    started = time.monotonic()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        code, _, err = cli_main([str(a) for a in argv])
+    assert code == 2, (code, err)
+    assert time.monotonic() - started < seconds, f"took {time.monotonic() - started:.1f} s"
+    if MPI.COMM_WORLD.rank != 0:
+        return ""
+    lines = [line for line in err.splitlines() if line.strip()]
+    assert len(lines) == 1 and lines[0].startswith("petroll: error: "), (code, err)
+    assert all(needle in lines[0] for needle in needles), (needles, lines[0])
+    return lines[0]
+
+
+HERTZ = ROOT / "runs" / "hertz.toml"
+
+
+@pytest.mark.parametrize("text, key, allowed", [
+    ("[" + ".".join(["a"] * 2000) + "]\n", "[a] a", "may nest at most 16 deep"),
+    ("x = " + "[" * 5000 + "]" * 5000 + "\n", "(syntax)", "may nest at most 16 deep"),
+    ("x = " + "{a = " * 3000 + "1" + "}" * 3000 + "\n", "(syntax)", "may nest at most 16 deep"),
+    (HERTZ.read_text().replace("[solver]", "[solver]\nbogus = " + "[" * 300 + "]" * 300), "[solver] bogus",
+     "may nest at most 16 deep"),
+    (HERTZ.read_text().replace("nx = 64", "nx = " + "9" * 5000), "(syntax)", "(4300 digits)"),
+    (HERTZ.read_text().replace("nx = 64", "nx = " + "9" * 4000), "[grid] nx", "at most 16777216"),
+], ids=["table-2000-deep", "5000-arrays", "3000-inline-tables", "300-arrays", "5000-digits", "4000-digits"])
+def test_deep_nesting_and_huge_integers_are_refused_in_one_line(tmp_path, cli_main, text, key, allowed):
+    """Each was a RecursionError or ValueError traceback (issue 35); a value too long to show is cut."""
+    scene = tmp_path / "s.toml"
+    scene.write_text(text)
+    for verb in ("check", "run"):
+        line = refused(cli_main, [verb, scene, "--out", tmp_path / "out"][: 2 if verb == "check" else 4],
+                       f"{scene}: {key} = ", allowed)
+        assert len(line) < 700, line
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_scene_with_a_byte_order_mark_is_read_as_without(tmp_path, cli_main, comm):
+    """Windows editors save UTF-8 with a byte-order mark: was 'Invalid statement (line 1, column 1)'. The
+    scene and the text results.h5 stores are the file's without it."""
+    from petroll.model.scene import load_scene
+
+    plain, marked = tmp_path / "plain.toml", tmp_path / "marked.toml"
+    plain.write_text(HERTZ.read_text(), encoding="utf-8")
+    marked.write_bytes(b"\xef\xbb\xbf" + HERTZ.read_bytes())
+    assert load_scene(marked).text == load_scene(plain).text and load_scene(marked).raw == load_scene(plain).raw
+    code, out, err = cli_main(["check", str(marked)])
+    assert code == 0 and ("checked, nothing run" in out or comm.rank), err
+
+
+def test_a_scene_file_larger_than_16_mib_is_refused_unread(cli_main):
+    refused(cli_main, ["check", "/dev/zero"], "/dev/zero: (file) = ", "larger than 16 MiB", seconds=10)
+
+
+@pytest.mark.parametrize("argv, needles", [
+    (["sweep", HERTZ, "--vary", "motion.penetration=1e-6..2e-5:lin:99999999999999999999"],
+     ["N = 99999999999999999999", "at most 1000 values"]),
+    (["sweep", HERTZ, "--vary", "motion.penetration=1e-6..2e-5:lin:1000000000"], ["N = 1000000000", "at most 1000"]),
+    (["sweep", HERTZ, "--vary", "motion.penetration=1e-6..2e-5:log:" + "9" * 5000], ["(5000 digits)", "at most 1000"]),
+    (["sweep", HERTZ, "--vary", "grid.nx=" + ",".join(str(n) for n in range(8, 1209))], ["1201 values", "at most 1000"]),
+    (["sweep", HERTZ, "--vary", "grid.nx=100000,36"], ["[grid] nx = 100000", "27944 cells per contact half-width",
+                                                       "more than 1024", "nx <= 3664 gives 1024"]),
+    (["material", "fit", ROOT / "runs" / "rubber-dma.csv", "--shift", "wlf:8.86,101.6,293.15", "--terms", "100000"],
+     ["terms = 100000 (--terms)", "at most 2000"]),
+    (["material", "fit", ROOT / "runs" / "rubber-dma.csv", "--shift", "wlf:8.86,101.6,293.15", "--per-decade",
+      "1000"], ["per_decade = 1000.0 (--per-decade)", "at most 2000"]),
+], ids=["lin-1e20", "lin-1e9", "log-5000-digits", "1201-values", "nx-100000", "terms-100000", "per-decade-1000"])
+def test_every_count_a_user_types_is_bounded_before_work_starts(tmp_path, cli_main, argv, needles):
+    """Were a ValueError (lin:10^20), hangs (lin:10^9 still running after 60 s; nx = 100000 still running 5
+    s after SIGTERM: a steady solve on 6.4 million cells; --terms 100000): refused at once, stating the
+    bound (issue 35)."""
+    argv = [*argv, "--out", tmp_path / "out"] if argv[0] == "sweep" else argv
+    refused(cli_main, argv, *needles, seconds=20)
+    assert not any((tmp_path / "out").rglob("results.h5"))
+
+
+def test_max_steps_depths_and_times_are_bounded(shared_dir, comm, cli_main, monkeypatch):
+    raw = mutate(BASE, [("set", ("time", "max_steps"), 10**6 + 1)])
+    if comm.rank == 0:
+        (shared_dir / "s.toml").write_text(dumps(raw))
+    comm.Barrier()
+    refused(cli_main, ["check", shared_dir / "s.toml"], "[time] max_steps = 1000001", "at most 1000000")
+    monkeypatch.chdir(shared_dir)
+    raw["time"] = {"dt": 0.001, "end": 0.02, "max_steps": 30}
+    raw["output"] = {"every": 1}  # 21 saved fields
+    comm.Barrier()
+    if comm.rank == 0:
+        (shared_dir / "s.toml").write_text(dumps(raw))
+    comm.Barrier()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", PetrollWarning)
+        assert cli_main(["run", "s.toml", "--out", "run", "--quiet"])[0] == 0
+    refused(cli_main, ["stress", "run", "--depth", ",".join(["1e-5"] * 1001)], "1001 depths", "at most 1000")
+    times = ",".join(str(t) for t in np.linspace(0.0, 0.02, 17))
+    refused(cli_main, ["plot", "run", "--times", times], "--times: picks", "at most 16")

@@ -168,11 +168,11 @@ def test_cylinder_axis_x_is_transposed():
     bx = Cylinder(0.4, 0.3, edge_radius=0.05, axis="x")
     a = np.linspace(-0.2, 0.2, 33)[:, None]
     b = np.linspace(-0.39, 0.39, 41)[None, :]
-    np.testing.assert_array_equal(bx.height(b.T, a.T), by.height(a, b).T)
+    np.testing.assert_allclose(bx.height(b.T, a.T), by.height(a, b).T, rtol=1e-15, atol=0)
     syx, syy = by.slope(a, b)
     sxx, sxy = bx.slope(b.T, a.T)
-    np.testing.assert_array_equal(sxx, syy.T)
-    np.testing.assert_array_equal(sxy, syx.T)
+    np.testing.assert_allclose(sxx, syy.T, rtol=1e-15, atol=0)
+    np.testing.assert_allclose(sxy, syx.T, rtol=1e-15, atol=0)
     # axis x: rolls along y, so the circle is in y and the width is along x
     assert np.isinf(bx.height(0.16, 0.0)) and np.isfinite(bx.height(0.0, 0.3))
 
@@ -320,7 +320,7 @@ def test_heightmap_npy_round_trip(tmp_path):
     np.testing.assert_array_equal(body.heights, heights)
     direct = HeightMap(heights, (0.1, 0.2))
     x, y = RNG.uniform(-0.4, 0.4, 50), RNG.uniform(-0.5, 0.5, 50)
-    np.testing.assert_array_equal(body.height(x, y), direct.height(x, y))
+    np.testing.assert_allclose(body.height(x, y), direct.height(x, y), rtol=1e-15, atol=0)
 
 
 @pytest.mark.parametrize(

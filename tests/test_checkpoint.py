@@ -267,9 +267,10 @@ def test_checkpoint_layout_and_sizes_do_not_grow_with_the_steps_for_prony(comm, 
 
 
 def test_keep_removes_older_checkpoints_and_those_of_the_run_replaced(comm, shared_dir):
-    """Of the run's own checkpoints the newest ``keep`` stay; those an earlier run left in the directory
-    (a later step, a damaged one) go once the new results.h5 is in place (they continued the results.h5 it
-    replaced); other files stay. A restart keeps its run's later checkpoints."""
+    """Of the run's own checkpoints the newest ``keep`` stay; those an earlier run left in the directory (a
+    later step) go once the new results.h5 is in place (they continued the results.h5 it replaced); one
+    that cannot be read (damaged: not known to be another run's, issue 35) and other files stay. A restart
+    keeps its run's later checkpoints."""
     raw = raw_scene(SLS, CONSTANT, ("penetration", 2e-5), output={"checkpoint_every": 2, "keep": 2})
     run(make_scene(raw_scene(SLS, CONSTANT, ("penetration", 2e-5), distance=2 * LENGTH,
                              output={"checkpoint_every": 20})), comm, shared_dir)
@@ -283,7 +284,7 @@ def test_keep_removes_older_checkpoints_and_those_of_the_run_replaced(comm, shar
     last = len(results.series["t"]) - 1
     names = sorted(p.name for p in (shared_dir / "checkpoints").iterdir())
     mine = sorted([f"step-{last - last % 2 - (2 if last % 2 == 0 else 0):08d}.h5", f"step-{last:08d}.h5"])
-    assert names == sorted([*mine, "notes.txt"])
+    assert names == sorted([*mine, "notes.txt", "step-00000099.h5"])
     run(make_scene(raw), comm, shared_dir, restart=read_checkpoint(shared_dir / "checkpoints" / mine[0], comm))
     assert sorted(p.name for p in (shared_dir / "checkpoints").iterdir()) == names
 
@@ -340,9 +341,24 @@ def other_hdf5(path: pathlib.Path) -> None:
         f.create_dataset("x", data=[1.0])
 
 
-def set_attribute(path: pathlib.Path, name: str, value) -> None:
+def set_attribute(path: pathlib.Path, name: str, value, reseal: bool = False) -> None:
+    """An attribute edited (h5py): the file's seal broken, or made again (``reseal``: as its writer)."""
+    from petroll.io.hdf5 import seal
+
     with h5py.File(path, "r+") as f:
         f.attrs[name] = value
+    if reseal:
+        seal(path)
+
+
+def unseal(path: pathlib.Path) -> None:
+    """A checkpoint as written before seals (petroll.io.hdf5.seal): its user block's seal blanked."""
+    from petroll.io.hdf5 import SEAL_BYTES, SEAL_MAGIC
+
+    with open(path, "r+b") as fh:
+        if fh.read(len(SEAL_MAGIC)) == SEAL_MAGIC:
+            fh.seek(0)
+            fh.write(bytes(SEAL_BYTES))
 
 
 BAD = {
@@ -355,8 +371,11 @@ BAD = {
     "other hdf5": (lambda good, p: other_hdf5(p), "not a petroll checkpoint (an HDF5 file"),
     "corrupted data": (lambda good, p: (shutil.copy(good, p), flip_byte_inside(p, "state/q")), "corrupted"),
     "edited scene": (lambda good, p: (shutil.copy(good, p), set_attribute(p, "scene", "[grid]\nnx = 1\n")),
-                     "corrupted (its attributes or list of datasets do not match the checksum)"),
-    "newer format": (lambda good, p: (shutil.copy(good, p), set_attribute(p, "format_version", 3)),
+                     "corrupted (its bytes do not match the checksum it was sealed with)"),
+    "edited and sealed": (lambda good, p: (shutil.copy(good, p), set_attribute(p, "scene", "[grid]\nnx = 1\n",
+                                                                                reseal=True)),
+                          "corrupted (its attributes or list of datasets do not match the checksum)"),
+    "newer format": (lambda good, p: (shutil.copy(good, p), set_attribute(p, "format_version", 3, reseal=True)),
                      "written in checkpoint format 3"),
 }
 
@@ -652,3 +671,28 @@ def test_without_parallel_hdf5_rank_0_writes_the_same_files_and_restarts_bitwise
             same_files(path, shared_dir / "rank0" / "checkpoints" / path.name)
 
     on_root(comm, compare)
+
+
+def test_remove_foreign_checkpoints_removes_only_those_it_read_as_another_runs(tmp_path, monkeypatch):
+    """Issue 35: a checkpoint it fails to open (here a passing read error, OSError EIO), or finds damaged
+    by its seal, is not known to be another run's and stays; one read as another run's goes; ours stay."""
+    from petroll.io import checkpoint_writer as module
+    from petroll.io.checkpoint_writer import remove_foreign_checkpoints
+
+    run(make_scene(raw_scene(output={"checkpoint_every": 2, "keep": 10})), MPI.COMM_SELF, tmp_path / "run")
+    found = list_checkpoints(tmp_path / "run" / "checkpoints")
+    ours = read_checkpoint(found[0], MPI.COMM_SELF).run_id
+    assert len(found) >= 4
+    unreadable, damaged, foreign = found[1], found[2], found[3]
+    set_attribute(foreign, "run_id", "another run", reseal=True)
+    flip_byte_inside(damaged, "state/pressure")
+    real_file = h5py.File
+
+    def flaky(path, *args, **kwargs):
+        if pathlib.Path(path) == unreadable:
+            raise OSError(errno.EIO, "Input/output error")
+        return real_file(path, *args, **kwargs)
+
+    monkeypatch.setattr(module.h5py, "File", flaky)
+    assert remove_foreign_checkpoints(found[0].parent, ours) == [foreign]
+    assert [p for p in found if p.exists()] == [p for p in found if p != foreign]

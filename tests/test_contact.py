@@ -158,3 +158,28 @@ def test_no_contact_gives_zero_pressure(comm):
     grid, solver, height = sphere_setup(comm, 8)
     step = solver.solve_penetration(height, J, -1e-6)
     assert step.force == 0 and not np.any(step.pressure)
+
+
+@pytest.mark.parametrize("holes", [[(7, 6)], [(6, 6), (8, 7), (9, 5)]])
+def test_cells_without_surface_inside_the_contact_cannot_touch(comm, holes):
+    """A body with no surface (Z = +inf: a hole in a height map) at cells inside its contact window: they
+    carry no pressure and the rest is the contact problem's solution (was TAO error 83, Inf or NaN, issue
+    35). Oracle: the whole-grid dense problem by projected Gauss-Seidel, those cells given a gap 10 times
+    the largest other one (no displacement closes it)."""
+    grid = Grid(16, 14, -1.0, 1.0, -0.9, 0.9)
+    solver = ContactSolver(grid, comm, tol=1e-10)
+    height_all = Sphere(3.0).height(grid.x[:, None] - 0.05, grid.y[None, :] + 0.02)
+    matrix = 2.0 * dense_influence(love_coefficients(grid.nx, grid.ny, grid.dx, grid.dy))
+    whole = projected_gauss_seidel(matrix, (height_all - 0.08).ravel()).reshape(grid.nx, grid.ny)
+    assert all(whole[i, j] > 0.1 * whole.max() for i, j in holes)  # in the contact of the body without holes
+    for i, j in holes:
+        height_all[i, j] = np.inf
+    delta, compliance = 0.08, 2.0
+    step = solver.solve_penetration(height_all[solver.r0 : solver.r1], compliance, delta)
+    gaps = height_all - delta
+    finite = np.isfinite(gaps)
+    gaps[~finite] = 10 * np.abs(gaps[finite]).max()
+    reference = projected_gauss_seidel(matrix, gaps.ravel()).reshape(grid.nx, grid.ny)
+    assert all(reference[i, j] == 0 for i, j in holes) and (reference > 0).sum() > 20
+    assert np.abs(step.pressure - reference[solver.r0 : solver.r1]).max(initial=0) <= 1e-6 * reference.max()
+    assert all(step.pressure[i - solver.r0, j] == 0 for i, j in holes if solver.r0 <= i < solver.r1)

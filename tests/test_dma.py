@@ -7,11 +7,14 @@ and, for the rolling run, the same scene at the reference temperature with the s
 """
 
 import math
+import re
 import pathlib
 import tomllib
+import warnings
 
 import numpy as np
 import pytest
+from mpi4py import MPI
 
 import petroll
 from petroll.cli import main
@@ -19,6 +22,9 @@ from petroll.errors import SceneError
 from petroll.model import dma, materials
 from petroll.model.scene import parse_scene
 from petroll.studies.sweep import point_scene
+from compare import close_tree
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 
@@ -84,14 +90,15 @@ def test_temperature_multiplies_every_time_by_a_T(material):
     for T, law in ((310.0, WLF), (285.0, {"law": "arrhenius", "Ea": 80e3, "T_ref": 300.0})):
         scene = parse_scene(with_material({**material, "temperature": T, "shift": law}))
         a_T = materials.shift_factor(materials.make_shift(law), T)
-        assert scene.shift_factor == a_T
+        assert scene.shift_factor == pytest.approx(a_T, rel=1e-15)
         t = np.concatenate([[0.0], np.geomspace(1e-6, 10.0, 60)])
         assert scene.material(t * a_T) == pytest.approx(ref(t), rel=1e-12)  # J_T(t) = J_ref(t / a_T)
     if material["model"] == "sls":  # the same SLS written with its relaxation time already multiplied
         a_T = materials.shift_factor(materials.WLF(17.44, 51.6, 300.0), 310.0)
         direct = materials.sls(10e6, 2e6, 0.5, tau_relax=0.01 * a_T)
         shifted = parse_scene(with_material({**material, "temperature": 310.0, "shift": WLF})).material
-        assert shifted.tau == pytest.approx(direct.tau, rel=1e-14) and shifted.dJ == direct.dJ
+        assert shifted.tau == pytest.approx(direct.tau, rel=1e-14)
+        assert shifted.dJ == pytest.approx(direct.dJ, rel=1e-14)
 
 
 def test_a_tabulated_material_has_its_time_axis_scaled(tmp_path):
@@ -295,9 +302,52 @@ def test_the_shipped_example_is_the_fit_of_the_shipped_table():
     data = dma.read_dma(root / "rubber-dma.csv", law)
     fit = dma.fit_prony(data.reduced, data.storage, data.loss)
     shipped = tomllib.loads((root / "sphere-dma.toml").read_text())["material"]
-    assert {k: v for k, v in shipped.items() if k not in ("Einf", "moduli", "times")} == {
-        k: v for k, v in fit.table(law).items() if k not in ("Einf", "moduli", "times")}
+    assert close_tree({k: v for k, v in shipped.items() if k not in ("Einf", "moduli", "times")},
+                      {k: v for k, v in fit.table(law).items() if k not in ("Einf", "moduli", "times")}, rel=1e-12)
     f = np.geomspace(data.reduced.min(), data.reduced.max(), 500)  # the same curves (NNLS may differ in
     ours, theirs = fit.dynamic(f), dma.storage_loss(shipped["Einf"], shipped["moduli"], shipped["times"], f)
     assert np.allclose(ours, theirs, rtol=1e-4, atol=0)  # round-off between scipy versions)
     assert len(data.frequency) == 143 and fit.rms_error < 0.012  # 1 % noise in the synthetic table
+
+
+@pytest.mark.parametrize("column, value, allowed", [
+    ("storage", "1e-320", "storage = '1e-320': 9.99989e-321 Pa is outside what petroll computes with"),
+    ("loss", "1e-320", "loss = '1e-320': 9.99989e-321 Pa is outside"),
+    ("frequency", "1e300", "frequency = '1e300': 1e+300 Hz is outside what petroll computes with"),
+    ("frequency", "5e-324", "frequency = '5e-324': 4.94066e-324 Hz is outside"),
+], ids=["storage-1e-320", "loss-1e-320", "frequency-1e300", "frequency-5e-324"])
+def test_dma_values_beyond_double_precision_are_refused_in_one_line_without_warnings(tmp_path, cli_main, column,
+                                                                                   value, allowed):
+    """Were an OverflowError (prony_fit), a ValueError from NNLS, or a refusal after a numpy overflow
+    warning naming no file (issue 35): one line naming the file, the line and the bound."""
+    lines = (ROOT / "runs" / "rubber-dma.csv").read_text().splitlines()
+    header = next(k for k, text in enumerate(lines) if text.startswith("frequency"))
+    fields = lines[header + 3].split(",")
+    fields[["frequency", "storage", "loss"].index(column)] = value
+    lines[header + 3] = ",".join(fields)
+    (tmp_path / "t.csv").write_text("\n".join(lines) + "\n")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        code, _, err = cli_main(["material", "fit", str(tmp_path / "t.csv"), "--shift", "wlf:8.86,101.6,293.15"])
+    said = [text for text in err.splitlines() if text.strip()]
+    assert code == 2
+    if MPI.COMM_WORLD.rank:  # rank 0 fits and says why not
+        return
+    assert len(said) == 1, err
+    assert said[0].startswith(f"petroll: error: {tmp_path / 't.csv'}, line {header + 4}: ") and allowed in said[0]
+
+
+def test_the_fit_refuses_values_it_cannot_compute_with():
+    """The Python API: moduli of 1e-320 Pa (an OverflowError, then a ValueError from NNLS), frequencies of
+    1e31 Hz, --einf 1e300, more than 2000 candidate times (issue 35)."""
+    frequency = np.geomspace(1e-2, 1e2, 20)
+    E = complex_modulus(frequency)
+    for args, kwargs, text in (((frequency, np.full(20, 1e-320), E.imag), {}, "outside what petroll computes"),
+                               ((np.geomspace(1e29, 1e31, 20), E.real, E.imag), {}, "e+30 Hz or Pa is outside what"),
+                               ((frequency, E.real, E.imag), {"einf": 1e300}, "--einf 1e+300"),
+                               ((frequency, E.real, E.imag), {"terms": 2001}, "at most 2000"),
+                               ((frequency, E.real, E.imag), {"per_decade": 400.0}, "gives 2401 candidate")):
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            with pytest.raises(dma.DMAError, match=re.escape(text)):
+                dma.fit_prony(*args, **kwargs)

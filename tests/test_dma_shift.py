@@ -17,19 +17,8 @@ from petroll.errors import SceneError
 from petroll.model import dma, materials, tts
 from petroll.model.scene import parse_scene
 from petroll.studies.synthetic_dma import POLYMER, RUBBER, sweeps, write_table
+from compare import close_tree
 from test_dma import SCENE
-
-
-def close_tree(a, b, rel: float) -> bool:
-    """Two TOML-like trees (dicts, lists, strings, numbers) equal but for floats within ``rel`` of each
-    other (floats computed on two machines differ by round-off: never compared with ==)."""
-    if isinstance(a, dict) and isinstance(b, dict):
-        return a.keys() == b.keys() and all(close_tree(a[k], b[k], rel) for k in a)
-    if isinstance(a, (list, tuple)) and isinstance(b, (list, tuple)):
-        return len(a) == len(b) and all(close_tree(x, y, rel) for x, y in zip(a, b))
-    if isinstance(a, float) or isinstance(b, float):
-        return a == pytest.approx(b, rel=rel, abs=0.0)
-    return a == b
 
 
 @pytest.mark.parametrize("material, T_ref, measured", [(RUBBER, 293.15, 0.024), (POLYMER, 268.15, 0.040)],

@@ -32,10 +32,13 @@ from petroll.io import journal
 from petroll.io.checkpoint import list_checkpoints, read_checkpoint, restart_scene
 from petroll.io.results import OutputError, Results, ResultsFile
 from petroll.io.rundir import LOCK_NAME, RunLock
+from petroll.model.limits import PetrollWarning
 from petroll.solver.partition import RowPartition
-from test_checkpoint import LENGTH, PRONY, SLS, assert_identical, make_scene, raw_scene, snapshot, write_toml
+from test_checkpoint import (LENGTH, PRONY, SLS, assert_identical, make_scene, raw_scene, snapshot, unseal,
+                             write_toml)
 from test_results import NX, NY, field, record
 
+ROOT = pathlib.Path(__file__).resolve().parents[1]
 real_write_all = journal.write_all
 
 
@@ -426,6 +429,7 @@ def forget_run_ids(path: pathlib.Path) -> None:
     """As written before run ids (the other checks must hold by themselves)."""
     with h5py.File(path, "r+") as f:
         del f.attrs["run_id"]
+    unseal(path)
 
 
 @pytest.mark.parametrize("change, expected", [
@@ -473,6 +477,7 @@ def strip_run_id(path: pathlib.Path) -> None:
         f.visititems(lambda name, item: digests.__setitem__(name, _plain(item.attrs["sha256"]))
                      if isinstance(item, h5py.Dataset) else None)
         f.attrs["sha256"] = root_digest(attrs, digests)
+    unseal(path)
 
 
 def test_a_foreign_checkpoint_among_a_runs_checkpoints_is_refused_and_the_run_restarts_from_its_own(
@@ -735,3 +740,93 @@ def test_a_results_xdmf_that_cannot_be_written_is_named(comm, shared_dir):
     with pytest.raises(OutputError) as info:
         run(make_scene(raw_scene()), comm, out)
     assert str(info.value).startswith(f"{out}/results.xdmf: cannot write the results (Is a directory)")
+
+
+# -- issue 35: petroll stress on a full disk ----------------------------------------------------------------
+def test_stress_on_a_full_disk_is_one_line_and_keeps_the_earlier_stress_file(comm, shared_dir, capsys,
+                                                                             monkeypatch):
+    """stress.h5 written through a journal Session: a disk write refused with ENOSPC (Full, from the first
+    write of the new file) never reaches HDF5, which on a real full disk raised 'Disable slist on flush
+    dest failure' and then crashed (SIGSEGV). One line, exit 2, on every rank; the earlier stress.h5 and
+    results.h5 byte for byte; no temporary file."""
+    run(make_scene(raw_scene()), comm, shared_dir / "run")
+    assert main(["stress", str(shared_dir / "run"), "--depth", "0,1e-4"]) == 0
+    kept = on_rank0(comm, {name: digest(shared_dir / "run" / name) for name in ("stress.h5", "results.h5")}
+                    if comm.rank == 0 else None)
+    full = Full()
+    monkeypatch.setattr(journal, "write_all", full)
+    full.armed = True
+    capsys.readouterr()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert main(["stress", str(shared_dir / "run"), "--depth", "0,1e-4,2e-4"]) == 2
+    if comm.rank == 0:
+        path = shared_dir / "run" / "stress.h5"
+        assert said(capsys.readouterr().err) == [f"petroll: error: {path}: cannot write the stresses (No space "
+                                                 "left on device)"]
+        assert {name: digest(shared_dir / "run" / name) for name in kept} == kept
+        assert not list((shared_dir / "run").glob(".*.tmp*"))
+
+
+@pytest.mark.serial
+def test_stress_on_a_really_full_file_system(tmp_path, cli):
+    """The issue's trial (5 of 5 crashed: 'Disable slist on flush dest failure', then SIGSEGV): a tmpfs
+    left with 4 kB to 700 kB free, the real command: one line, exit 2, results.h5 untouched, nothing left."""
+    raw = raw_scene(SLS)
+    write_toml(tmp_path / "s.toml", raw)
+    done = cli("run", "s.toml", "--out", "reference", "--quiet", cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
+    disk = tmp_path / "disk"
+    mount_tmpfs(disk, 4 * 2**20)
+    try:
+        shutil.copytree(tmp_path / "reference", disk / "run")
+        before = digest(disk / "run" / "results.h5")
+        names = sorted(p.name for p in (disk / "run").iterdir())
+        for free in (4_000, 40_000, 200_000, 400_000, 700_000):
+            stat = os.statvfs(disk)
+            (disk / "filler").write_bytes(bytes(max(0, stat.f_bavail * stat.f_frsize - free)))
+            done = cli("stress", disk / "run", cwd=tmp_path, timeout=120)
+            lines = said(done.stderr)
+            assert done.returncode == 2 and lines == [f"petroll: error: {disk / 'run' / 'stress.h5'}: cannot write "
+                                                      "the stresses (No space left on device)"], done.stderr
+            assert digest(disk / "run" / "results.h5") == before
+            assert sorted(p.name for p in (disk / "run").iterdir()) == names  # no stress.h5, no temporary
+            (disk / "filler").unlink()
+    finally:
+        subprocess.run(["umount", "-l", str(disk)], capture_output=True)
+
+
+@pytest.mark.serial
+def test_the_temporaries_of_killed_stress_plot_sweep_and_fit_writers_are_removed(tmp_path, cli_main, monkeypatch):
+    """``.stress.h5.tmpPID``, ``.NAME.png.tmpPID`` and the like that a kill left were never removed (issue
+    35): each command removes those of the files it writes whose process is gone; a live process's, and
+    other programs' files, stay."""
+    monkeypatch.chdir(tmp_path)
+    dead, live = _dead_pid(), os.getppid()
+    write_toml(tmp_path / "s.toml", raw_scene(SLS))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        assert cli_main(["run", "s.toml", "--out", "run", "--quiet"])[0] == 0
+    left = {"run/.stress.h5.tmp{}": "stress", "run/.stress.png.tmp{}": "stress",
+            "run/plots/.pressure.png.tmp{}": "plot", "fit/.rubber.toml.tmp{}": "fit", "fit/.rubber.png.tmp{}": "fit",
+            "sweep/.sweep.csv.tmp{}": "sweep", "sweep/.sweep.h5.tmp{}": "sweep", "sweep/.sweep.png.tmp{}": "sweep"}
+    for name in left:
+        for pid in (dead, live):
+            (tmp_path / name.format(pid)).parent.mkdir(parents=True, exist_ok=True)
+            (tmp_path / name.format(pid)).write_bytes(b"cut short")
+    (tmp_path / "fit" / f".notes.txt.tmp{dead}").write_bytes(b"another program's")
+    write_toml(tmp_path / "static.toml", {"grid": {"nx": 16, "ny": 16, "x": [-0.8e-3, 0.8e-3], "y": [-0.8e-3, 0.8e-3],
+                                                   "allow_coarse": True},
+                                          "material": dict(SLS), "body": {"shape": "sphere", "radius": 0.01},
+                                          "motion": {"penetration": 2e-5}})
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", PetrollWarning)
+        for argv in (["stress", "run"], ["plot", "run"],
+                     ["material", "fit", ROOT / "runs" / "rubber-dma.csv", "--shift", "wlf:8.86,101.6,293.15", "--out",
+                      "fit/rubber.toml"],
+                     ["sweep", "static.toml", "--vary", "motion.penetration=1e-5,2e-5", "--out", "sweep", "--quiet"]):
+            assert cli_main([str(a) for a in argv])[0] == 0, argv
+    for name in left:
+        assert not (tmp_path / name.format(dead)).exists(), name
+        assert (tmp_path / name.format(live)).read_bytes() == b"cut short", name
+    assert (tmp_path / "fit" / f".notes.txt.tmp{dead}").exists()

@@ -3,6 +3,9 @@
 The run is collective (every rank), the plotting happens on rank 0 only."""
 
 import pathlib
+import warnings
+
+import pytest
 
 
 from petroll.cli import main
@@ -92,3 +95,38 @@ def test_stress_sections_lie_on_the_contact_centre_line(comm, shared_dir):
             assert np.allclose(rows[0], rows[-1], rtol=1e-10, atol=1e-10 * rows[0].max())  # symmetric
             assert np.allclose(section, np.mean(rows, axis=0), rtol=1e-12, atol=0)
         assert plot_stress(out / "stress.h5").read_bytes()[:8] == PNG_MAGIC
+
+
+@pytest.mark.serial
+@pytest.mark.parametrize("mode", ["full", "read-only"])
+def test_on_a_full_or_read_only_disk_plot_says_so_in_one_line_and_keeps_the_earlier_figures(tmp_path, capsys,
+                                                                                          monkeypatch, mode):
+    """``petroll plot`` on a full (a few bytes free) or read-only file system: was an OSError traceback, and
+    on a full disk pressure.png was left truncated (written in place: the good earlier figure lost). Now
+    one line, exit 2, the earlier figures byte for byte, no temporary file. A real tmpfs where this process
+    may mount one, else simulated (test_fuzz.Disk: a file-size limit, EROFS from the file layer)."""
+    from mpi4py import MPI
+
+    from test_fuzz import Disk
+
+    disk = Disk(tmp_path / "disk", monkeypatch)
+    try:
+        run(rolling_scene(), MPI.COMM_SELF, disk.where / "run")
+        assert main(["plot", str(disk.where / "run")]) == 0
+        plots = disk.where / "run" / "plots"
+        before = {p.name: p.read_bytes() for p in plots.iterdir()}
+        capsys.readouterr()
+        with disk.state(mode, 2048):
+            with warnings.catch_warnings():
+                warnings.simplefilter("error")
+                code = main(["plot", str(disk.where / "run")])
+        (disk.where / "filler").unlink(missing_ok=True)
+        lines = [line for line in capsys.readouterr().err.splitlines() if line.strip()]
+        why = "Read-only file system" if mode == "read-only" else ("No space left on device" if disk.kind == "tmpfs"
+                                                                   else "File too large")
+        assert code == 2 and lines == [f"petroll: error: {plots / 'pressure.png'}: cannot write the figure ({why}); "
+                                       "free space or give a writable directory"], (disk.kind, lines)
+        assert {p.name: p.read_bytes() for p in plots.iterdir()} == before  # nothing lost, nothing left
+        print(f"{mode} ({disk.kind}): {lines[0]}")
+    finally:
+        disk.close()

@@ -3,6 +3,7 @@ estimated against Hertz's formulas, the resolution warning and refusal, ``petrol
 path against the time loop's own steps."""
 
 import math
+import pathlib
 import warnings
 
 import numpy as np
@@ -16,6 +17,8 @@ from petroll.model.limits import PetrollWarning
 from petroll.model.preflight import GOOD_CELLS, check, check_run, contact_size
 from petroll.model.scene import load_scene, parse_scene, shipped_scene
 from petroll.solver.simulation import Simulation
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
 
 
 def shipped(name: str, **changes):
@@ -167,3 +170,80 @@ def test_a_path_that_leaves_the_grid_is_refused_up_front_where_the_run_would_fai
     with pytest.raises(petroll.driver.RunFailed, match="reaches the grid edge") as failed:
         petroll.run(scene, comm, out=shared_dir / "far")
     assert predicted <= failed.value.steps <= predicted + 5
+
+
+# -- issue 35: bodies without surface on periodic grids; too many cells ----------------------------------
+PERIODIC_CYLINDER = """[grid]
+nx = 32
+ny = 32
+x = [-0.8e-3, 0.8e-3]
+y = [-0.8e-3, 0.8e-3]
+periodic = {periodic}
+
+[material]
+model = "elastic"
+E = 10.0e6
+nu = 0.5
+
+[body]
+{body}
+
+[motion]
+{motion}
+"""
+CYLINDER = 'shape = "cylinder"\nradius = 0.01\nwidth = 0.8e-3\naxis = "{axis}"'
+
+
+def sphere_samples(n: int = 32, cell: float = 50e-6) -> np.ndarray:
+    c = (np.arange(n) - (n - 1) / 2) * cell
+    return (c[:, None] ** 2 + c[None, :] ** 2) / (2 * 0.01)
+
+
+@pytest.mark.parametrize("periodic, body", [
+    ('["y"]', CYLINDER.format(axis="y")), ("true", CYLINDER.format(axis="y")), ('["x"]', CYLINDER.format(axis="x")),
+    ("true", 'shape = "heightmap"\nfile = "map.npy"\ncell = 50e-6'),
+    ('["y"]', 'shape = "heightmap"\nfile = "map.npy"\ncell = 50e-6'),
+], ids=["cylinder-y", "cylinder-true", "cylinder-x", "npy-true", "npy-y"])
+@pytest.mark.parametrize("motion", ["penetration = 10e-6", "load = 0.05"])
+def test_a_body_without_surface_on_some_cells_of_a_periodic_grid_is_refused_by_check_and_run(
+        tmp_path, cli_main, comm, periodic, body, motion):
+    """A cylinder shorter than a periodic grid, a height map with +inf ("no surface") samples on one: the
+    QP covers every cell, and such a cell has no gap (was a divide warning, PETSc error 83, SIGSEGV; petroll
+    check accepted the scene). Both refuse it in one line naming [grid] periodic, how many cells have no
+    surface, and what to change."""
+    samples = sphere_samples()
+    samples[:3] = np.inf
+    np.save(tmp_path / "map.npy", samples)
+    scene = tmp_path / "s.toml"
+    scene.write_text(PERIODIC_CYLINDER.format(periodic=periodic, body=body, motion=motion))
+    expected = 32 * 3 if "npy" in body else 32 * 16  # 3 rows of samples; the half of the grid past the width
+    for argv in (["check", scene], ["run", scene, "--out", tmp_path / "out"]):
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            code, _, err = cli_main([str(a) for a in argv])
+        lines = [line for line in err.splitlines() if line.strip()]
+        assert code == 2, err
+        if comm.rank != 0:  # the error is printed once, by rank 0
+            continue
+        assert len(lines) == 1, err
+        assert lines[0].startswith(f"petroll: error: {scene}: [grid] periodic = ")
+        assert f"no surface (Z = +inf) over {expected} of the grid's 1024 cells at the start" in lines[0]
+        assert "or set [grid] periodic = false" in lines[0]
+    assert not (tmp_path / "out" / "results.h5").exists()
+
+
+def test_more_than_1024_cells_per_contact_half_width_are_refused_by_a_run_and_reported_by_check(cli_main,
+                                                                                              tmp_path, comm):
+    """nx = 100000 under a 0.45 mm contact (27944 cells per half-width, 6.4 million cells: a steady solve
+    that ran for minutes, ignoring SIGTERM, issue 35): check says a run is refused; the run refuses it
+    in one line naming nx and the count that gives 1024."""
+    scene = tmp_path / "big.toml"
+    scene.write_text((ROOT / "runs" / "hertz.toml").read_text().replace("nx = 64", "nx = 100000"))
+    code, out, _ = cli_main(["check", str(scene)])
+    assert code == 0 and ("27943.9 along x ([grid] nx = 100000), 17.9 along y" in out or comm.rank)
+    assert "more than 1024: a run is refused" in out or comm.rank
+    code, _, err = cli_main(["run", str(scene), "--out", str(tmp_path / "out")])
+    assert code == 2 and comm.rank or err.strip() == (
+        f"petroll: error: {scene}: [grid] nx = 100000: gives 27944 cells per contact half-width along x "
+        "(estimated half-width 0.000447 m); more than 1024 refine nothing a run can resolve (errors fall below "
+        "1e-6; docs/accuracy.md) and only cost time: nx <= 3664 gives 1024")

@@ -72,10 +72,10 @@ def test_roughness_adds_to_a_smooth_body():
     x, y = np.linspace(-4e-5, 4e-5, 9)[:, None], np.linspace(-6e-5, 6e-5, 7)[None, :]
     for body in (Sphere(1e-3), Cylinder(1e-3, width=1e-4, edge_radius=1e-5)):
         rough = RoughBody(body, roughness)
-        np.testing.assert_array_equal(rough.height(x, y), body.height(x, y) + roughness.height(x, y))
+        np.testing.assert_allclose(rough.height(x, y), body.height(x, y) + roughness.height(x, y), rtol=1e-15, atol=0)
         slope = np.add(body.slope(x, y), roughness.slope(x, y))
         outside = np.isinf(body.height(x, y))
-        np.testing.assert_array_equal(rough.slope(x, y), np.where(outside, 0.0, slope))
+        np.testing.assert_allclose(rough.slope(x, y), np.where(outside, 0.0, slope), rtol=1e-15, atol=0)
         assert rough.radius_hint == body.radius_hint
     assert np.isinf(RoughBody(Cylinder(1e-3, width=1e-4), roughness).height(0.0, 1e-4)).all()
 

@@ -4,6 +4,7 @@ its rms height and rms slope against direct sums and finite differences; reprodu
 moments against numerical quadrature."""
 
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -215,3 +216,18 @@ def test_the_continuum_spectrum_of_the_keys_has_the_surfaces_level():
     q, c, count = measured_spectrum(KEYS)
     inside = (q < 2 * np.pi / KEYS["cutoff"]) & (q > 2 * Q_L)
     np.testing.assert_allclose(c[inside], psd(q[inside]), rtol=0.3)
+
+
+@pytest.mark.parametrize("key, value, why", [("rms_slope", 1e-300, "relief (highest - lowest height)"),
+                                             ("rms_height", 1e-31, "relief (highest - lowest height)"),
+                                             ("rms_slope", 1e300, "height ")])
+def test_a_surface_scaled_beyond_the_magnitudes_petroll_computes_with_is_refused(key, value, why):
+    """rms_slope = 1e-300 gave heights of 1e-304 m, curvature radii of 1e295 m and overflow warnings in the
+    preflight, then a report of 0.0 cells per half-width (issue 35): refused naming the key."""
+    keys = {k: v for k, v in KEYS.items() if k != "rms_height"} | {key: value}
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(SceneError) as err:
+            self_affine_heights(keys, (64, 64), (H, H), source="s.toml")
+    assert str(err.value).startswith(f"s.toml: [body] {key} = {value!r}: gives a surface of {why}")
+    assert "is outside what petroll computes with" in str(err.value)

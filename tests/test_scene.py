@@ -11,6 +11,7 @@ import math
 import pathlib
 import re
 import tomllib
+import warnings
 
 import h5py
 import numpy as np
@@ -84,7 +85,8 @@ def test_default_scene_loads_with_the_files_values():
     assert (scene.grid.nx, scene.grid.ny) == (g["nx"], g["ny"]) == (64, 64)
     assert (scene.grid.x0, scene.grid.x1) == tuple(g["x"])
     assert (scene.grid.y0, scene.grid.y1) == tuple(g["y"])
-    assert scene.material.J0 == scene.material.Jinf == (1 - 0.5**2) / 10.0e6  # elastic: J = (1 - nu^2)/E
+    assert scene.material.J0 == scene.material.Jinf  # elastic: J = (1 - nu^2)/E
+    assert scene.material.J0 == pytest.approx((1 - 0.5**2) / 10.0e6, rel=1e-15)
     assert raw["material"] == {"model": "elastic", "E": 10.0e6, "nu": 0.5}
     assert isinstance(scene.body, Sphere)
     assert scene.body.radius == raw["body"]["radius"] == 0.01
@@ -437,3 +439,36 @@ def test_replace_with_a_good_value_returns_a_new_validated_scene():
 def test_every_shipped_scene_is_valid(path):
     scene = load_scene(path)
     assert scene.output_dir == pathlib.Path("results") / path.stem
+
+
+@pytest.mark.parametrize("series, terms, times, shown", [
+    ("maxwell", "moduli", [1e-2, 1e-2], "0.01 appears twice"),
+    ("kelvin", "compliances", [1e-3, 1e-2, 1e-2], "0.01 appears twice"),
+    ("maxwell", "moduli", [1e-2, 1e-2 * (1 + 1e-10)], "0.01 and 0.010000000001 are within 1e-09 of each other"),
+])
+def test_repeated_prony_times_are_named(tmp_path, cli_main, comm, series, terms, times, shown):
+    """Prony times = [1e-2, 1e-2] in steady mode: was refused as 'use a time step <= 0 s', after a numpy
+    divide warning (issue 35). The refusal names [material] times and the time repeated."""
+    values = [1e6] * len(times) if terms == "moduli" else [1e-8] * len(times)
+    raw = {"grid": {"nx": 32, "ny": 32, "x": [-0.8e-3, 0.8e-3], "y": [-0.8e-3, 0.8e-3]},
+           "material": {"model": "prony", "series": series, "Einf": 2e6, "nu": 0.5, terms: values, "times": times},
+           "body": {"shape": "sphere", "radius": 0.01}, "motion": {"velocity": [0.01, 0.0], "penetration": 2e-5},
+           "time": {"mode": "steady"}}
+    write_toml(tmp_path / "s.toml", raw)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        code, _, err = cli_main(["run", str(tmp_path / "s.toml"), "--out", str(tmp_path / "out")])
+    assert code == 2
+    assert comm.rank or err.strip() == (f"petroll: error: {tmp_path / 's.toml'}: [material] times = {times!r}: must "
+                                         f"differ: {shown}; merge terms of one time into one (add their {terms})")
+
+
+def test_prony_times_a_billionth_apart_are_distinct_terms_equal_to_the_merged_one():
+    """Times 1e-8 apart (above the 1e-9 refused): the creep compliance of the two terms is that of the one
+    merged term (moduli added) within 1e-7: the conversion to creep form resolves them."""
+    from petroll.model import materials
+
+    two = materials.maxwell(2e6, 0.5, [1e6, 2e6], [1e-2, 1e-2 * (1 + 1e-8)])
+    one = materials.maxwell(2e6, 0.5, [3e6], [1e-2])
+    t = np.geomspace(1e-6, 1.0, 50)
+    assert two(t) == pytest.approx(one(t), rel=1e-7)

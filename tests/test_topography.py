@@ -4,6 +4,7 @@ hand after ISO 25178-72 (a zip of main.xml, binary data with x running fastest, 
 the reader's library, so that the library's reading and petroll's orientation are both checked."""
 
 import hashlib
+import warnings
 import zipfile
 
 import numpy as np
@@ -124,3 +125,18 @@ def test_not_measured_points_are_refused(tmp_path):
     write_x3p(tmp_path / "s.x3p", holes, CELL)
     with pytest.raises(SceneError, match="1 of 40 heights are NaN or -inf"):
         read_topography(tmp_path / "s.x3p")
+
+
+@pytest.mark.parametrize("name, text, what", [("empty.txt", "", "a matrix of heights"),
+                                              ("comments.txt", "# heights\n# to come\n\n", "a matrix of heights"),
+                                              ("empty.xyz", "", "an xyz list (columns x y z)")])
+def test_a_file_of_no_numbers_is_refused_without_a_warning(tmp_path, name, text, what):
+    """An empty or comment-only text matrix, an empty xyz list: were refused after numpy's 'loadtxt: input
+    contained no data' warning, the xyz one as 'not 3 columns' (issue 35)."""
+    (tmp_path / name).write_text(text)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(SceneError) as err:
+            read_topography(tmp_path / name, cell=None if name.endswith(".xyz") else CELL, source="s.toml")
+    assert str(err.value) == (f"s.toml: [body] file = '{tmp_path / name}': holds no numbers (empty, or comments "
+                              f"only); it must hold {what}")

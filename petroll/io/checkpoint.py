@@ -54,7 +54,7 @@ from petroll import __version__
 from petroll.errors import MISSING, PetrollError, SceneError, reason
 from petroll.solver.partition import RowPartition
 from petroll.solver.history import HereditaryHistory, RelaxationHistory
-from petroll.io.hdf5 import RowFile, chunk_rows
+from petroll.io.hdf5 import RowFile, chunk_rows, seal_broken
 
 FORMAT = "petroll-checkpoint"
 FORMAT_VERSION = 2
@@ -227,24 +227,6 @@ def _plain(value):
     return value
 
 
-def remove_foreign_checkpoints(directory: str | pathlib.Path, run_id: str) -> list[pathlib.Path]:
-    """Remove the checkpoints in ``directory`` of other runs than ``run_id`` (unreadable ones too): once
-    this run's results.h5 is in their directory, theirs is gone and they can no longer continue anything.
-    One process (rank 0). Returns them."""
-    removed = []
-    for path in list_checkpoints(directory):
-        try:
-            with h5py.File(path, "r") as f:
-                theirs = _plain(f.attrs.get("run_id", ""))
-        except Exception:  # noqa: BLE001 - not a readable checkpoint
-            theirs = None
-        if theirs != run_id:
-            with contextlib.suppress(OSError):
-                path.unlink()
-                removed.append(path)
-    return removed
-
-
 def fingerprint(scene) -> str:
     """A digest of the material (and its layer) and of the body's heights on the grid: what a restart must
     find unchanged even when it comes from files ([material] file, [body] file) that the scene text only
@@ -314,7 +296,7 @@ class Checkpoint:
             return f"{self.path}: belongs to another run than {where} (run id {mine[:12]}, the file's {theirs[:12]}){fix}"
         try:
             old = tomllib.loads(str(f.attrs["scene"]))
-        except tomllib.TOMLDecodeError:
+        except (ValueError, RecursionError):  # TOMLDecodeError is a ValueError
             return f"{where}: its scene text is not TOML{fix}"
         for key, then, now in _changes(old, tomllib.loads(self.scene_text)):
             return f"{self.path}: belongs to another scene than {where} ({key} = {now!r}, the file's {then!r}){fix}"
@@ -455,16 +437,17 @@ def _read_field(path: pathlib.Path, name: str, shape: tuple, digest: str, comm: 
 def _load(path: pathlib.Path) -> dict:
     """Rank 0: the attributes and small datasets, checked; the fields' shapes and digests (format 2), or
     the fields themselves (format 1, under "whole")."""
-    from petroll.solver.simulation import StepRecord
-
     if not path.exists():
         raise CheckpointError(f"{path}: no such checkpoint file")
     if not path.is_file():
         raise CheckpointError(f"{path}: not a file (give a checkpoint step-NNNNNNNN.h5)")
     try:
+        broken = seal_broken(path)  # before HDF5 parses a damaged file, which can crash it (SIGSEGV)
         is_hdf5 = h5py.is_hdf5(str(path))
     except Exception as exc:  # noqa: BLE001 - any failure to read is the file's problem
         raise CheckpointError(f"{path}: cannot be read ({reason(exc)})") from None
+    if broken:
+        raise CheckpointError(f"{path}: {broken}")
     if not is_hdf5:
         what = ("empty" if path.stat().st_size == 0
                 else "not an HDF5 file (corrupted, or another kind of file)")
@@ -472,7 +455,7 @@ def _load(path: pathlib.Path) -> dict:
     try:
         with h5py.File(path, "r") as f:
             attrs = {k: _plain(v) for k, v in f.attrs.items()}
-            if attrs.get("format") != FORMAT:
+            if not (isinstance(attrs.get("format"), str) and attrs["format"] == FORMAT):  # any type if damaged
                 what = ("a petroll results file" if "series" in f and "fields" in f and "state" not in f
                         else "an HDF5 file")
                 raise CheckpointError(f"{path}: not a petroll checkpoint ({what} without the attribute "
@@ -482,7 +465,7 @@ def _load(path: pathlib.Path) -> dict:
                 raise CheckpointError(f"{path}: written in checkpoint format {version} (petroll "
                                       f"{attrs.get('petroll_version', '?')}); this petroll {__version__} "
                                       f"reads format {FORMAT_VERSION} and older: use a newer petroll")
-            if version not in (1, FORMAT_VERSION):
+            if not isinstance(version, int) or version not in (1, FORMAT_VERSION):
                 raise CheckpointError(f"{path}: corrupted (format_version {version!r} is not a known "
                                       "version)")
             missing = [k for k in _ATTRS if k not in attrs]
@@ -505,6 +488,18 @@ def _load(path: pathlib.Path) -> dict:
         why = reason(exc)
         what = "truncated" if "truncated" in why.lower() else "corrupted"
         raise CheckpointError(f"{path}: {what}, cannot be read as a checkpoint ({why})") from None
+    try:
+        return _checked(path, attrs, data, digests, shapes, version)
+    except CheckpointError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - a damaged file's names and values can be of any type
+        raise CheckpointError(f"{path}: corrupted, cannot be read as a checkpoint ({reason(exc)})") from None
+
+
+def _checked(path: pathlib.Path, attrs: dict, data: dict, digests: dict, shapes: dict, version) -> dict:
+    """:func:`_load`'s checks of what it read: digests, the datasets a restart needs."""
+    from petroll.solver.simulation import StepRecord
+
     for name, value in sorted(data.items()):
         if digest_of(name, np.asarray(value)) != digests[name]:
             raise CheckpointError(f"{path}: corrupted (the data of {name} do not match their checksum)")
@@ -542,7 +537,7 @@ def restart_scene(checkpoint: Checkpoint, new_scene: str | pathlib.Path | None =
     stored = checkpoint.scene_text
     try:
         raw = tomllib.loads(stored)
-    except tomllib.TOMLDecodeError as exc:
+    except (ValueError, RecursionError) as exc:  # TOMLDecodeError is a ValueError
         raise CheckpointError(f"{checkpoint.path}: corrupted (its scene text is not TOML: {exc})") from None
     if new_scene is None:
         try:

@@ -22,7 +22,7 @@ from petroll import __version__
 from petroll.errors import reason
 from petroll.io.checkpoint import (FORMAT, FORMAT_VERSION, CheckpointError, checkpoint_path, digest_of,
                                    field_digest, list_checkpoints, root_digest, row_digests)
-from petroll.io.hdf5 import RowFile, chunk_rows
+from petroll.io.hdf5 import RowFile, chunk_rows, seal, seal_broken
 from petroll.io.journal import sync_directory
 from petroll.io.results import PACKED
 from petroll.solver.history import HereditaryHistory, RelaxationHistory
@@ -112,7 +112,7 @@ class _Sink:
         if self.comm.rank == 0:
             with contextlib.suppress(OSError):  # if it fails, so does the opening, on every rank
                 self.path.parent.mkdir(parents=True, exist_ok=True)
-        self.file = RowFile(self.tmp, "w", self.comm)
+        self.file = RowFile(self.tmp, "w", self.comm, sealed=True)
 
     def array(self, name: str, data: np.ndarray) -> None:
         """A small dataset: rank 0's ``data``."""
@@ -183,6 +183,7 @@ class _Sink:
         if failure is not None:
             raise failure
         if self.comm.rank == 0:
+            seal(self.tmp)  # an OSError here: reported by finish(), the file discarded
             os.replace(self.tmp, self.path)
             sync_directory(self.path.parent)
 
@@ -204,3 +205,32 @@ def _prune(path: pathlib.Path, keep: int) -> None:
     for old in older[: max(len(older) - (keep - 1), 0)]:
         with contextlib.suppress(OSError):  # best effort: the new checkpoint is in place already
             old.unlink()
+
+
+def _is(value, text: str) -> bool:
+    """``value`` (an attribute read back, of any type: a damaged file's may be an array) is the string
+    ``text``."""
+    value = value.item() if isinstance(value, np.generic) else value
+    return isinstance(value, str) and value == text
+
+
+def remove_foreign_checkpoints(directory: str | pathlib.Path, run_id: str) -> list[pathlib.Path]:
+    """Remove the checkpoints in ``directory`` of other runs than ``run_id``: once this run's results.h5 is
+    in their directory, theirs is gone and they can no longer continue anything. Only files read as
+    checkpoints (attribute format) whose run id differs are removed: one that cannot be read now (damaged,
+    or a passing read error) is not known to be another run's, and is kept. One process (rank 0).
+    Returns them."""
+    removed = []
+    for path in list_checkpoints(directory):
+        try:
+            if seal_broken(path):
+                raise CheckpointError("damaged")  # not opened: HDF5 can crash on a damaged file
+            with h5py.File(path, "r") as f:
+                kept = not _is(f.attrs.get("format"), FORMAT) or _is(f.attrs.get("run_id", ""), run_id)
+        except Exception:  # noqa: BLE001 - h5py reports a read failure as OSError, RuntimeError, KeyError, ...
+            kept = True  # not known to be another run's
+        if not kept:
+            with contextlib.suppress(OSError):
+                path.unlink()
+                removed.append(path)
+    return removed

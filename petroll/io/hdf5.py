@@ -17,13 +17,16 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 import errno
+import hashlib
+import os
+import pathlib
 import sys
 
 import h5py
 import numpy as np
 
 from petroll.errors import reason
-from petroll.io.journal import Session
+from petroll.io.journal import Session, atomic_write
 
 if TYPE_CHECKING:
     from mpi4py import MPI
@@ -75,10 +78,11 @@ class RowFile:
     ``mode`` "r" reads (``parallel`` None: :func:`parallel_hdf5` decides); "w" writes a new file and "r+"
     continues one, both on rank 0 through a journaled :class:`petroll.io.journal.Session`. :meth:`close`
     (collective) then commits: it raises the OSError that stopped the writing on every rank, the file being
-    as it was before it was opened ("r+") or empty ("w").
+    as it was before it was opened ("r+") or empty ("w"). ``sealed`` ("w"): the file starts with an HDF5
+    user block of SEAL_BYTES for :func:`seal`.
     """
 
-    def __init__(self, path, mode: str, comm: MPI.Comm, parallel: bool | None = None):
+    def __init__(self, path, mode: str, comm: MPI.Comm, parallel: bool | None = None, sealed: bool = False):
         self.comm = comm
         self.writing = writing = mode != "r"
         self.parallel = not writing and (parallel_hdf5(comm) if parallel is None else parallel)
@@ -92,7 +96,8 @@ class RowFile:
             try:
                 if writing:
                     self.session = Session(path, fresh=mode == "w")
-                    self.file = self.session.h5(mode, rdcc_nbytes=4 * BLOCK_BYTES)
+                    block = {"userblock_size": SEAL_BYTES} if sealed else {}  # room for seal()
+                    self.file = self.session.h5(mode, rdcc_nbytes=4 * BLOCK_BYTES, **block)
                 else:
                     self.file = h5py.File(path, mode, rdcc_nbytes=4 * BLOCK_BYTES)
             except Exception as exc:  # noqa: BLE001 - h5py's errors are OSError, RuntimeError, ...: told to all
@@ -194,3 +199,65 @@ class RowFile:
                     block = np.empty((m, *shape[1:]), dtype=dtype)
                     comm.Recv(block, source=r, tag=8)
                     yield a + s, block
+
+
+def atomic_hdf5(path: pathlib.Path, fill) -> None:
+    """Write a new HDF5 file ``path`` whole or not at all (:func:`atomic_write`): ``fill(f, failed)`` fills
+    the h5py file ``f``, which writes through a journal Session (petroll.io.journal): a disk write that
+    fails (a full disk) is kept from HDF5, which may otherwise crash the process ("Disable slist on flush
+    dest failure", then SIGSEGV); ``failed()`` is that OSError (None so far), for ``fill`` to stop writing.
+    The OSError is raised once HDF5 has closed the file; ``path`` keeps its previous contents."""
+    def write(tmp: pathlib.Path) -> None:
+        session = Session(tmp, fresh=True)
+        try:
+            with session.h5("w") as f:
+                fill(f, lambda: session.error)
+        except BaseException:
+            session.abandon()
+            raise
+        session.commit()
+
+    atomic_write(path, write)
+
+
+SEAL_BYTES = 512
+"""The HDF5 user block of a sealed file (a checkpoint): bytes before HDF5's own, which HDF5 never reads."""
+
+SEAL_MAGIC = b"petroll-seal 1 sha256 "
+
+
+def seal(path: pathlib.Path) -> None:
+    """Write into the user block of a complete file made with ``RowFile(..., sealed=True)`` the SHA-256 of
+    everything after it, fsynced (rank 0, before the file is renamed into place): :func:`seal_broken` can
+    then tell a damaged file before HDF5 parses it (HDF5 may crash on damaged metadata, not only fail)."""
+    digest, size = _rest_digest(path), os.path.getsize(path)
+    with open(path, "r+b") as fh:
+        fh.write(SEAL_MAGIC + f"{digest} bytes {size}\n".encode())
+        fh.flush()
+        os.fsync(fh.fileno())
+
+
+def seal_broken(path: pathlib.Path) -> str | None:
+    """Why a sealed file is damaged, "truncated (...)" or "corrupted (...)" (its content no longer the
+    sealed one); None if it is whole or has no seal (an unsealed or older file, or a seal damaged beyond
+    recognition: HDF5 ignores the user block)."""
+    with open(path, "rb") as fh:
+        head = fh.read(SEAL_BYTES)
+    if not head.startswith(SEAL_MAGIC):
+        return None
+    digest, _, size = head[len(SEAL_MAGIC):].partition(b"\n")[0].decode("ascii", "replace").partition(" bytes ")
+    actual = os.path.getsize(path)
+    if size.isdigit() and actual < int(size):
+        return f"truncated ({actual} of the {int(size)} bytes it was sealed with)"
+    if _rest_digest(path) != digest or not size.isdigit() or actual != int(size):
+        return "corrupted (its bytes do not match the checksum it was sealed with)"
+    return None
+
+
+def _rest_digest(path: pathlib.Path) -> str:
+    digest = hashlib.sha256()
+    with open(path, "rb") as fh:
+        fh.seek(SEAL_BYTES)
+        while block := fh.read(BLOCK_BYTES):
+            digest.update(block)
+    return digest.hexdigest()

@@ -442,3 +442,19 @@ def reading(path: str | pathlib.Path, **kwargs):
             yield f
     finally:
         view.close()
+
+
+def atomic_write(path: pathlib.Path, write) -> None:
+    """Write ``path`` as a whole or not at all: ``write(tmp)`` fills a temporary file in the same directory,
+    which is fsynced and renamed over ``path`` (the directory is fsynced too). On any failure the temporary
+    file is removed and ``path`` keeps its previous contents."""
+    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
+    try:
+        write(tmp)
+        with open(tmp, "rb") as fh:
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+        sync_directory(path.parent)
+    finally:
+        if tmp.exists():
+            tmp.unlink()

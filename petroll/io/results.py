@@ -40,7 +40,7 @@ import numpy as np
 from petroll import __version__
 from petroll.errors import PetrollError, reason
 from petroll.io.hdf5 import RowFile, add_strings, chunk_rows, string_list
-from petroll.io.journal import copy_committed, reading, sync_directory
+from petroll.io.journal import atomic_write, copy_committed, reading, sync_directory  # noqa: F401 - atomic_write: here too
 
 FORMAT_VERSION = 1
 
@@ -111,7 +111,7 @@ def steady_state(series: dict[str, np.ndarray], scene_text: str = "") -> SteadyS
     changes = (math.nan, math.nan, math.nan)
     try:
         time = tomllib.loads(scene_text).get("time", {}) if scene_text else {}
-    except tomllib.TOMLDecodeError:
+    except (ValueError, RecursionError):  # TOMLDecodeError is a ValueError
         time = {}
     direct = time.get("mode") == "steady"  # solved directly: steady by construction
     if direct:
@@ -521,22 +521,6 @@ def results_identity(path: str | pathlib.Path) -> dict | None:
                     "complete": bool(f.attrs.get("complete", True)), "estimated": "error_estimate" in f}
     except (OSError, KeyError):
         return None
-
-
-def atomic_write(path: pathlib.Path, write) -> None:
-    """Write ``path`` as a whole or not at all: ``write(tmp)`` fills a temporary file in the same directory,
-    which is fsynced and renamed over ``path`` (the directory is fsynced too). On any failure the temporary
-    file is removed and ``path`` keeps its previous contents."""
-    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
-    try:
-        write(tmp)
-        with open(tmp, "rb") as fh:
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-        sync_directory(path.parent)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
 
 
 def cell_corners(x: np.ndarray, y: np.ndarray, i0: int = 0, i1: int | None = None) -> np.ndarray:

@@ -56,9 +56,13 @@ class RunLock:
                     os.close(fd)
                 raise
             self.fd = fd
-            os.ftruncate(fd, 0)
-            os.pwrite(fd, json.dumps(_me(self.what)).encode() + b"\n", 0)
-            os.fsync(fd)
+            try:
+                os.ftruncate(fd, 0)
+                os.pwrite(fd, json.dumps(_me(self.what)).encode() + b"\n", 0)
+                os.fsync(fd)
+            except BaseException:  # a full disk: no lock left behind, held or on disk
+                self.release()
+                raise
             return
         raise DirectoryBusy(f"{self.directory}: in use (its lock file {self.path} keeps changing hands)")
 
@@ -122,14 +126,17 @@ def _me(what: str) -> dict:
             "started": datetime.datetime.now().astimezone().isoformat(timespec="seconds")}
 
 
-def clean_temporaries(directory: str | pathlib.Path) -> list[pathlib.Path]:
+def clean_temporaries(directory: str | pathlib.Path, names=None) -> list[pathlib.Path]:
     """Remove the temporary files (``.NAME.tmpPID``) that writers killed midway left in ``directory``:
-    those whose process no longer exists on this host (a live one may still be writing). Returns them."""
+    those whose process no longer exists on this host (a live one may still be writing); ``names``: only
+    those of these file names (in a directory that is not petroll's own). Returns them."""
     directory = pathlib.Path(directory)
     removed = []
     with contextlib.suppress(OSError):
         for path in directory.iterdir():
             match = _TEMPORARY.match(path.name)
+            if names is not None and (match is None or match.group(1) not in names):
+                continue
             if match and path.is_file() and _stale({"pid": match.group(2), "host": socket.gethostname()}):
                 with contextlib.suppress(OSError):
                     path.unlink()

@@ -23,7 +23,9 @@ import numpy as np
 
 from petroll.errors import PetrollError, reason
 from petroll.io.journal import reading
-from petroll.io.results import OutputError, atomic_write
+from petroll.io.hdf5 import atomic_hdf5
+from petroll.io.results import OutputError
+from petroll.io.rundir import clean_temporaries
 from petroll.solver.partition import RowPartition, gather_field
 
 STRESS_DATASETS = ("sigma_xx", "sigma_yy", "sigma_zz", "sigma_xy", "sigma_xz", "sigma_yz", "von_mises",
@@ -75,7 +77,7 @@ def write_stress(path: pathlib.Path, z: np.ndarray, x: np.ndarray, y: np.ndarray
         done.append(True)
         return attrs()
 
-    def fill(f):
+    def fill(f, failed):
         f.create_dataset("z", data=z).attrs["units"] = "m"
         f.create_dataset("x", data=x).attrs["units"] = "m"
         f.create_dataset("y", data=y).attrs["units"] = "m"
@@ -83,32 +85,21 @@ def write_stress(path: pathlib.Path, z: np.ndarray, x: np.ndarray, y: np.ndarray
                 STRESS_DATASETS]
         for d in sets:
             d.attrs["units"] = "Pa"
-        failure = None
         for k, local in enumerate(depths):
             for d, field in zip(sets, local):
                 whole = gather_field(field, nx, comm)
-                try:
-                    if failure is None:
-                        d[k] = whole[:, 0] if line else whole
-                except OSError as exc:  # keep computing with the other ranks (collective), then report
-                    failure = exc
-        values = attributes()
-        if failure is not None:
-            raise failure
-        for key, value in values.items():
+                if failed() is None:  # after a failed disk write: computing on with the other ranks only
+                    d[k] = whole[:, 0] if line else whole
+        for key, value in attributes().items():
             f.attrs[key] = value
 
     if comm.rank == 0:
         try:
             path.parent.mkdir(parents=True, exist_ok=True)
-
-            def write(tmp):
-                with h5py.File(tmp, "w") as f:
-                    fill(f)
-
-            atomic_write(path, write)
+            clean_temporaries(path.parent, [path.name])  # of a writer killed earlier
+            atomic_hdf5(path, fill)
         except OSError as exc:
-            message = f"{path}: cannot write the stresses ({reason(exc)})"
+            message = f"{path}: cannot write the stresses ({exc.strerror or reason(exc)})"
             _drain(depths, nx, comm)  # the depths not yet computed: the other ranks wait for them
             if not done:
                 attributes()

@@ -29,12 +29,11 @@ from __future__ import annotations
 
 import math
 import pathlib
-import tomllib
 from dataclasses import dataclass
 
 import numpy as np
 
-from petroll.errors import DMAError
+from petroll.errors import DMAError, SceneError
 from petroll.model import materials, tts
 from petroll.model.dma_columns import (  # noqa: F401
     ALLOWED,
@@ -51,6 +50,7 @@ from petroll.model.dma_columns import (  # noqa: F401
 )
 from petroll.model.prony_fit import TOLERANCE, PronyFit, candidate_times, fit_prony, storage_loss  # noqa: F401
 from petroll.model.scene import dumps
+from petroll.model.toml_file import load_scene_table
 
 DEFAULT_TOLERANCE = 0.5
 """Temperatures (K) within which rows, taken in order of temperature, belong to one set (no set column)."""
@@ -312,10 +312,11 @@ def parse_shift(text: str):
         return AutoShift(T_ref)
     if text.endswith(".toml"):
         try:
-            table = tomllib.loads(pathlib.Path(text).read_text(encoding="utf-8"))["material"]["shift"]
-        except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError, KeyError, TypeError) as exc:
-            raise DMAError(f"--shift {text}: cannot read [material] shift from it ({type(exc).__name__}: "
-                           f"{exc}); allowed: {SHIFT_TEXT}") from None
+            table = load_scene_table(text)["material"]["shift"]
+        except (SceneError, KeyError, TypeError) as exc:
+            why = exc.allowed if isinstance(exc, SceneError) else f"{type(exc).__name__}: {exc}"
+            raise DMAError(f"--shift {text}: cannot read [material] shift from it ({why}); allowed: "
+                           f"{SHIFT_TEXT}") from None
     else:
         law, _, numbers = text.partition(":")
         names = {"wlf": ("C1", "C2", "T_ref"), "arrhenius": ("Ea", "T_ref")}.get(law.strip().lower())

@@ -11,6 +11,8 @@ import pathlib
 import numpy as np
 
 from petroll.errors import DMAError
+from petroll.errors import shown as shown_value
+from petroll.model.limits import MAGNITUDES, scale_message
 
 COLUMNS = {"frequency": "Hz", "storage": "Pa", "loss": "Pa", "temperature": "K", "set": "a label"}
 """The CSV's columns and their units (without a unit stated); temperature and set are optional."""
@@ -126,9 +128,12 @@ def read_columns(path: pathlib.Path, mapping: dict[str, str], units: dict[str, s
     lines_ = text.splitlines()
     first = next((line for line in lines_ if line.strip() and not line.lstrip().startswith("#")), "")
     delimiter = "\t" if "\t" in first else ";" if ";" in first and "," not in first else ","
-    rows = [(number, fields) for number, fields in
-            enumerate(csv.reader(lines_, delimiter=delimiter), start=1)
-            if fields and "".join(fields).strip() and not fields[0].lstrip().startswith("#")]
+    try:
+        rows = [(number, fields) for number, fields in
+                enumerate(csv.reader(lines_, delimiter=delimiter), start=1)
+                if fields and "".join(fields).strip() and not fields[0].lstrip().startswith("#")]
+    except csv.Error as exc:  # a field longer than csv's limit (131072 characters)
+        raise DMAError(f"{path}: not a CSV table ({exc}); must be {ALLOWED}") from None
     if not rows:
         raise DMAError(f"{path}: no header line; must be {ALLOWED}")
     header_line, header = rows[0]
@@ -239,8 +244,11 @@ def _value(path, line: int, name: str, field: str, unit: str):
         hint = ("; if the column is in degrees Celsius, say so in a units row under the header (C) or with "
                 "--units temperature=C" if name == "temperature" and unit == "K" and math.isfinite(value)
                 else f"; the file must be {ALLOWED}")
-        raise DMAError(f"{path}, line {line}: {name} = {field.strip()!r}{shown}: must be a finite number > 0 "
-                       f"({COLUMNS[name]}){hint}")
+        raise DMAError(f"{path}, line {line}: {name} = {shown_value(field.strip())}{shown}: must be a finite "
+                       f"number > 0 ({COLUMNS[name]}){hint}")
+    if name != "temperature" and not MAGNITUDES[0] <= value <= MAGNITUDES[1]:
+        raise DMAError(f"{path}, line {line}: {name} = {shown_value(field.strip())}: "
+                       f"{scale_message(value, COLUMNS[name])}")
     return value
 
 

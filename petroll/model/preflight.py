@@ -12,8 +12,8 @@ point, along X and Y (for a sphere exactly Hertz's radius: a^2 = R delta). Lengt
 
 Resolution. Cells per contact half-width along X and Y, the smaller over the compliance range: below
 ``GOOD_CELLS`` the run warns (one line naming the key and the value that gives ``GOOD_CELLS``), below
-``LEAST_CELLS`` it is refused unless ``[grid] allow_coarse = true`` (docs/accuracy.md: errors against
-cells per half-width).
+``LEAST_CELLS`` it is refused unless ``[grid] allow_coarse = true``, above ``MOST_CELLS`` (a contact
+smaller than half the grid) it is refused (docs/accuracy.md: errors against cells per half-width).
 
 Time step. Steps per contact half-width along the motion, checked like the cells
 (petroll.model.timestep: below ``GOOD_STEPS`` a run warns, below ``LEAST_STEPS`` it is refused unless
@@ -26,7 +26,8 @@ control; line contact: the contact, within delta_e / 2). A run whose box would r
 at some step is refused, saying where it leaves the grid and the extent it needs (along a periodic axis
 the body wraps around: nothing to leave). A body that never presses (its largest penetration or load
 <= 0), has no surface over the grid, or lies outside the grid (nowhere over it within the largest
-penetration of its own lowest point, :func:`check_over_grid`) is refused.
+penetration of its own lowest point, :func:`check_over_grid`) is refused, and so is, on a periodic grid,
+whose contact problem covers every cell, a body without surface over some cells (:func:`check_surface`).
 """
 
 from __future__ import annotations
@@ -47,6 +48,14 @@ GOOD_CELLS = 8
 """Cells per contact half-width below which a run warns (about 1 % in force and mu_r: docs/accuracy.md)."""
 LEAST_CELLS = 2
 """Cells per contact half-width below which a run is refused unless [grid] allow_coarse = true."""
+MOST_CELLS = 1024
+"""Cells per contact half-width above which a run is refused (a contact smaller than the grid): the error
+falls as the square of the cell (2e-4 in force at 24 cells, docs/accuracy.md), about 1e-7 at 1024, below
+the solver's tolerance, while every step costs more with every cell (nx = 100000 typed for hertz.toml's
+64: 6.4 million cells, minutes per step)."""
+SURFACE_POINTS = 2**22
+"""Body heights evaluated at most by the check that a periodic grid's body has a surface over every cell
+(:func:`surface_gaps`): the grid at the start and at steps spread over the path."""
 BYTES_PER_CELL = 145
 """A rolling run's memory per grid cell, all ranks together (measured, `petroll bench memory`, an SLS)."""
 FIXED_MIB = 96
@@ -176,7 +185,7 @@ def _penetration(scene, radii, lowest, compliance: float, widths) -> float:
         per_length = load if scene.grid.line else load / (2 * (widths[1] if math.isfinite(rx) else widths[0]))
         a = math.sqrt(4 * per_length * radius * compliance / math.pi)
         return a * a / radius
-    radius = math.sqrt(rx * ry)
+    radius = math.sqrt(rx) * math.sqrt(ry)  # not rx * ry: radii up to 1e308 m (a nearly flat body)
     a = (3 * load * radius * compliance / 4) ** (1 / 3)
     return a * a / radius
 
@@ -358,12 +367,22 @@ class Preflight:
     def verdict(self) -> str:
         """What a run makes of the resolution: fine, warned or refused."""
         fewest = min(self.cells)
+        if self.too_fine():
+            return f"more than {MOST_CELLS}: a run is refused (docs/accuracy.md)"
         if fewest >= GOOD_CELLS:
             return f"at least {GOOD_CELLS}, fine (docs/accuracy.md)"
         if fewest >= LEAST_CELLS or self.scene.allow_coarse:
             return f"fewer than {GOOD_CELLS}: a run warns (docs/accuracy.md)"
         return (f"fewer than {LEAST_CELLS}: a run is refused unless [grid] allow_coarse = true "
                 "(docs/accuracy.md)")
+
+    def too_fine(self) -> list[tuple[str, float]]:
+        """The axes (name, cells per contact half-width) along which a contact smaller than the grid has
+        more than MOST_CELLS cells per half-width (a run refuses them)."""
+        g, small = self.scene.grid, self.contact.smallest
+        extents = {"x": g.x1 - g.x0, "y": g.y1 - g.y0}
+        return [(axis, n) for axis, n, width in zip("xy", self.cells, small)
+                if n > MOST_CELLS and width < extents[axis] / 2]
 
     def time_verdict(self) -> str:
         """What a run makes of the time step (:func:`check_time`): fine, warned or refused (and why)."""
@@ -409,18 +428,73 @@ class Preflight:
                 f" ({g.nx * g.ny} cells)"]
 
 
+def surface_gaps(scene, walked: Path) -> tuple[int, int, float, float] | None:
+    """On a periodic grid, whose contact problem covers every cell: (cells, step, x, y) at the first step
+    of ``walked`` where the body has no surface (Z = +inf) over some cells' centres (how many; the
+    centre (x, y) in m of the first); None where it has one over every cell (or the grid is not
+    periodic). Checked at the start and at steps spread evenly over the path, at most SURFACE_POINTS
+    heights in all. A periodic surface through samples (roughness) has a surface everywhere: what it
+    rides on is checked."""
+    from petroll.model.bodies.rough import PeriodicSurface, RoughBody
+
+    g, body = scene.grid, scene.body
+    while isinstance(body, RoughBody):
+        body = body.body
+    if not any(g.periodic) or isinstance(body, PeriodicSurface):
+        return None
+    count = len(walked.t)
+    steps = np.unique(np.linspace(0, count - 1, min(count, max(1, SURFACE_POINTS // (g.nx * g.ny))))
+                      .round().astype(int))
+    rows = max(1, SURFACE_POINTS // g.ny)
+    y = g.y[None, :]
+    for k in steps:
+        total, first = 0, None
+        for i0 in range(0, g.nx, rows):  # by blocks of rows: at most SURFACE_POINTS heights at once
+            x = g.x[i0:i0 + rows, None]
+            with np.errstate(all="ignore"):
+                z = np.asarray(body.height(*g.offsets(x, y, walked.sx[k], walked.sy[k])), dtype=float)
+            gaps = ~np.isfinite(np.broadcast_to(z, (len(x), g.ny)))
+            if first is None and gaps.any():
+                i, j = np.argwhere(gaps)[0]
+                first = (float(g.x[i0 + i]), float(g.y[j]))
+            total += int(np.count_nonzero(gaps))
+        if total:
+            return total, int(k), *first
+    return None
+
+
+def check_surface(scene, walked: Path) -> None:
+    """SceneError on [grid] periodic where the body has no surface over some of a periodic grid's cells
+    (:func:`surface_gaps`): the contact problem covers the whole periodic cell, and a cell without surface
+    has no gap to put in it."""
+    found = surface_gaps(scene, walked)
+    if found is None:
+        return
+    cells, k, x, y = found
+    g = scene.grid
+    when = "at the start" if k == 0 else f"at step {k} (t = {walked.t[k]:.4g} s)"
+    where = f"x = {x:.4g} m" if g.line else f"(x, y) = ({x:.4g}, {y:.4g}) m"
+    raise SceneError(scene.source, "[grid] periodic", scene.raw.get("grid", {}).get("periodic"),
+                     f"the body has no surface (Z = +inf) over {cells} of the grid's {g.nx * g.ny} cells "
+                     f"{when}, e.g. at {where}, and a periodic grid's contact covers every cell: give the body a "
+                     "surface over the whole grid (a cylinder as long as the grid along its axis, a height "
+                     "map without +inf samples as large as the grid) or set [grid] periodic = false")
+
+
 def check(scene, ranks: int = 1) -> Preflight:
     """Estimate, without running: contact size, resolution, the path and steps, memory per rank on
     ``ranks`` ranks (``petroll check``). Raises SceneError only for a body that never touches
-    (:func:`check_touching`, no surface over the grid); :func:`check_run` refuses the rest."""
+    (:func:`check_touching`, no surface over the grid, :func:`check_over_grid`) or, on a periodic grid,
+    has no surface over some cells (:func:`check_surface`); :func:`check_run` refuses the rest."""
     g = scene.grid
     check_touching(scene)
     check_over_grid(scene, lowest_point(scene))
+    walked = path(scene)
+    check_surface(scene, walked)
     size = contact_size(scene)
     small = size.smallest
     cells = (small[0] / g.dx,) if g.line else (small[0] / g.dx, small[1] / g.dy)
     memory = FIXED_MIB + BYTES_PER_CELL * g.nx * g.ny / ranks / 2**20
-    walked = path(scene)
     leaves = path_leaves(scene, size, walked)
     growing = scene.load is not None or (scene.layer is not None and not g.line)  # load: creep; layer: bulge
     creeping = path_leaves(scene, size, walked, glassy=False) if leaves is None and growing else None
@@ -431,8 +505,8 @@ def check(scene, ranks: int = 1) -> Preflight:
 def check_run(scene) -> Preflight:
     """The checks a run makes before step 1: :func:`check` (a body that never touches refused); SceneError
     (naming the [grid] key) below LEAST_CELLS cells per contact half-width unless [grid] allow_coarse =
-    true; SceneError for a path that leaves the grid (naming [grid] x or y; under load control with the
-    glassy penetration, the least the run will have); SceneError (naming [time] max_steps) for a run
+    true, and above MOST_CELLS (:meth:`Preflight.too_fine`); SceneError for a path that leaves the grid
+    (naming [grid] x or y; under load control with the glassy penetration, the least the run will have); SceneError (naming [time] max_steps) for a run
     whose clock takes more than max_steps steps, unless a [time] steady stop may end it sooner (it needs
     one contact length of rolling, two smallest half-widths, within them; else the run would stop there
     unfinished); the time step's refusals (:func:`check_time`,
@@ -442,6 +516,14 @@ def check_run(scene) -> Preflight:
     (the run may stop there as its contact creeps)."""
     found = check(scene)
     g = scene.grid
+    for axis, n in found.too_fine():
+        key, count = f"[grid] n{axis}", getattr(g, f"n{axis}")
+        most = math.floor(MOST_CELLS * count / n)
+        raise SceneError(scene.source, key, count,
+                         f"gives {n:.0f} cells per contact half-width along {axis} (estimated half-width "
+                         f"{found.contact.smallest['xy'.index(axis)]:.3g} m); more than {MOST_CELLS} refine "
+                         f"nothing a run can resolve (errors fall below 1e-6; docs/accuracy.md) and only cost "
+                         f"time: n{axis} <= {most} gives {MOST_CELLS}")
     short = []
     for axis, n in zip(("x", "y"), found.cells):
         if n >= GOOD_CELLS:

@@ -35,6 +35,7 @@ from scipy.optimize import nnls
 
 from petroll.errors import DMAError
 from petroll.model import materials
+from petroll.model.limits import MAGNITUDES, scale_message
 
 DENSITIES = (1.0, 1.5, 2.0, 3.0, 5.0, 10.0, 20.0)
 """Candidate times per decade tried by default, coarsest first; the last is the reference (the best)."""
@@ -53,6 +54,11 @@ PLATEAU_DECADES = 1.0
 
 FROM_DATA_DECADES = 0.25
 """``einf = "data"``: Einf is the mean E' of the rows within this many decades of the lowest frequency."""
+
+MAX_TERMS = 2000
+"""The most candidate times a fit takes (``terms``, or ``per_decade`` times the decades): NNLS's work grows
+with their square (2000: about a second for 150 rows). The default densities, at most 20 per decade over
+the at most 60 decades of data within MAGNITUDES (and 2 more), give at most 1241."""
 
 SIGNIFICANT = 7
 """Significant digits kept of each fitted number (the TOML block is written from them; the reported
@@ -157,6 +163,10 @@ def fit_prony(frequency, storage, loss, terms: int | None = None, per_decade: fl
     f, e1, e2 = _checked(frequency, storage, loss, terms, per_decade, nu)
     fixed, einf_how, slow = _relaxed(f, e1, einf)
     lo, hi = float(f.min()), float(f.max())
+    decades = math.log10(hi / lo) + EXTEND_DECADES + slow  # the candidates' span (candidate_times)
+    if per_decade is not None and math.ceil(per_decade * decades) + 1 > MAX_TERMS:
+        raise DMAError(f"per_decade = {per_decade!r} (--per-decade): gives {math.ceil(per_decade * decades) + 1} "
+                       f"candidate times over their {decades:.3g} decades; at most {MAX_TERMS}")
     best = math.nan
     if terms is not None or per_decade is not None:
         times = candidate_times(lo, hi, terms, per_decade, slow)
@@ -196,13 +206,16 @@ def _checked(frequency, storage, loss, terms, per_decade, nu) -> tuple[np.ndarra
     values = np.concatenate([f, e1, e2])
     if len(f) < 2 or not np.all(np.isfinite(values) & (values > 0)):
         raise DMAError("frequency, storage and loss must hold at least 2 finite numbers > 0 each")
+    if not np.all((MAGNITUDES[0] <= values) & (values <= MAGNITUDES[1])):
+        bad = float(values[(values < MAGNITUDES[0]) | (values > MAGNITUDES[1])][0])
+        raise DMAError(f"frequency, storage and loss: {scale_message(bad, 'Hz or Pa')}")
     if f.max() == f.min():
         raise DMAError(f"all frequencies are {f[0]:g} Hz: a fit needs at least 2 different frequencies")
     if terms is not None and per_decade is not None:
         raise DMAError("give terms or per_decade, not both")
     if terms is not None and (isinstance(terms, bool) or not isinstance(terms, (int, np.integer))
-                              or terms < 1):
-        raise DMAError(f"terms = {terms!r}: must be an integer >= 1")
+                              or not 1 <= terms <= MAX_TERMS):
+        raise DMAError(f"terms = {terms!r} (--terms): must be an integer >= 1, at most {MAX_TERMS}")
     if per_decade is not None and not 0 < per_decade < math.inf:
         raise DMAError(f"per_decade = {per_decade!r}: must be a finite number > 0")
     if not -1 < nu <= 0.5:
@@ -218,8 +231,10 @@ def _relaxed(f: np.ndarray, e1: np.ndarray, einf) -> tuple[float | None, str, fl
         return value, (f"from the data: the mean E' of the {rows.sum()} rows within {FROM_DATA_DECADES:g} "
                        f"decade of the lowest frequency"), EXTEND_DECADES
     if einf is not None:
-        if isinstance(einf, bool) or not isinstance(einf, (int, float)) or not 0 < einf < math.inf:
-            raise DMAError(f"--einf {einf!r}: must be a finite number > 0 (Pa), or \"data\"")
+        if (isinstance(einf, bool) or not isinstance(einf, (int, float))
+                or not MAGNITUDES[0] <= einf <= MAGNITUDES[1]):
+            raise DMAError(f"--einf {einf!r}: must be a finite number > 0 (Pa), from {MAGNITUDES[0]:g} to "
+                           f"{MAGNITUDES[1]:g}, or \"data\"")
         return float(einf), "given (--einf)", EXTEND_DECADES
     flat = plateau(f, e1)
     if flat is None:

@@ -25,6 +25,7 @@ import scipy.fft
 import scipy.optimize
 
 from petroll.errors import MISSING, SceneError
+from petroll.model.limits import heights_out_of_scale
 
 __all__ = ["ROUGH_KEYS", "SelfAffinePSD", "TabulatedPSD", "radial_psd", "self_affine_heights", "self_affine_psd"]
 
@@ -306,10 +307,17 @@ def self_affine_heights(keys: dict, shape: tuple[int, int], cell: tuple[float, f
         spectrum[:, -1] = 0.0
     heights = scipy.fft.irfft2(spectrum, s=shape)
     if kind == "rms_height":
-        return heights * (target / math.sqrt(np.mean(heights**2)))
-    slope_x = scipy.fft.irfft2(1j * kx * spectrum, s=shape)
-    slope_y = scipy.fft.irfft2(1j * ky * spectrum, s=shape)
-    return heights * (target / math.sqrt(np.mean(slope_x**2 + slope_y**2)))
+        scale = target / math.sqrt(np.mean(heights**2))
+    else:
+        slope_x = scipy.fft.irfft2(1j * kx * spectrum, s=shape)
+        slope_y = scipy.fft.irfft2(1j * ky * spectrum, s=shape)
+        scale = target / math.sqrt(np.mean(slope_x**2 + slope_y**2))
+    with np.errstate(over="ignore", under="ignore"):  # judged just below
+        heights = heights * scale
+    if not (math.isfinite(scale) and scale > 0) or (why := heights_out_of_scale(heights)) is not None:
+        why = why if math.isfinite(scale) and scale > 0 else "a surface that cannot be scaled to it"
+        raise SceneError(source, f"{prefix}{kind}", keys[kind], f"gives a surface of {why}")
+    return heights
 
 
 def radial_psd(field: np.ndarray, cell: tuple[float, float], edges) -> tuple[np.ndarray, np.ndarray,

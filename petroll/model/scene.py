@@ -12,7 +12,6 @@ from __future__ import annotations
 import copy
 import math
 import pathlib
-import tomllib
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -26,6 +25,7 @@ from petroll.model.bodies.rough import samples_surface
 from petroll.model.grid import Grid, line_grid
 from petroll.model.limits import MAGNITUDES, scale_message
 from petroll.model.schema import BODY_LENGTHS, CELL_DIGITS, MAX_CELLS, MODEL_KEYS, SCHEMA, Invalid, out_of_scale
+from petroll.model.toml_file import check_nesting, read_scene_file
 
 
 # -- the validated scene ----------------------------------------------------------------------------------
@@ -116,24 +116,17 @@ def shipped_scene(name: str) -> pathlib.Path:
 def load_scene(path: str | pathlib.Path) -> Scene:
     """Read and validate a scene file (TOML)."""
     path = pathlib.Path(path)
-    source = str(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise SceneError(source, "(file)", str(path), f"must be a readable scene file ({exc.strerror})") from None
-    except UnicodeDecodeError:
-        raise SceneError(source, "(file)", str(path), "must be a UTF-8 text file (TOML)") from None
-    try:
-        raw = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise SceneError(source, "(syntax)", str(exc), "must be valid TOML") from None
+    text, raw = read_scene_file(path)
     default_out = pathlib.Path("results") / path.stem
-    return parse_scene(raw, source=source, base_dir=path.parent, text=text, default_output=default_out)
+    return parse_scene(raw, source=str(path), base_dir=path.parent, text=text, default_output=default_out)
 
 
 def parse_scene(raw: dict, source: str = "<python>", base_dir: str | pathlib.Path = ".",
                 text: str | None = None, default_output: pathlib.Path | None = None) -> Scene:
     """Validate a scene given as a dict of sections (the parsed TOML); ``text`` defaults to its TOML."""
+    if not isinstance(raw, dict):
+        raise SceneError(source, "(scene)", raw, "must be a table of sections")
+    check_nesting(raw, source)
     raw = copy.deepcopy(raw)
     base_dir = pathlib.Path(base_dir)
     for section in raw:
@@ -309,6 +302,13 @@ def _material(values: dict, table: dict, base_dir: pathlib.Path, source: str):
         if v[terms] is None or len(v[terms]) != len(v["times"]):
             raise SceneError(source, f"[material] {terms}", table.get(terms, MISSING),
                              f"required: one value per entry of times ({len(v['times'])})")
+        ordered = sorted(v["times"])
+        close = [(a, b) for a, b in zip(ordered, ordered[1:]) if b - a <= DISTINCT_TIMES * b]
+        if close:
+            a, b = close[0]
+            same = f"{a!r} appears twice" if a == b else f"{a!r} and {b!r} are within {DISTINCT_TIMES:g} of each other"
+            raise SceneError(source, "[material] times", table["times"],
+                             f"must differ: {same}; merge terms of one time into one (add their {terms})")
         if terms == "moduli":
             ratio = 1.0 + sum(v["moduli"]) / v["Einf"]
         else:
@@ -329,6 +329,10 @@ def _material_layer(values: dict, table: dict, source: str) -> materials.Layer |
                          "response depends on Poisson's ratio (-1 < nu <= 0.5)")
     return materials.Layer(*values["layer"], values["nu"])
 
+
+DISTINCT_TIMES = 1e-9
+"""The least relative difference between two times of a Prony series: the creep and relaxation forms
+(materials.maxwell, relaxation_series) put one root between each pair of neighbouring times."""
 
 MAX_STIFFNESS_RATIO = 1e7
 """The largest E0/Einf = Jinf/J0 of a Prony material: J0 = Jinf - sum dJ then keeps its digits to about

@@ -88,6 +88,17 @@ MAX_CELLS_AXIS, MAX_CELLS = 2**24, 2**31 - 1
 coordinate arrays small (a grid that long is never needed)."""
 
 
+MAX_STEPS = 10**6
+"""The largest [time] max_steps: the run's clock is walked before step 1 (petroll check), tens of seconds
+for a million steps, and a million steps take hours at the least."""
+
+
+def _steps(value: Any) -> int:
+    if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= MAX_STEPS:
+        raise Invalid(f"must be an integer >= 1, at most {MAX_STEPS}")
+    return int(value)
+
+
 def _cells(value: Any) -> int:
     if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= MAX_CELLS_AXIS:
         raise Invalid(f"must be an integer >= 1, at most {MAX_CELLS_AXIS} (2^24)")
@@ -387,7 +398,8 @@ SCHEMA: dict[str, dict[str, Key]] = {
                         "distance)", _positive, default=None, unit="m"),
         "steady": Key("number > 0", "stop early once force and mu_r change by less than this (relative) "
                       "over one contact length of rolling", _positive, default=None),
-        "max_steps": Key("integer", "refuse scenes that would take more steps", _count, default=100000),
+        "max_steps": Key("integer", f"refuse scenes that would take more steps (at most {MAX_STEPS})", _steps,
+                         default=100000),
         "allow_coarse": Key("boolean", "run even with fewer than 2 steps per estimated contact half-width "
                             "along the motion (refused otherwise; below 8 a run warns: docs/accuracy.md)",
                             _flag, default=False),

@@ -126,6 +126,9 @@ def _read_text(path: pathlib.Path, source: str, key: str, what: str) -> np.ndarr
     except (OSError, UnicodeDecodeError) as exc:
         raise SceneError(source, key, str(path), f"cannot read {what}: {reason(exc)}") from None
     lines = [line.split("#", 1)[0] for line in text.splitlines()]
+    lines = [line for line in lines if line.strip()]
+    if not lines:
+        raise SceneError(source, key, str(path), f"holds no numbers (empty, or comments only); it must hold {what}")
     delimiter = "," if any("," in line for line in lines) else None
     try:
         array = np.loadtxt(lines, delimiter=delimiter, ndmin=2)

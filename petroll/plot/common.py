@@ -3,9 +3,37 @@ edges. Lengths are drawn in mm, pressures in MPa, kPa or Pa (whichever suits the
 
 from __future__ import annotations
 
+import io
+import pathlib
+
 import numpy as np
 
+from petroll.errors import PetrollError
+
 MM = 1e3  # m -> mm
+
+
+def write_figure(figure, path: str | pathlib.Path, dpi: int) -> pathlib.Path:
+    """Write ``figure`` to ``path`` (the format by its suffix: pdf, svg, else png) whole or not at all: drawn
+    in memory, written to a temporary name, renamed over ``path`` once complete (a figure already there
+    stays until then; the temporaries of a writer killed earlier are removed first). PetrollError naming
+    the file where it cannot be written (a read-only or full file system). Returns ``path``."""
+    from petroll.io.journal import atomic_write
+    from petroll.io.rundir import clean_temporaries
+
+    path = pathlib.Path(path)
+    fmt = path.suffix.lstrip(".").lower()
+    drawn = io.BytesIO()  # not into the file: a backend failing midway (PDF: zlib) would leave it open
+    figure.savefig(drawn, dpi=dpi, format=fmt if fmt in ("pdf", "svg") else "png")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        clean_temporaries(path.parent, [path.name])
+        atomic_write(path, lambda tmp: tmp.write_bytes(drawn.getvalue()))
+    except OSError as exc:
+        why = exc.strerror or str(exc)
+        raise PetrollError(f"{path}: cannot write the figure ({why}); free space or give a writable "
+                           "directory") from None
+    return path
 
 
 def constrained_figure(width: float, height: float):

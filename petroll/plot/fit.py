@@ -7,16 +7,13 @@ import pathlib
 
 import numpy as np
 
-from petroll.io.results import atomic_write
-from petroll.plot.common import constrained_figure
+from petroll.plot.common import constrained_figure, write_figure
 
 
 def plot_fit(data, fit, path: str | pathlib.Path) -> pathlib.Path:
     """Write :func:`fit_figure` as one PNG (atomically)."""
     figure = fit_figure(data, fit)
-    path = pathlib.Path(path)
-    atomic_write(path, lambda tmp: figure.savefig(tmp, dpi=110, format="png"))
-    return path
+    return write_figure(figure, path, dpi=110)
 
 
 def fit_figure(data, fit):
@@ -59,9 +56,7 @@ def fit_figure(data, fit):
 def plot_shifts(data, path: str | pathlib.Path) -> pathlib.Path:
     """Write :func:`shift_figure` as one PNG (atomically)."""
     figure = shift_figure(data)
-    path = pathlib.Path(path)
-    atomic_write(path, lambda tmp: figure.savefig(tmp, dpi=110, format="png"))
-    return path
+    return write_figure(figure, path, dpi=110)
 
 
 def shift_figure(data):

@@ -11,9 +11,11 @@ import numpy as np
 
 from petroll.errors import PetrollError
 from petroll.io.results import Results
-from petroll.plot.common import MM, cell_edges, constrained_figure, pressure_unit
+from petroll.plot.common import MM, cell_edges, constrained_figure, pressure_unit, write_figure
 
 MAX_PANELS = 4
+MAX_TIMES = 16
+"""The most pressure maps ``--times`` may pick (a figure of 4 x 4 panels)."""
 """Pressure maps drawn when no times are requested: the first, the last and evenly spaced ones between."""
 
 
@@ -43,7 +45,6 @@ def plot_results(results_dir: str | pathlib.Path, out_dir: str | pathlib.Path | 
     if len(results.field_steps) == 0:
         raise PetrollError(f"{path}: the file holds no saved pressure fields")
     out = pathlib.Path(out_dir) if out_dir is not None else results_dir / "plots"
-    out.mkdir(parents=True, exist_ok=True)
     label = results_dir.resolve().name
     written = []
     pressure, patches = (_line_pressure_figure, _line_patches_figure) if results.line else (
@@ -55,9 +56,7 @@ def plot_results(results_dir: str | pathlib.Path, out_dir: str | pathlib.Path | 
     if results.rough is not None:
         figures["islands"] = lambda: _islands_figure(results, label)
     for name, figure in figures.items():
-        target = out / f"{name}.{fmt}"
-        figure().savefig(target, dpi=120)
-        written.append(target)
+        written.append(write_figure(figure(), out / f"{name}.{fmt}", dpi=120))
     return written
 
 
@@ -67,6 +66,9 @@ def select_fields(results: Results, times: Sequence[float] | None = None) -> lis
     if times:
         t = field_times(results)
         picked = {int(np.argmin(np.abs(t - float(want)))) for want in times}
+        if len(picked) > MAX_TIMES:
+            raise PetrollError(f"--times: picks {len(picked)} saved fields; at most {MAX_TIMES} pressure maps are "
+                               "drawn in one figure")
         return sorted(picked)
     return sorted({int(round(i)) for i in np.linspace(0, n - 1, min(MAX_PANELS, n))})
 

@@ -8,7 +8,7 @@ import pathlib
 import numpy as np
 
 from petroll.errors import PetrollError
-from petroll.plot.common import MM, cell_edges, constrained_figure, pressure_unit, span_above
+from petroll.plot.common import MM, cell_edges, constrained_figure, pressure_unit, span_above, write_figure
 
 
 def plot_stress(stress_path: str | pathlib.Path, out: str | pathlib.Path | None = None) -> pathlib.Path:
@@ -33,9 +33,7 @@ def plot_stress(stress_path: str | pathlib.Path, out: str | pathlib.Path | None 
     attrs = planes["attrs"]
     figure.suptitle(f"{stress_path.parent.resolve().name}: stresses below the surface, step "
                     f"{int(attrs['step'])} (t = {float(attrs['t']):.4g} s, nu = {float(attrs['nu']):g})")
-    target = pathlib.Path(out) if out is not None else stress_path.with_suffix(".png")
-    figure.savefig(target, dpi=120)
-    return target
+    return write_figure(figure, pathlib.Path(out) if out is not None else stress_path.with_suffix(".png"), dpi=120)
 
 
 def centre_section(stress_path: pathlib.Path, name: str, planes: dict) -> tuple[np.ndarray, float]:

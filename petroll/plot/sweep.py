@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from petroll.plot.common import MM
+from petroll.plot.common import MM, write_figure
 
 STYLE = {"marker": "o", "markersize": 4}
 TITLE = {"fontsize": 10, "y": 1.0}
@@ -40,7 +40,7 @@ class SweepData:
         logx = bool(np.all(x > 0) and x.max() >= 10 * x.min())
         try:
             raw = tomllib.loads(table.scene_text)
-        except tomllib.TOMLDecodeError:
+        except (ValueError, RecursionError):  # TOMLDecodeError is a ValueError
             raw = {}
         load_control = table.key == "motion.load" or ("load" in raw.get("motion", {})
                                                       and table.key != "motion.penetration")
@@ -86,9 +86,7 @@ def plot_sweep(table, path: str | pathlib.Path) -> pathlib.Path:
     _x_axes(axes, d)
     label = pathlib.Path(table.directory).resolve().name
     figure.suptitle(f"{label}: steady state against {table.key} ({len(d.x)} runs)")
-    path = pathlib.Path(path)
-    figure.savefig(path, dpi=110)
-    return path
+    return write_figure(figure, path, dpi=110)
 
 
 def mu_panel(ax, d: SweepData, title: dict) -> None:

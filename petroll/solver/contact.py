@@ -86,6 +86,10 @@ class ContactSolver:
         self.work = [0, 0]  # TAO iterations and operator applications of every QP solved so far
         self._qps: dict[tuple[int, int], WindowQP] = {}
 
+    NO_SURFACE_GAP = 1e3
+    """The gap (in units of the largest interference) given in the QP to a window cell where the body has no
+    surface (Z = +inf): far more than any displacement can close, so its pressure stays 0."""
+
     MARGIN = 4
     """Width in cells of the ring around a layer's QP window on which the gap is checked (_solve_qp)."""
 
@@ -308,7 +312,10 @@ class ContactSolver:
         beyond a clear ring touching would need the bulge to rise faster than the body's profile away from
         the contact; the thin incompressible layer's contact, 41 % wider than the interference region, is
         found this way: tests/test_layer.py.)"""
-        if self.periodic:
+        if self.periodic:  # the whole grid: a cell without surface (petroll check refuses them) has no gap
+            if not self.comm.allreduce(bool(np.isfinite(interference).all()), op=MPI.LAND):
+                raise SolverError("the body has no surface (Z = +inf) over some cells of the periodic grid: give "
+                                  "it a surface over the whole grid, or set [grid] periodic = false")
             return self._solve_window(interference, compliance, warm, None, load)
         candidates = interference > 0
         if (not self.influence.positive and warm is not None
@@ -403,7 +410,9 @@ class ContactSolver:
             start = move_rows(warm[:, j0:j1], grid_ranges, window_ranges, comm).ravel() / to_pressure
         total = None if load is None else load / (grid.cell_area * to_pressure)
         qp.tao.setTolerances(gatol=self.tol, grtol=0.0, gttol=0.0)  # self.tol may change between solves
-        x, gap, multiplier, its, applications = qp.solve(-target.ravel() / w_ref, start, total)
+        # a cell without surface (Z = +inf, a hole in a height map) inside the window: a gap it cannot close
+        gaps = np.minimum(-target.ravel() / w_ref, self.NO_SURFACE_GAP)
+        x, gap, multiplier, its, applications = qp.solve(gaps, start, total)
         natural = np.minimum(x, gap)
         residual = comm.allreduce(float(np.abs(natural).max(initial=0.0)), op=MPI.MAX)
         p_window = np.maximum(x, 0.0).reshape(-1, j1 - j0) * to_pressure

@@ -56,15 +56,20 @@ from mpi4py import MPI
 
 from petroll import __version__
 from petroll.model import motion as motions
-from petroll.errors import PetrollError, SceneError, reason
+from petroll.errors import PetrollError, SceneError, reason, shown
 from petroll.model.materials import Prony, Tabulated, loss_peak_time
+from petroll.io.hdf5 import atomic_hdf5
 from petroll.io.results import Results, atomic_write, results_identity
+from petroll.io.rundir import clean_temporaries
 from petroll.model.schema import DEFAULT_STEADY, SCHEMA
 from petroll.model.scene import Scene
 
 """[time] steady given to every point of a sweep whose scene has a [time] table without one."""
 
 FORMS = "KEY=V1,V2,... or KEY=START..STOP:log:N or KEY=START..STOP:lin:N (docs/sweep.md)"
+
+MAX_POINTS = 1000
+"""The most values a sweep takes (each is a run; every point's scene is built before the first runs)."""
 
 EXCLUSIVE = {
     "motion.penetration": "motion.load", "motion.load": "motion.penetration",
@@ -154,7 +159,7 @@ _RANGE = re.compile(rf"^({_NUMBER})\.\.({_NUMBER}):(log|lin):(\d+)$")
 def parse_vary(text: str) -> Vary:
     """Read ``KEY=SPEC`` (module docstring); SweepError with one line for anything else."""
     def bad(reason: str) -> SweepError:
-        return SweepError(f"--vary {text!r}: {reason}; allowed: {FORMS}")
+        return SweepError(f"--vary {shown(text)}: {reason}; allowed: {FORMS}")
 
     key, eq, spec = (part.strip() for part in str(text).partition("="))
     if not eq or not key or not spec:
@@ -167,9 +172,13 @@ def parse_vary(text: str) -> Vary:
     spec = "".join(spec.split())
     found = _RANGE.match(spec)
     if found:
-        start, stop, kind, count = float(found[1]), float(found[2]), found[3], int(found[4])
+        start, stop, kind = float(found[1]), float(found[2]), found[3]
+        count = int(found[4]) if len(found[4].lstrip("0")) <= 6 else MAX_POINTS + 1  # not 10^5000: int()
         if count < 2:
             raise bad("a range needs N >= 2 values")
+        if count > MAX_POINTS:
+            n = found[4] if len(found[4]) <= 30 else f"{found[4][:20]}... ({len(found[4])} digits)"
+            raise bad(f"N = {n}: a sweep takes at most {MAX_POINTS} values (each one a run)")
         if not (math.isfinite(start) and math.isfinite(stop)) or start == stop:
             raise bad("a range needs finite START != STOP")
         if kind == "log":
@@ -183,6 +192,8 @@ def parse_vary(text: str) -> Vary:
     if ".." in spec or ":" in spec:
         raise bad("a range is START..STOP:log:N or START..STOP:lin:N, with numbers START, STOP and N")
     items = spec.split(",")
+    if len(items) > MAX_POINTS:
+        raise bad(f"{len(items)} values: a sweep takes at most {MAX_POINTS} (each one a run)")
     if not all(re.fullmatch(_NUMBER, item) for item in items):
         raise bad("a list must hold numbers separated by commas")
     values = tuple(float(item) for item in items)
@@ -488,23 +499,23 @@ def write_table(table: SweepTable) -> None:
     lines = [header] + [",".join(f"{table.columns[n][i]:.10g}" for n in names)
                         for i in range(len(table.points))]
     text = "\n".join(lines) + "\n"
+    clean_temporaries(table.directory, [table.csv.name, table.h5.name])  # of a writer killed earlier
     atomic_write(table.csv, lambda tmp: tmp.write_text(text, encoding="utf-8"))
 
-    def fill(tmp: pathlib.Path) -> None:
-        with h5py.File(tmp, "w") as f:
-            f.attrs["format"] = "petroll-sweep"
-            f.attrs["petroll_version"] = __version__
-            f.attrs["key"] = table.key
-            f.attrs["unit"] = table.unit
-            f.attrs["scene"] = table.scene_text
-            f.attrs["points"] = np.array(table.points, dtype=h5py.string_dtype())
-            group = f.create_group("table")
-            for n, u in zip(names, units):
-                dataset = group.create_dataset(n, data=table.columns[n])
-                dataset.attrs["units"] = u
-                dataset.attrs["meaning"] = COLUMNS[n][1]
+    def fill(f: h5py.File, failed) -> None:
+        f.attrs["format"] = "petroll-sweep"
+        f.attrs["petroll_version"] = __version__
+        f.attrs["key"] = table.key
+        f.attrs["unit"] = table.unit
+        f.attrs["scene"] = table.scene_text
+        f.attrs["points"] = np.array(table.points, dtype=h5py.string_dtype())
+        group = f.create_group("table")
+        for n, u in zip(names, units):
+            dataset = group.create_dataset(n, data=table.columns[n])
+            dataset.attrs["units"] = u
+            dataset.attrs["meaning"] = COLUMNS[n][1]
 
-    atomic_write(table.h5, fill)
+    atomic_hdf5(table.h5, fill)
 
 
 def _plot(table: SweepTable) -> None:

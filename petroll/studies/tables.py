@@ -6,6 +6,8 @@ from __future__ import annotations
 import csv
 import pathlib
 
+from petroll.plot.common import write_figure
+
 
 def write_table(rows: list[dict], path: pathlib.Path, show: bool = True) -> None:
     """Write the rows (one dict per row, the first row's keys as columns) as CSV to ``path`` and
@@ -45,8 +47,7 @@ def new_figure(width: float, height: float):
 
 def save_figure(figure, path: pathlib.Path) -> None:
     """Write the figure as PNG to ``path`` and say so."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    figure.savefig(path, dpi=110)
+    write_figure(figure, path, dpi=110)
     print(f"petroll bench: wrote {path}")
 
 
