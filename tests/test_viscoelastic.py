@@ -184,6 +184,7 @@ def test_rolling_along_y_is_the_transposed_rolling_along_x(comm):
         assert np.abs(px - py.T).max() <= 1e-6 * px.max()
 
 
+@pytest.mark.parallel
 def test_rolling_is_independent_of_the_rank_count(comm):
     """Iterates differ by round-off between rank counts, so the solves must be converged well below 1e-10."""
     kwargs = dict(motion={"velocity": [0.05, 0.0], "load": 0.1}, length=0.3e-3, n=40,
