@@ -120,7 +120,11 @@ def pytest_configure(config):
 
 # -- which modules ran (make check) ------------------------------------------------------------------------
 PACKAGE = pathlib.Path(__file__).resolve().parents[1] / "petroll"
+PEERS_VENV = "runs in .venv-peers, a virtual environment with {} from PyPI, which the tests do not make"
 NOT_RUN_HERE = {
+    "studies/peers/solve_tamaas.py": PEERS_VENV.format("Tamaas"),
+    "studies/peers/solve_tamaas_periodic.py": PEERS_VENV.format("Tamaas"),
+    "studies/peers/solve_contactmechanics.py": PEERS_VENV.format("ContactMechanics"),
 }
 """Modules of petroll that the tests cannot run, and why (`make check` fails on any other module whose
 code does not run)."""
@@ -149,12 +153,24 @@ def modules_not_run(notes: pathlib.Path) -> list[str]:
     return missing
 
 
+COMPREHENSIONS = ("<listcomp>", "<dictcomp>", "<setcomp>", "<genexpr>")
+
+
 def _functions(code):
+    """The functions defined in ``code`` (a module's), at any depth; comprehensions are their caller's."""
     for const in code.co_consts:
         if hasattr(const, "co_code"):
-            if const.co_flags & 1:
+            if const.co_flags & 1 and const.co_name not in COMPREHENSIONS:
                 yield const
             yield from _functions(const)
+
+
+def pytest_runtest_setup(item):
+    """With PETROLL_MODULES_RUN: the trace function of tests/modules_run/sitecustomize.py set again if a
+    test before switched it off."""
+    rearm = getattr(sys.modules.get("sitecustomize"), "petroll_rearm", None)
+    if rearm is not None:
+        rearm()
 
 
 def pytest_sessionfinish(session, exitstatus):

@@ -21,6 +21,7 @@ RAW = {
 }
 
 
+@pytest.mark.slow
 def test_a_scene_built_in_python_runs_exactly_as_its_toml_through_the_command_line(comm, api_and_cli):
     api, cli, out = api_and_cli(RAW)
     if comm.rank == 0:

@@ -130,6 +130,7 @@ def test_export_writes_the_series_and_a_saved_field_as_csv(run_dir, cli_main, co
     assert np.array_equal(table[:, 2], gap.ravel())
 
 
+@pytest.mark.slow
 def test_restart_summary_names_the_step_it_resumed_from(run_dir, cli_main, comm):
     code, out, _ = cli_main(["restart", str(run_dir / "checkpoints" / "step-00000050.h5"), "--quiet"])
     assert code == 0

@@ -178,6 +178,7 @@ def run_elsewhere(doc: pathlib.Path) -> frozenset:
                                if not block.elsewhere))
 
 
+@pytest.mark.slow
 @pytest.mark.serial
 @pytest.mark.parametrize("doc", [d for d in DOCS if runnable(d)], ids=lambda d: str(d.relative_to(ROOT)))
 def test_every_block_runs_as_written(doc, tmp_path):

@@ -58,6 +58,7 @@ def lee_radok(t: float) -> tuple[float, float]:
     return math.sqrt(k * creep(t)), centre
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("material, integrator, tol", [
     ("sls", "relaxation", 5e-3), ("sls", "exponential", 5e-3), ("sls", "paper", 0.08),
     ("tabulated", "paper", 0.08)])
@@ -179,6 +180,7 @@ def rolled():
     return out
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("v_tau_a", list(STEADY_CASES))
 def test_steady_rolling_agrees_with_the_direct_steady_solve(v_tau_a, rolled):
     """mu_r within 1.5 % (measured 0.16 % to 0.44 %; it peaks at 0.38 a/R near V tau/a = 1), the patch's

@@ -131,6 +131,7 @@ def lattice_friction(heights, cell, material, velocity, pressure, axis):
 ROAD = {"hurst": 0.8, "rolloff": 1e-3, "cutoff": 62.5e-6, "rms_slope": 0.08}  # runs/rough-rubber.toml's
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", range(4))
 def test_full_contact_friction_of_a_measured_spectrum_is_the_surfaces(seed):
     """Persson's theory on TabulatedPSD.of a 128^2 surface (10 and 40 bins a decade) against the exact
@@ -151,6 +152,7 @@ def test_full_contact_friction_of_a_measured_spectrum_is_the_surfaces(seed):
             assert persson(table, rubber, pressure, velocity).mu == pytest.approx(exact, rel=0.01)
 
 
+@pytest.mark.slow
 def test_petroll_in_full_contact_slides_with_persson_friction(comm):
     """petroll's steady sliding of the rubber block of runs/rough-rubber.toml on its road at 128^2 (cut-off
     2 cells), pressed to 2 GPa so that every cell is in contact, at 0.1 and 1 m/s, along x and along y:

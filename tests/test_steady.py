@@ -90,6 +90,7 @@ PRONY = {"model": "prony", "series": "kelvin", "Einf": 2e6, "nu": 0.5, "complian
          "times": [0.0005, 0.005, 0.05]}  # 3 terms over two decades around TAU
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("v_tau_a, rolled_a, sign, load, material, integrator", [
     (0.01, 8, 1, None, None, "relaxation"),
     (1.0, 16, 1, None, None, "relaxation"),

@@ -139,6 +139,7 @@ def test_elastic_rolling_is_hertz_with_no_resistance(comm):
         assert abs(r.mu_r) <= 1e-7
 
 
+@pytest.mark.slow
 def test_slow_rolling_tends_to_the_relaxed_hertz_solution_shifted_forward(comm):
     """mu_r -> V tau (1 - J0/Jinf) / R at V tau / a = 0.01 (formulation §7), read when the body sits on a
     cell centre (2 cells rolled), after 12.5 creep times."""
@@ -239,6 +240,7 @@ def test_maxwell_series_converts_exactly_to_its_creep_series(moduli, times):
         assert creep.dJ == pytest.approx(sls.dJ, rel=1e-12) and creep.tau == pytest.approx(sls.tau, rel=1e-12)
 
 
+@pytest.mark.slow
 def test_tabulated_creep_function_matches_its_prony_original(comm, shared_dir):
     """A CSV table of the SLS creep compliance D(t), run with the hereditary sum, reproduces the Prony
     recursion of the same scheme to the table's interpolation error."""
@@ -285,6 +287,7 @@ def test_tabulated_velocity_equals_the_constant_one(comm):
         assert b.force == pytest.approx(a.force, rel=1e-9)
 
 
+@pytest.mark.slow
 def test_the_transient_reaches_a_steady_state(comm, shared_dir):
     """With [time] steady the run stops early, at values a much longer run confirms to that tolerance."""
     from petroll.driver import run

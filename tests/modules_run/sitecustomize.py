@@ -8,8 +8,7 @@ running: ``F FILE`` when one of its functions is called, ``M FILE`` when the mod
 import). Each note is one line appended at once to PETROLL_MODULES_RUN/PID (os.write on a descriptor
 opened at start-up, O_APPEND), so a process killed by SIGKILL has said what it ran before, and a file
 system the test fills or makes read-only does not stop it (the descriptor is open; a failed write is
-tried again at the next note). tests/conftest.py reads the notes at the end of the session
-(tests/modules_run/report.py). Nothing is printed, nothing of the process is changed but its trace
+tried again at the next note). tests/conftest.py reads the notes at the end of the session. Nothing is printed, nothing of the process is changed but its trace
 function; without PETROLL_MODULES_RUN this file does nothing. Debian's own sitecustomize (apport's hook)
 is not loaded in such a process.
 """
@@ -48,13 +47,26 @@ def _install(directory: str) -> None:
             pass
 
     def trace(frame, event, arg):
-        code = frame.f_code
-        filename = code.co_filename
-        if "petroll" in filename and code.co_name not in COMPREHENSIONS:
-            kind = "F" if code.co_flags & CO_OPTIMIZED else "M"
-            if (kind, filename) not in noted:
-                note(kind, filename)
+        try:
+            code = frame.f_code
+            filename = code.co_filename
+            if "petroll" in filename and code.co_name not in COMPREHENSIONS:
+                kind = "F" if code.co_flags & CO_OPTIMIZED else "M"
+                if (kind, filename) not in noted:
+                    note(kind, filename)
+        except BaseException:  # noqa: BLE001 (a trace function that raises is switched off by Python)
+            pass
         return None
+
+    def rearm() -> None:
+        """Tracing again where it was switched off: by a RecursionError on the way into the trace function
+        (a test of deep nesting) or by code that sets its own (tests/conftest.py calls this before each
+        test)."""
+        if "petroll" in sys.modules and sys.gettrace() is not trace:
+            sys.settrace(trace)
+
+    global petroll_rearm
+    petroll_rearm = rearm
 
     class Finder:
         """On the first import of petroll (or a module of it): starts tracing, then steps aside."""
