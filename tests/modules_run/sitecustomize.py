@@ -1,16 +1,17 @@
 """Which modules of petroll ran code, in the test process and in every process it starts (`make check`).
 
 Python imports ``sitecustomize`` at start-up from its path: scripts/test.sh puts this directory on
-PYTHONPATH and names a directory in PETROLL_MODULES_RUN, so every Python of the run (pytest, the ``petroll``
-commands it starts, mpirun's ranks, the docs' blocks) loads this file. Once the process imports petroll, a
-trace function (sys.settrace, threading.settrace; no line events) notes each file whose code starts
-running: ``F FILE`` when one of its functions is called, ``M FILE`` when the module itself runs (its
-import). Each note is one line appended at once to PETROLL_MODULES_RUN/PID (os.write on a descriptor
-opened at start-up, O_APPEND), so a process killed by SIGKILL has said what it ran before, and a file
-system the test fills or makes read-only does not stop it (the descriptor is open; a failed write is
-tried again at the next note). tests/conftest.py reads the notes at the end of the session. Nothing is printed, nothing of the process is changed but its trace
-function; without PETROLL_MODULES_RUN this file does nothing. Debian's own sitecustomize (apport's hook)
-is not loaded in such a process.
+PYTHONPATH and names a directory in PETROLL_MODULES_RUN, so every Python of the run (pytest, the
+``petroll`` commands it starts, mpirun's ranks, the docs' blocks, the peer solvers) loads this file. Once
+the process imports petroll (from the start in a script of the package run by its path), a trace
+function (sys.settrace, threading.settrace; no line events) notes each file whose code starts running:
+``F FILE`` when one of its functions is called, ``M FILE`` when the module itself runs (its import).
+Each note is one line appended at once to PETROLL_MODULES_RUN/PID (os.write on a descriptor opened at
+start-up, O_APPEND), so a process killed by SIGKILL has said what it ran before, and a file system a test
+fills or makes read-only does not stop it (the descriptor is open; a failed write is tried again at the
+next note). tests/conftest.py reads the notes at the end of the session. Nothing is printed, nothing of
+the process is changed but its trace function; without PETROLL_MODULES_RUN this file does nothing.
+Debian's own sitecustomize (apport's hook) is not loaded in such a process.
 """
 
 import os
@@ -68,6 +69,12 @@ def _install(directory: str) -> None:
     global petroll_rearm
     petroll_rearm = rearm
 
+    def start() -> None:
+        import threading
+
+        threading.settrace(trace)
+        sys.settrace(trace)
+
     class Finder:
         """On the first import of petroll (or a module of it): starts tracing, then steps aside."""
 
@@ -75,13 +82,13 @@ def _install(directory: str) -> None:
         def find_spec(name, path=None, target=None):
             if name == "petroll" or name.startswith("petroll."):
                 sys.meta_path.remove(Finder)
-                import threading
-
-                threading.settrace(trace)
-                sys.settrace(trace)
+                start()
             return None
 
-    sys.meta_path.insert(0, Finder)
+    if "/petroll/" in (sys.argv[0] if sys.argv else ""):  # a script of the package (the peer solvers)
+        start()
+    else:
+        sys.meta_path.insert(0, Finder)
 
 
 if os.environ.get("PETROLL_MODULES_RUN"):
