@@ -39,6 +39,7 @@ def _install(directory: str) -> None:
                 pass
             state["pid"] = os.getpid()
             noted.clear()
+            done.clear()
         noted.add((kind, filename))
         pending.append(f"{kind} {filename}\n")
         try:
@@ -47,14 +48,22 @@ def _install(directory: str) -> None:
         except OSError:
             pass
 
+    done: set = set()  # files with nothing more to note: not petroll's, or both notes written
+
     def trace(frame, event, arg):
         try:
             code = frame.f_code
             filename = code.co_filename
-            if "petroll" in filename and code.co_name not in COMPREHENSIONS:
+            if filename in done:
+                return None
+            if "petroll" not in filename:
+                done.add(filename)
+            elif code.co_name not in COMPREHENSIONS:
                 kind = "F" if code.co_flags & CO_OPTIMIZED else "M"
                 if (kind, filename) not in noted:
                     note(kind, filename)
+                    if ("F", filename) in noted and ("M", filename) in noted:
+                        done.add(filename)
         except BaseException:  # noqa: BLE001 (a trace function that raises is switched off by Python)
             pass
         return None
