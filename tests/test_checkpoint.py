@@ -183,6 +183,7 @@ def test_a_checkpoint_without_the_kept_first_guesses_restarts_to_the_same_answer
     assert_close(run(scene, comm, shared_dir / "older", restart=check), reference, rtol=1e-10)
 
 
+@pytest.mark.slow
 @pytest.mark.parallel
 @pytest.mark.parametrize("material", ["sls", "prony"])
 def test_restart_on_another_rank_count_agrees_to_1e_10(material, comm, shared_dir):

@@ -73,6 +73,7 @@ def test_plot_and_info_refuse_what_is_not_petroll_output_in_one_line(cli_main, c
             assert err.startswith("petroll: error: ") and says in err and err.count("\n") == 1, err
 
 
+@pytest.mark.slow
 def test_info_says_what_the_run_directory_holds(run_dir, cli_main, comm):
     code, out, _ = cli_main(["info", str(run_dir)])
     assert code == 0
@@ -102,6 +103,7 @@ def _read_csv(path: pathlib.Path) -> tuple[list[str], np.ndarray]:
     return rows[0], np.array(rows[1:], dtype=float)
 
 
+@pytest.mark.slow
 def test_export_writes_the_series_and_a_saved_field_as_csv(run_dir, cli_main, comm, shared_dir):
     code, out, _ = cli_main(["export", str(run_dir), "--csv"])
     assert code == 0

@@ -114,6 +114,7 @@ def projected_gauss_seidel(matrix, rhs, sweeps=20000):
     return p
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("nx,ny,window", [(14, 12, (10, 9)), (19, 14, (14, 12))])
 def test_window_qp_equals_the_whole_grid_dense_solution(comm, nx, ny, window):
     """Posing the QP on the interference window only is exact: compare with the whole-grid dense problem.

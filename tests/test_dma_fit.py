@@ -42,6 +42,7 @@ def between_points(fit, material, frequency) -> tuple[float, float]:
     return wiggles[0], wiggles[1]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("material", [POLYMER, RUBBER], ids=["polymer", "rubber"])
 def test_a_noisy_master_curve_takes_about_two_terms_per_decade_and_follows_the_truth_not_the_noise(material):
     """1 % noise: the default fit keeps at most ~2 Maxwell terms per decade of data (measured 42 over

@@ -82,6 +82,7 @@ def on_rank0(comm, value):
 
 
 # -- results.h5 -------------------------------------------------------------------------------------------
+@pytest.mark.slow
 @pytest.mark.ranks4
 def test_a_write_failing_anywhere_in_an_append_leaves_results_h5_byte_for_byte_as_it_was(comm, shared_dir,
                                                                                           monkeypatch):

@@ -203,6 +203,7 @@ def test_results_are_per_unit_length_and_a_restart_is_bitwise(comm, shared_dir):
         assert all(p.stat().st_size > 10000 for p in written)
 
 
+@pytest.mark.slow
 @pytest.mark.parallel
 def test_two_ranks_agree_with_one(comm, shared_dir):
     scene = parse_scene(rolling_raw(), source="roll")

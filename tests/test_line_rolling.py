@@ -242,6 +242,7 @@ def test_wide_roller_mid_section_is_plane_strain(comm):
     assert np.array_equal(line > 0, middle > 0)
 
 
+@pytest.mark.slow
 def test_shipped_roller_scene_reaches_the_steady_solve(tmp_path):
     """runs/roller-2d.toml (V tau_creep/a = 0.51, tau_creep = tau_relax E0/Einf = 0.05 s) stops on its
     steady criterion with mu_r within 1 % of the direct steady solve (measured 0.11 %)."""

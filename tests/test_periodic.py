@@ -132,6 +132,7 @@ def westergaard(x, mean, wavelength=1.0, amplitude=0.01):
     return np.where(inside, 2 * mean * np.cos(np.pi * x / wavelength) / s2 * root, 0.0)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("line", [False, True])
 @pytest.mark.parametrize("fraction", [0.2, 0.5, 1.5])
 def test_westergaard_at_128_cells_per_wavelength(comm, shared_dir, line, fraction):

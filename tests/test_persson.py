@@ -70,6 +70,7 @@ def full_contact_mu_sigma(velocity):
                for a, b in zip(pieces[:-1], pieces[1:]))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("velocity", [1e-6, 1e-4, 1e-2, 1.0, 100.0])
 def test_full_contact_friction_of_a_standard_linear_solid(velocity):
     pressure = 1e10  # far above M0 h'_rms: P(q1) = 1 to round-off
@@ -92,6 +93,7 @@ def test_full_contact_friction_asymptotes():
                         dm * PSD.moment(1) / (2 * fast * THETA), rel_tol=1e-5)
 
 
+@pytest.mark.slow
 def test_partial_contact_friction_has_a_peak_and_grows_less_than_the_load():
     """Sanity of the partial-contact regime: mu(V) rises then falls, and a larger load gives more friction
     force but a smaller coefficient (the full-contact mu falls as 1/sigma0; here less than that)."""

@@ -93,6 +93,7 @@ def test_petroll_check_prints_cells_per_step_and_the_verdict(cli_main, tmp_path)
     assert code == 0 and "107 cells per step at most" in out and "a run is refused: gives 0.11 steps" in out
 
 
+@pytest.mark.slow
 def test_steady_rolling_steps_are_warned_and_refused_where_mu_r_is_off(comm, shared_dir, cli_main):
     """Steady runs/sphere.toml: 0.1 step per cell (1.2 steps per half-width) is refused, naming
     steps_per_cell and the value giving 8 steps (0.671); there mu_r is 37 % off the fine step's (16 per

@@ -65,6 +65,7 @@ def test_step_penetration_follows_lee_radok_with_the_default_integrator(comm, dt
     assert force[-1] < 0.25 * force[0]  # it did relax (to 0.2 + 0.8 e^-6 of the start)
 
 
+@pytest.mark.slow
 def test_step_penetration_follows_lee_radok_and_the_creep_integrators_converge(comm):
     """The creep-form integrators: F(t) within 1 % of Lee-Radok for the exponential one at dt <= 0.3 T; the
     paper's first-order scheme needs dt ~ T/30 for that. The time error alone is measured against the exact
@@ -156,6 +157,7 @@ def test_slow_rolling_tends_to_the_relaxed_hertz_solution_shifted_forward(comm):
     assert last.force == pytest.approx(4 * math.sqrt(R) * 2e-5**1.5 / (3 * JINF), rel=0.01)
 
 
+@pytest.mark.slow
 def test_sinusoidal_speed_with_zero_amplitude_is_the_constant_speed_run(comm):
     base = dict(time={"steps_per_cell": 2, "distance": 0.4e-3}, length=0.4e-3)
     constant = run_series(scene(motion={"velocity": [0.05, 0.0], "penetration": 2e-5}, **base), comm)
