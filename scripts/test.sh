@@ -10,7 +10,10 @@ set -uo pipefail
 cd "$(dirname "$0")/.."
 py=.venv/bin/python
 export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 OMPI_MCA_rmaps_base_oversubscribe=1
-export OMPI_MCA_btl_vader_single_copy_mechanism=none OMPI_MCA_mpi_yield_when_idle=1 PYTHONDONTWRITEBYTECODE=1
+export OMPI_MCA_btl_vader_single_copy_mechanism=none OMPI_MCA_mpi_yield_when_idle=1
+# compiled files kept (__pycache__, ignored by git): else each of the suite's hundreds of Python processes
+# compiles petroll again, and each pytest (the docs run some) rewrites the asserts of every test module
+unset PYTHONDONTWRITEBYTECODE
 
 scripts/setup-tests.sh || exit 1  # ParaView's pvpython for tests/test_paraview.py (first time: apt-get)
 

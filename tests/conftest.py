@@ -56,7 +56,7 @@ class PetrollCommand:
     argv = (sys.executable, "-m", "petroll.cli")
     env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
                OMPI_MCA_rmaps_base_oversubscribe="1", OMPI_MCA_btl_vader_single_copy_mechanism="none",
-               OMPI_MCA_mpi_yield_when_idle="1", PYTHONDONTWRITEBYTECODE="1")
+               OMPI_MCA_mpi_yield_when_idle="1")
 
     def __call__(self, *args, cwd, ranks=0, timeout=300.0, **env) -> subprocess.CompletedProcess:
         """``petroll ARGS`` in ``cwd`` (under ``mpirun -n ranks`` if ranks > 0), output captured as text;

@@ -52,7 +52,7 @@ IGNORED = shutil.ignore_patterns(".git", ".venv", ".venv-peers", "results", "__p
                                  ".pytest_cache", ".hypothesis", "build")
 ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
            OMPI_MCA_rmaps_base_oversubscribe="1", OMPI_MCA_btl_vader_single_copy_mechanism="none",
-           OMPI_MCA_mpi_yield_when_idle="1", PYTHONDONTWRITEBYTECODE="1", MPLBACKEND="Agg")
+           OMPI_MCA_mpi_yield_when_idle="1", MPLBACKEND="Agg")
 
 
 @dataclasses.dataclass
