@@ -27,8 +27,9 @@ from petroll.io.rundir import DirectoryBusy, RunLock, clean_temporaries
 from petroll.model.limits import PetrollWarning, negative_friction
 from petroll.model.preflight import check_run
 from petroll.model.scene import Scene
+from petroll.records import StepRecord
 from petroll.solver.rough import BINS
-from petroll.solver.simulation import Simulation, StepRecord
+from petroll.solver.simulation import Simulation
 
 
 def run(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, out: str | pathlib.Path | None = None,

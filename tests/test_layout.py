@@ -12,10 +12,17 @@ PACKAGE = pathlib.Path(__file__).resolve().parents[1] / "petroll"
 FACES = ("petroll.driver", "petroll.cli", "petroll.cli_parser", "petroll.plot", "petroll.launch")
 
 FORBIDDEN = {
+    "petroll.records": ("petroll.model", "petroll.solver", "petroll.io", "petroll.studies", *FACES, "petsc4py",
+                        "mpi4py"),
     "petroll.model": ("petroll.solver", "petroll.io", "petroll.studies", *FACES, "petsc4py", "mpi4py"),
     "petroll.solver": ("petroll.io", "petroll.studies", *FACES),
     "petroll.io": ("petroll.studies", *FACES),
 }
+
+IO_FROM_SOLVER = ("petroll.solver.partition",)
+"""The solver's modules io may import: how a field's rows are split over the ranks (io writes and reads each
+rank's rows). The step records io stores are petroll.records; a checkpoint restores a Simulation through
+its attributes."""
 
 
 def module_name(path: pathlib.Path) -> str:
@@ -45,6 +52,14 @@ def within(name: str, prefix: str) -> bool:
 def test_no_room_imports_what_its_rules_forbid():
     broken = [(module, name) for module, names in imports().items() for room, banned in FORBIDDEN.items()
               if within(module, room) for name in names if any(within(name, b) for b in banned)]
+    assert not broken, broken
+
+
+def test_io_imports_nothing_of_the_solver_but_its_partition():
+    graph = imports()
+    broken = sorted((module, name) for module, names in graph.items() if within(module, "petroll.io")
+                    for name in names if within(name, "petroll.solver")
+                    and not any(within(name, allowed) for allowed in IO_FROM_SOLVER))
     assert not broken, broken
 
 

@@ -24,7 +24,8 @@ from mpi4py import MPI
 
 from petroll.model.scene import Scene, load_scene, parse_scene, shipped_scene
 from petroll.solver.estimate import COUNTED, ErrorEstimate, end_time, estimate_error
-from petroll.solver.simulation import Simulation, StepRecord
+from petroll.records import StepRecord
+from petroll.solver.simulation import Simulation
 
 
 def refined(scene: Scene, factor: float, end: float | None) -> Scene:
