@@ -1,4 +1,4 @@
-"""The error estimate (petroll.solver.estimate; docs/accuracy.md): Richardson extrapolation against exact
+"""The error estimate (petroll.studies.estimate; docs/accuracy.md): Richardson extrapolation against exact
 power laws, the coarser runs against the same scenes run on their own, results.h5's group, the summary
 lines and the sweep's columns; the estimate against the true error (a reference 4x finer) on a sphere, a
 roller, a roller given as a 1-D profile and a layer (docs/verification.md has the full table)."""
@@ -10,7 +10,7 @@ from mpi4py import MPI
 
 import petroll
 from petroll.model.scene import load_scene, shipped_scene
-from petroll.solver.estimate import KNOWN_ORDER, coarser, quantised, richardson
+from petroll.studies.estimate import KNOWN_ORDER, coarser, quantised, richardson
 from petroll.solver.simulation import Simulation
 from petroll.studies.accuracy import profile_roller, verify
 
@@ -189,7 +189,7 @@ def test_the_coarser_grids_tolerance_moves_them_little_against_their_differences
     their difference)."""
     import numpy as np
 
-    import petroll.solver.estimate as estimate
+    import petroll.studies.estimate as estimate
 
     scene = load_scene(shipped_scene(name))
     if velocity is not None:
@@ -293,7 +293,7 @@ def test_the_run_s_wall_time_leaves_its_estimate_out(comm, shared_dir, monkeypat
     real one) leaves it at least 1 s below the whole call's wall time."""
     import time
 
-    import petroll.solver.estimate as estimate
+    import petroll.studies.estimate as estimate
 
     real = estimate.estimate_error
 

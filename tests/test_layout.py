@@ -17,6 +17,8 @@ FORBIDDEN = {
     "petroll.model": ("petroll.solver", "petroll.io", "petroll.studies", *FACES, "petsc4py", "mpi4py"),
     "petroll.solver": ("petroll.io", "petroll.studies", *FACES),
     "petroll.io": ("petroll.studies", *FACES),
+    # the one workflow a face runs (petroll.run(..., estimate_error=True)): built on Simulation, not on run
+    "petroll.studies.estimate": FACES,
 }
 
 IO_FROM_SOLVER = ("petroll.solver.partition",)

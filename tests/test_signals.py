@@ -109,7 +109,7 @@ class Child:
 def _pause_estimate(pipe: int, at: int, pause: float) -> None:
     """In a child: the ``at``-th coarser run of the error estimates (0-based) starts by telling the parent
     (one byte on ``pipe``) and sleeping ``pause`` s."""
-    import petroll.solver.estimate as estimate
+    import petroll.studies.estimate as estimate
 
     calls = [0]
 

@@ -105,7 +105,7 @@ class Simulation:
         :meth:`steps` ends with, but for its ``solve_time`` (the last step's), on a fresh simulation of a
         scene without [time] steady (whose stop needs every step's record; it is not applied here). The
         diagnostics (force, mu_r, the patch ...) are made for the last step only, and no record is kept in
-        ``self.records``: what the error estimate reads of its coarser grids (petroll.solver.estimate).
+        ``self.records``: what the error estimate reads of its coarser grids (petroll.studies.estimate).
         A steady solve ([time] mode = "steady") is its one step, solved by :meth:`steps` (which keeps its
         record). RuntimeError on a simulation that has solved or restored steps. ``after_step()``: called on
         every rank after each step (e.g. to stop on a signal by raising). Collective."""
