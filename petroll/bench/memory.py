@@ -195,7 +195,7 @@ def append(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, side: int = 512, 
 
 def _mpirun(k: int, args: list[str]) -> dict:
     """This module's child (``args``) under ``mpirun -n k``; its JSON line."""
-    return mpirun_child(k, "petroll.studies.bench_memory", args, "bench memory")
+    return mpirun_child(k, "petroll.bench.memory", args, "bench memory")
 
 
 def mpirun_child(k: int, module: str, args: list[str], what: str) -> dict:
