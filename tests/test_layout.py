@@ -83,7 +83,7 @@ def test_the_install_holds_every_package_and_nothing_of_the_checkout_s_tools():
     listed = tomllib.loads((PACKAGE.parent / "pyproject.toml").read_text())["tool"]["setuptools"]["packages"]
     folders = {module_name(path) for path in PACKAGE.rglob("__init__.py")}
     assert set(listed) == folders | {"petroll.scenes"}, set(listed) ^ (folders | {"petroll.scenes"})
-    assert not list(PACKAGE.rglob("solve_*.py"))
+    assert not list(PACKAGE.rglob("solve_*.py")) and not list(PACKAGE.rglob("kills.py"))
 
 
 def test_no_import_circles():
