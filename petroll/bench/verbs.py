@@ -32,7 +32,8 @@ QUICK = {
     "steady": dict(speeds=(1.0,), track=8),
     "steady-growth": dict(grids=((64, 32),), repeats=1),
     "estimate": dict(factors=(1,), repeats=1),
-    "accuracy": dict(scenes=("roller-2d.toml",), factors=(0.5,), reference=2.0),
+    "accuracy": dict(scenes=("roller-2d.toml",), factors=(0.5,), reference=2.0,
+                     integrators=("roller-2d.toml, paper",), order_factors=(1.0, 2.0, 4.0)),
     "periodic": dict(sides=(32,), repeats=1, tamaas_sides=()),
     "sliding": dict(cells=32, curve_cells=32, points=2),
 }
