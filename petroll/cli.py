@@ -387,13 +387,16 @@ def estimate_lines(estimate: dict) -> list[str]:
     if group.get("failed"):
         return [f"no error estimate: {group['failed']}"]
     grids = ", ".join(f"{nx} x {ny}" for nx, ny in group["grids"])
-    order = float(group.get("known_order", 2.0))
-    integrator = f'integrator "{group["integrator"]}"; ' if group.get("integrator") else ""
-    lines = [f"error estimate of the last step (grids {grids}; order {order:g} ({integrator}1 for what "
-             "counts cells) unless observed):"]
+    known = {name: float(estimate[name].get("known_order", 2.0)) for name in ("force", "delta", "mu_r", "p_max")
+             if name in estimate}
+    common = known["mu_r"]
+    others = ", ".join(f"{name} {order:g}" for name, order in known.items() if order != common)
+    integrator = f'integrator "{group["integrator"]}": ' if group.get("integrator") else ""
+    lines = [f"error estimate of the last step (grids {grids}; {integrator}order {common:g}"
+             + (f" ({others})" if others else "") + ", 1 for what counts cells, unless observed):"]
     if group.get("range_unchecked"):
         lines.append(f"  the asymptotic range was not checked ({group['range_unchecked']}): the errors "
-                     f"assume order {order:g} (docs/accuracy.md)")
+                     "assume the orders above (docs/accuracy.md)")
     for name in ("force", "delta", "mu_r", "p_max", "area", "lead", "trail"):
         if name in estimate:
             q = estimate[name]
