@@ -387,8 +387,8 @@ def estimate_lines(estimate: dict) -> list[str]:
     if group.get("failed"):
         return [f"no error estimate: {group['failed']}"]
     grids = ", ".join(f"{nx} x {ny}" for nx, ny in group["grids"])
-    known = {name: float(estimate[name].get("known_order", 2.0)) for name in ("force", "delta", "mu_r", "p_max")
-             if name in estimate}
+    known = {name: float(estimate[name].get("known_order", 2.0))
+             for name in ("force", "delta", "mu_r", "p_max") if name in estimate}
     common = known["mu_r"]
     others = ", ".join(f"{name} {order:g}" for name, order in known.items() if order != common)
     integrator = f'integrator "{group["integrator"]}": ' if group.get("integrator") else ""

@@ -213,8 +213,8 @@ def test_a_two_grid_estimate_says_its_asymptotic_range_was_not_checked(comm, sha
     assert code == 0, err
     if comm.rank == 0:
         assert "\n".join("  " + line for line in lines) in info
-        assert ('\n  error estimate of the last step (grids 160 x 54, 81 x 28, 81 x 27; integrator "relaxation": '
-                'order 2, 1 for what counts cells, unless observed):\n') in info
+        assert ('\n  error estimate of the last step (grids 160 x 54, 81 x 28, 81 x 27; integrator '
+                '"relaxation": order 2, 1 for what counts cells, unless observed):\n') in info
 
 
 def test_a_restart_with_the_estimate_gives_the_uninterrupted_runs(comm, shared_dir, cli_main):

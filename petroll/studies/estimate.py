@@ -53,8 +53,7 @@ QUANTITIES = ("force", "mu_r", "p_max", "area", "lead", "trail")
 
 SPACE_ORDER = 2.0
 """The order in the cell size of the force, the penetration, mu_r and the peak pressure with the time step
-held (the integrals and values of the piecewise-constant pressure on Love's rectangles; measured orders
-between successive grids 0.6 to 2.7 around 10 cells per half-width, docs/accuracy.md)."""
+held (the integrals and values of the piecewise-constant pressure on Love's rectangles)."""
 
 KNOWN_ORDER = {
     "relaxation": {"force": 2.0, "delta": 2.0, "mu_r": 2.0, "p_max": 2.0},
@@ -64,11 +63,11 @@ KNOWN_ORDER = {
 """Each time integrator's order in the cell size, the cell and the step refined together ([solver]
 integrator; "paper" is also the hereditary sum of a tabulated material), per quantity, measured by
 ``petroll bench accuracy`` (orders.csv, docs/accuracy.md): the second-order integrators 2 (observed 0.6 to
-2.7, scattered by where the contact's edges fall in their cells); "paper", first order in its step, 1
-(observed 0.9 to 1.3), except the peak pressure, whose observed orders fall towards 1 only slowly (2.4,
-1.5, 1.2 on the roller from 4 to 35 cells per half-width; 1.6, 1.4 on the sphere): 1.5 keeps its
-estimate within a factor 3 of the true error over that range, where 1 makes it 3.3 to 3.8 times too
-large at the shipped grids."""
+2.7, scattered by where the contact's edges fall in their cells; 1.7 to 2.4 in the step alone); "paper",
+first order in its step, 1 (observed 0.9 to 1.3), except the peak pressure, whose observed orders fall
+towards 1 only slowly (2.4, 1.5, 1.2 on the roller from 4 to 70 cells per half-width; 1.6, 1.4 on the
+sphere): 1.5 keeps its estimate within a factor 3 of the true error over that range, where 1 makes it
+3.3 to 3.8 times too large at the shipped grids."""
 
 
 def known_order(scene: Scene) -> dict[str, float]:
@@ -81,7 +80,8 @@ def known_order(scene: Scene) -> dict[str, float]:
     follows = t.steps_per_cell is not None or (t.mode == "steady" and t.dt is None)
     memory = scene.material.J0 < scene.material.Jinf
     orders = KNOWN_ORDER[scene.solver.integrator]
-    return {name: min(SPACE_ORDER, order) if follows and memory else SPACE_ORDER for name, order in orders.items()}
+    return {name: min(SPACE_ORDER, order) if follows and memory else SPACE_ORDER
+            for name, order in orders.items()}
 
 
 ROUND_OFF = {"mu_r": 1e-15}
