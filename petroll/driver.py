@@ -28,6 +28,7 @@ from petroll.model.limits import PetrollWarning, negative_friction
 from petroll.model.preflight import check_run
 from petroll.model.scene import Scene
 from petroll.solver.rough import BINS
+from petroll.solver.friction_loop import series_rows
 from petroll.solver.simulation import Simulation, StepRecord
 
 
@@ -103,7 +104,7 @@ def _run(scene: Scene, comm: MPI.Comm, out: pathlib.Path, identity: tuple[str, s
     rough = None if g.line or not all(g.periodic) else BINS  # the group rough of a periodic grid
     results = ResultsFile(out / "results.h5", scene.text, g.x, g.y, comm, fields=scene.fields, line=g.line,
                           steady=steady, source=str(scene.source), run_id=run_id, rough=rough,
-                          fingerprint=inputs)
+                          fingerprint=inputs, friction=scene.friction is not None)
     if restart is not None:
         t, field_steps = restart.restore(sim)
         results.resume(run_directory(restart.path) / "results.h5", len(sim.records), field_steps,
@@ -177,7 +178,7 @@ def _append(results: ResultsFile, sim: Simulation, save: bool, complete: bool, d
     continues (``newest``: this run's newest checkpoint)."""
     try:
         rough = sim.rough_outputs() if save and results.rough is not None else None
-        results.append(sim.records, saved_fields(sim) if save else None, complete=complete, describe=describe,
+        results.append(series_rows(sim), saved_fields(sim) if save else None, complete=complete, describe=describe,
                        rough=rough, warnings=warned)
     except OutputError as exc:
         n = results.steps
@@ -206,7 +207,7 @@ def _failure(scene: Scene, sim: Simulation, results: ResultsFile, checkpoint, ex
     done = len(sim.records)
     if not done:  # nothing solved, nothing kept: the error as it is
         return exc
-    results.append(sim.records, None, complete=False, describe=True)
+    results.append(series_rows(sim), None, complete=False, describe=True)
     t, rolled = sim.t + (sim.dt_next or 0.0), sim.records[-1].distance
     kept = f"{results.path} holds the {done} step{'s' * (done != 1)} solved before it (complete = false)"
     kept += f"; last checkpoint: {checkpoint}" if checkpoint is not None else "; no checkpoint"
@@ -218,9 +219,10 @@ def _failure(scene: Scene, sim: Simulation, results: ResultsFile, checkpoint, ex
 
 def saved_fields(sim: Simulation) -> dict[str, np.ndarray]:
     """The fields of ``[output] fields`` at the newest step, this rank's rows: pressure (Pa) and, when
-    asked, the surface displacement and the gap (m, from ``Simulation.surface``: one more convolution)."""
-    fields = {"pressure": sim.pressure}
-    if len(sim.scene.fields) > 1:
+    asked, the surface displacement and the gap (m, from ``Simulation.surface``: one more convolution); with
+    friction the tangential tractions (Pa) and the slip velocity (m/s)."""
+    fields = {"pressure": sim.pressure, **(sim.friction.fields if sim.friction is not None else {})}
+    if "displacement" in sim.scene.fields:
         fields["displacement"], fields["gap"] = sim.surface()
     return fields
 

@@ -40,6 +40,7 @@ def write_checkpoint(directory: str | pathlib.Path, sim, t: float, next_dt: floa
     writes them (petroll.io.hdf5.RowFile); returns the path. CheckpointError if the file cannot be written
     (every earlier checkpoint stays as it was).
     """
+    from petroll.solver.friction_loop import FrictionRecord
     from petroll.solver.simulation import StepRecord
 
     comm, scene = sim.comm, sim.scene
@@ -62,6 +63,13 @@ def write_checkpoint(directory: str | pathlib.Path, sim, t: float, next_dt: floa
         sink.field("state/increments", list(history.increments))
     for name in StepRecord.__annotations__:
         sink.array(f"series/{name}", np.array([getattr(r, name) for r in sim.records]))
+    if sim.friction is not None:  # its stepping state and series (petroll.solver.friction_loop)
+        parts, small = sim.friction.state()
+        for name, components in parts.items():
+            sink.field(f"state/{name}", components)
+        sink.array("state/friction", small)
+        for name in FrictionRecord.__annotations__:
+            sink.array(f"series/{name}", np.array([getattr(r, name) for r in sim.friction.records]))
     sink.array("fields/step", np.asarray(field_steps, dtype=np.int64))
     attrs = {
         "format": FORMAT, "format_version": FORMAT_VERSION, "petroll_version": __version__,

@@ -205,10 +205,12 @@ ROUGH_UNITS = {"area_fraction": "-", "mean_gap": "m", "q": "rad/m", "spectrum": 
 """The group rough of a run on a grid periodic along every axis (petroll.solver.rough.RoughOutputs), one
 row per saved field: area_fraction and mean_gap (n_saved,); q, spectrum and modes (n_saved, bins)."""
 
-FIELD_UNITS = {"pressure": "Pa", "displacement": "m", "gap": "m"}
+FIELD_UNITS = {"pressure": "Pa", "displacement": "m", "gap": "m", "traction_x": "Pa", "traction_y": "Pa",
+               "slip": "m/s"}
 """The fields a run can save (name: unit), each as /fields/<name> (n_saved, nx, ny): the contact pressure,
 the surface displacement (into the half-space; line contact: relative to the datum) and the gap between
-the body and the deformed surface ([output] fields)."""
+the body and the deformed surface ([output] fields); with [friction] the tangential tractions on the body
+and the slip velocity's magnitude (0 in stick and outside the contact; docs/results.md)."""
 
 
 class ResultsFile:
@@ -226,7 +228,8 @@ class ResultsFile:
 
     def __init__(self, path: str | pathlib.Path, scene_text: str, x: np.ndarray, y: np.ndarray, comm,
                  fields: tuple[str, ...] = ("pressure",), line: bool = False, steady: bool = False,
-                 source: str = "", run_id: str = "", rough: int | None = None, fingerprint: str = ""):
+                 source: str = "", run_id: str = "", rough: int | None = None, fingerprint: str = "",
+                 friction: bool = False):
         from petroll.solver.partition import RowPartition
 
         self.path, self.scene_text, self.comm = pathlib.Path(path), scene_text, comm
@@ -239,6 +242,12 @@ class ResultsFile:
         self.rough = rough
         self.line = bool(line)  # a line-contact run: the series of LINE_SERIES_UNITS, with their units
         self.names = [n for n in _series_names() if not (line and n in LINE_ABSENT)]
+        self.friction_units = {}  # a run with friction: its series (petroll.solver.friction_loop)
+        if friction:
+            from petroll.solver.friction_loop import series_units
+
+            self.friction_units = series_units(line)
+            self.names += list(self.friction_units)
         self.steps = 0  # series rows in the file
         self.field_steps: list[int] = []  # the steps of the fields in the file
         self.started = False  # the file exists (create or resume); the first append creates it otherwise
@@ -261,7 +270,8 @@ class ResultsFile:
                 group = h.create_group("series")
                 for name in self.names:
                     group.create_dataset(name, shape=(0,), maxshape=(None,), chunks=(SERIES_CHUNK,),
-                                         dtype=series_dtype(name)).attrs["units"] = units.get(name, "-")
+                                         dtype=series_dtype(name)).attrs["units"] = units.get(
+                                             name, self.friction_units.get(name, "-"))
                 fields = h.create_group("fields")
                 chunks = (1, min(nx, chunk_rows(ny)), ny)
                 for name in self.fields:
@@ -468,7 +478,7 @@ class ResultsFile:
             raise OutputError(errors[0])
 
 
-INTEGER_SERIES = ("step", "iterations", "applications")
+INTEGER_SERIES = ("step", "iterations", "applications", "friction_iterations", "friction_applications")
 """Series stored as 64-bit integers (the others as doubles)."""
 
 PACKED = dict(compression="gzip", compression_opts=1, shuffle=True)
