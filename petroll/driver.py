@@ -346,7 +346,8 @@ class StressSummary:
 
 def stress(run_dir: str | pathlib.Path, step: int | None = None, depths=None, nu: float | None = None,
            comm: MPI.Comm = MPI.COMM_WORLD) -> StressSummary:
-    """The stresses below the pressure saved at ``step`` (None: the last saved field) of the run in
+    """The stresses below the pressure (with friction: and the tangential tractions) saved at ``step``
+    (None: the last saved field) of the run in
     ``run_dir``, written to ``run_dir/stress.h5`` (layout: petroll/io/stress.py, docs/results.md).
 
     ``depths``: the depths z >= 0 in m, or None / "auto" (0 to twice the contact's smaller half-width, 41
@@ -381,11 +382,12 @@ def stress(run_dir: str | pathlib.Path, step: int | None = None, depths=None, nu
     r0, r1 = saved["rows"]
     z = _depths(depths, p, x[r0:r1], y, dx, dy, saved["step"], comm, line)
     solver = SubsurfaceStress(len(x), len(y), dx, dy, nu, comm, line)
+    traction = None if saved["traction"] is None else -saved["traction"]  # the body's on the half-space
     best = {"von_mises": (-1.0, (0.0, 0.0, 0.0)), "max_shear": (-1.0, (0.0, 0.0, 0.0))}
 
     def fields():
         for depth in z:
-            s = solver.at(p, float(depth))
+            s = solver.at(p, float(depth), traction)
             out = np.concatenate([s, von_mises(s)[None], max_shear(s)[None]])
             for name, field in (("von_mises", out[6]), ("max_shear", out[7])):
                 if field.size:
