@@ -248,3 +248,21 @@ def test_a_scene_file_with_friction_runs_from_the_command_line(shared_dir, comm,
     comm.Barrier()
     code, out, err = cli_main(["run", str(shared_dir / "carter.toml"), "--out", str(shared_dir / "cli"), "--quiet"])
     assert code == 0, err
+
+
+@pytest.mark.serial  # figures: one process
+def test_petroll_plot_draws_the_tractions_and_the_stick_slip_map(tmp_path):
+    """traction.png beside the other figures; its stick/slip map is 0 outside the contact, stick where the
+    slip velocity is 0 and slip elsewhere (NaN: a step of no duration's slipping cells)."""
+    from petroll.plot.friction import SLIP, STICK, stick_slip
+    from petroll.plot.runs import plot_results
+
+    p = np.array([0.0, 1.0, 2.0, 3.0])
+    assert list(stick_slip(p, np.array([0.0, 0.0, 1e-3, np.nan]))) == [0, STICK, SLIP, SLIP]
+    sphere = rolling(creepage=[-1e-3, 2e-4])
+    sphere["time"]["distance"] /= 4
+    for name, raw in (("line", carter(0.4)), ("sphere", sphere)):
+        run(scene_of(raw), MPI.COMM_SELF, tmp_path / name)
+        written = plot_results(tmp_path / name)
+        assert tmp_path / name / "plots" / "traction.png" in written
+        assert (tmp_path / name / "plots" / "traction.png").stat().st_size > 10000
