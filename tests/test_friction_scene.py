@@ -66,6 +66,7 @@ REFUSED = [
     ({"motion__tangential_force": [1.0, 0.0], "motion__creepage": [0.001, 0.0]},
      "[motion] creepage / tangential_force", "at most one"),
     ({"motion__spin": "fast"}, "[motion] spin", "finite number"),
+    ({"motion__tangential_force": [25.0, 20.0]}, "[motion] tangential_force", "friction bound mu x load = 30"),
     ({"motion__velocity": [0.0, 0.0], "motion__creepage": [0.001, 0.0]}, "[motion] creepage", "rolling body"),
     ({"body__material": "steel"}, "[body] material", '"same"'),
     ({"body__material": {"E": 1e9}}, "[body] material", "inline table"),

@@ -96,7 +96,8 @@ def friction_of(values: dict, raw: dict, material, line: bool, periodic: bool, s
     G = m["E"] / (2 * (1 + m["nu"]))
     pair = _pair(G, m["nu"], body, raw.get("body", {}).get("material", MISSING), source)
     return material, Friction(values["friction"]["coefficient"], *pair[:2], body=pair[2],
-                              **_motion(motion_values, raw.get("motion", {}), values["time"], line, source))
+                              **_motion(motion_values, raw.get("motion", {}), values["time"], line,
+                                       values["friction"]["coefficient"], source))
 
 
 def _pair(G: float, nu: float, body, written, source: str) -> tuple[float, float, str]:
@@ -123,7 +124,7 @@ def _pair(G: float, nu: float, body, written, source: str) -> tuple[float, float
     return 0.5 * weights, (nu / G + nu2 / G2) / weights, "elastic"
 
 
-def _motion(m: dict, table: dict, time: dict, line: bool, source: str) -> dict:
+def _motion(m: dict, table: dict, time: dict, line: bool, coefficient: float, source: str) -> dict:
     """The tangential motion's keyword arguments of Friction, checked against the velocity."""
     velocity = m["velocity"]
     rest = isinstance(velocity, motion.Constant) and not np.any(velocity.value)
@@ -147,6 +148,11 @@ def _motion(m: dict, table: dict, time: dict, line: bool, source: str) -> dict:
         out["creepage"] = m["creepage"]
     if m["tangential_force"] is not None:
         out["force"] = m["tangential_force"]
+        load = m["load"].peak() if m["load"] is not None else None
+        if load is not None and np.hypot(*out["force"]) > coefficient * load:
+            raise SceneError(source, "[motion] tangential_force", table["tangential_force"], f"exceeds the "
+                             f"friction bound mu x load = {coefficient * load:g} (N): the body would slide; "
+                             "give a smaller force, or a creepage")
         if rest and time["end"] is not None:
             out["ramp"] = time["end"]
     return out
