@@ -107,7 +107,6 @@ class FrictionLoop:
         force = None if f.force is None else np.asarray(f.force)[:m]
         bound = f.coefficient * pressure
         steady = rolling.solve(bound, f.creepage, f.spin, (record.sx, record.sy), force)
-        self.stepping.traction = steady.solution.traction
         return self._record(steady.solution, bound, steady.creepage, speed)
 
     def _record(self, solution: TangentialSolution, bound: np.ndarray, creepage, rate: float) -> FrictionRecord:
