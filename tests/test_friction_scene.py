@@ -58,6 +58,8 @@ def changed(raw, **changes):
 
 REFUSED = [
     ({"friction__coefficient": 0.0}, "[friction] coefficient", "> 0"),
+    ({"friction__coefficient": 1e300}, "[friction] coefficient", "at most 100"),
+    ({"body__material": {"E": 1e-300, "nu": 0.3}}, "[body] material", "outside what petroll computes with"),
     ({"friction__coefficient": None}, "[friction] coefficient", "required"),
     ({"friction__mu": 0.3}, "[friction] mu", "unknown key"),
     ({"motion__creepage": [2.0, 0.0]}, "[motion] creepage", "between -1 and 1"),

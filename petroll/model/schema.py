@@ -16,7 +16,7 @@ import numpy as np
 from petroll.errors import MISSING
 from petroll.model import materials
 from petroll.model import motion
-from petroll.model.limits import MAGNITUDES
+from petroll.model.limits import MAGNITUDES, scale_message
 from petroll.model.bodies import BODY_KEYS
 from petroll.model.tao import DEFAULT_TAO_TYPE, TAO_TYPES
 
@@ -288,9 +288,23 @@ def _body_material(value: Any) -> str | tuple[float, float]:
     if not isinstance(value, dict) or set(value) != {"E", "nu"}:
         raise Invalid(f"must be {BODY_MATERIAL_FORM}")
     try:
-        return _positive(value["E"]), _poisson(value["nu"])
+        E, nu = _positive(value["E"]), _poisson(value["nu"])
     except Invalid as exc:
         raise Invalid(f"{exc}; allowed: {BODY_MATERIAL_FORM}") from None
+    if out_of_scale(E) is not None:
+        raise Invalid(f"E: {scale_message(E, 'Pa')}")
+    return E, nu
+
+
+MAX_FRICTION = 100.0
+"""The largest [friction] coefficient (dry rubber reaches 3 to 4; beyond 100 mu p is no friction)."""
+
+
+def _coefficient(value: Any) -> float:
+    mu = _positive(value)
+    if mu > MAX_FRICTION:
+        raise Invalid(f"must be a number > 0, at most {MAX_FRICTION:g}")
+    return mu
 
 
 def _text(value: Any) -> str:
@@ -475,7 +489,8 @@ SCHEMA: dict[str, dict[str, Key]] = {
     "friction": {
         "coefficient": Key("number > 0", "Coulomb's friction coefficient mu: tangential tractions |q| <= mu p, "
                            "stick and slip (docs/friction.md); [friction] absent: frictionless; needs an "
-                           "elastic half-space, a non-periodic grid (required in [friction])", _positive,
+                           "elastic half-space, a non-periodic grid (required in [friction]); at most 100",
+                           _coefficient,
                            default=None),
     },
     "output": {
