@@ -269,3 +269,27 @@ def test_petroll_plot_draws_the_tractions_and_the_stick_slip_map(tmp_path):
         written = plot_results(tmp_path / name)
         assert tmp_path / name / "plots" / "traction.png" in written
         assert (tmp_path / name / "plots" / "traction.png").stat().st_size > 10000
+
+
+def test_the_onset_of_rolling_from_a_cattaneo_shift_reaches_the_steady_scene(comm, shared_dir):
+    """Force control, Q = mu P/2: step 0 shifts the body (Cattaneo), then it rolls one cell per step;
+    after two contact lengths its creepage and tractions are the steady scene's (solved directly, the
+    body where the transient ends) within 0.2 % (of mu p0 for the tractions)."""
+    raw = rolling(tangential_force=[-0.5 * MU * LOAD, 0.0])
+    h = A / 8
+    raw["body"]["position"] = [-4 * A, 0.0]
+    raw["time"]["distance"] = 4 * A
+    transient = run(scene_of(raw), comm, shared_dir / "transient")
+    end = transient.series["sx"][-1]
+    assert end == pytest.approx(0.0, abs=h / 100) and np.isnan(transient.series["creepage_x"][0])
+    assert transient.series["shift_x"][0] > 0  # the shift opposes the force on the body
+    steady = changed(raw, body__position=[float(end), 0.0])
+    steady["time"] = {"mode": "steady"}
+    direct = run(scene_of(steady), comm, shared_dir / "steady")
+    xi, reference = transient.series["creepage_x"][-1], direct.series["creepage_x"][0]
+    print(f"onset: creepage {xi / reference - 1:+.3%}")
+    assert xi == pytest.approx(reference, rel=2e-3)
+    q, q_ref = transient.field("traction_x")[-1], direct.field("traction_x")[0]
+    bound = MU * direct.pressure[0].max()
+    print(f"onset: tractions within {np.abs(q - q_ref).max() / bound:.2e} of mu p0")
+    assert np.abs(q - q_ref).max() < 2e-3 * bound
