@@ -293,3 +293,19 @@ def test_the_onset_of_rolling_from_a_cattaneo_shift_reaches_the_steady_scene(com
     bound = MU * direct.pressure[0].max()
     print(f"onset: tractions within {np.abs(q - q_ref).max() / bound:.2e} of mu p0")
     assert np.abs(q - q_ref).max() < 2e-3 * bound
+
+
+@pytest.mark.serial  # one process: the benchmark's own (COMM_WORLD) solves
+def test_petroll_bench_friction_quick_writes_its_table(tmp_path, cli_main):
+    """`petroll bench friction --quick`: every case's row in friction.csv, the tangential solves counting
+    their operator applications (two FFT pairs each in 3-D)."""
+    import csv
+
+    code, out, err = cli_main(["bench", "friction", "--quick", "--out", str(tmp_path)])
+    assert code == 0, err
+    rows = list(csv.DictReader(open(tmp_path / "friction.csv", encoding="utf-8")))
+    assert [r["case"].split(",")[0] for r in rows][:3] == ["normal QP", "normal QP", "shift Q = mu P/2"]
+    assert len(rows) == 8 and rows[-1]["case"].startswith("creep curve, 3 points")
+    for row in rows[2:]:
+        assert float(row["fft_pairs"]) == pytest.approx(2 * float(row["applications"]), rel=1e-12)
+        assert float(row["applications"]) > 0
