@@ -6,6 +6,7 @@ cell's limit, and a run's stresses with its tractions."""
 import numpy as np
 import pytest
 from scipy import integrate
+from test_stress import cell_quadrature
 
 from petroll.solver.stress import (SubsurfaceStress, cell_shear_stress, shear_stress_table,
                                    strip_shear_stress_table)
@@ -34,11 +35,7 @@ def test_cell_shear_coefficients_are_the_integral_of_cerruti_point_force(offset,
     ix, iy, z = offset
     x, y = ix * dx, iy * dy
     closed = cell_shear_stress(np.array(x), np.array(y), z, dx, dy, nu)
-    quadrature = [sum(integrate.dblquad(lambda v, u: cerruti(x - u, y - v, z, nu)[c], u0, u1, v0, v1,
-                                        epsabs=1e-13, epsrel=1e-11)[0]
-                      for u0, u1 in ((-dx / 2, 0), (0, dx / 2)) for v0, v1 in ((-dy / 2, 0), (0, dy / 2)))
-                  for c in range(6)]
-    assert np.max(np.abs(closed - quadrature)) < 1e-10
+    assert np.max(np.abs(closed - cell_quadrature(cerruti, x, y, z, dx, dy, nu))) < 1e-10
 
 
 def test_the_table_along_y_is_the_table_along_x_turned():

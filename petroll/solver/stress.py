@@ -100,36 +100,53 @@ def cell_stress(x: np.ndarray, y: np.ndarray, z: float, dx: float, dy: float, nu
     """Stresses (6, ...) at (x, y, z) relative to the centre of a dx x dy cell carrying unit pressure
     (compressive), in the order of :data:`COMPONENTS`; tension positive. x, y broadcast; z >= 0; the point
     must not lie on a vertical line through the cell's edges (cell centres never do)."""
-    a, b = dx / 2, dy / 2
-    x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
-    total: dict[str, np.ndarray] = {}
-    for su, sv, sign in ((a, b, 1.0), (a, -b, -1.0), (-a, b, -1.0), (-a, -b, 1.0)):
-        for k, t in corner_terms(x + su, y + sv, z).items():
-            total[k] = total.get(k, 0.0) + sign * t
-    return _stresses(total, z, nu)
+    return _stresses(cell_sums(corner_terms, x, y, z, dx, dy), z, nu)
 
 
 def cell_stress_table(ox: np.ndarray, oy: np.ndarray, z: float, dx: float, dy: float,
                       nu: float) -> np.ndarray:
     """:func:`cell_stress` at the cell centres offset by ox[i] dx, oy[j] dy (integer 1-D arrays): (6, len(ox),
     len(oy)). Neighbouring cells share corners, so each corner's terms are evaluated once (4x fewer)."""
+    return _stresses(table_sums(corner_terms, ox, oy, z, dx, dy), z, nu)
+
+
+def cell_sums(terms, x: np.ndarray, y: np.ndarray, z: float, dx: float, dy: float) -> dict[str, np.ndarray]:
+    """The mixed differences over the corners of a dx x dy cell of the corner functions ``terms(u, v, z)``
+    (a dict) at (x, y, z) relative to its centre: each function's integral over the cell."""
+    a, b = dx / 2, dy / 2
+    x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
+    total: dict[str, np.ndarray] = {}
+    for su, sv, sign in ((a, b, 1.0), (a, -b, -1.0), (-a, b, -1.0), (-a, -b, 1.0)):
+        for k, t in terms(x + su, y + sv, z).items():
+            total[k] = total.get(k, 0.0) + sign * t
+    return total
+
+
+def table_sums(terms, ox: np.ndarray, oy: np.ndarray, z: float, dx: float, dy: float) -> dict[str, np.ndarray]:
+    """:func:`cell_sums` at the cell centres offset by ox[i] dx, oy[j] dy (integer 1-D arrays), each of shape
+    (len(ox), len(oy)). Neighbouring cells share corners, so each corner's terms are evaluated once."""
     ox, oy = np.asarray(ox, dtype=np.int64).ravel(), np.asarray(oy, dtype=np.int64).ravel()
     cu, cv = np.union1d(2 * ox - 1, 2 * ox + 1), np.union1d(2 * oy - 1, 2 * oy + 1)  # in half cells
-    terms = corner_terms(cu[:, None] * (dx / 2), cv[None, :] * (dy / 2), z)
     # the corners 2o - 1 and 2o + 1 of a cell are neighbours in cu (all odd): its sum is a mixed difference
-    sums = {k: np.diff(np.diff(t, axis=0), axis=1) for k, t in terms.items()}
-    stresses = _stresses(sums, z, nu)
-    return stresses[:, np.searchsorted(cu, 2 * ox - 1)][:, :, np.searchsorted(cv, 2 * oy - 1)]
+    i, j = np.searchsorted(cu, 2 * ox - 1)[:, None], np.searchsorted(cv, 2 * oy - 1)[None, :]
+    return {k: np.diff(np.diff(t, axis=0), axis=1)[i, j]
+            for k, t in terms(cu[:, None] * (dx / 2), cv[None, :] * (dy / 2), z).items()}
+
+
+def strip_sums(terms, ox: np.ndarray, z: float, dx: float) -> dict[str, np.ndarray]:
+    """The differences over the two edges of strips of width dx offset by ox[i] dx (integers) of the strip
+    functions ``terms(u, z)``, each of shape (len(ox), 1)."""
+    ox = np.asarray(ox, dtype=np.int64).ravel()
+    edges = np.union1d(2 * ox - 1, 2 * ox + 1)  # in half strips; a strip's two edges are neighbours
+    i = np.searchsorted(edges, 2 * ox - 1)
+    return {k: np.diff(t)[i, None] for k, t in terms(edges * (dx / 2), z).items()}
 
 
 def strip_stress_table(ox: np.ndarray, z: float, dx: float, nu: float) -> np.ndarray:
     """The plane-strain stresses (6, len(ox), 1) at the centres of strips offset by ox[i] dx (integers) from
     a strip of width dx carrying unit pressure (line contact); sigma_xy = sigma_yz = 0 and sigma_yy =
     nu (sigma_xx + sigma_zz)."""
-    ox = np.asarray(ox, dtype=np.int64).ravel()
-    edges = np.union1d(2 * ox - 1, 2 * ox + 1)  # in half strips; a strip's two edges are neighbours
-    sums = {k: np.diff(t)[:, None] for k, t in strip_terms(edges * (dx / 2), z).items()}
-    return _stresses(sums, z, nu)[:, np.searchsorted(edges, 2 * ox - 1)]
+    return _stresses(strip_sums(strip_terms, ox, z, dx), z, nu)
 
 
 def _stresses(t: dict[str, np.ndarray], z: float, nu: float) -> np.ndarray:
@@ -180,13 +197,7 @@ def _shear_stresses(t: dict[str, np.ndarray], z: float, nu: float) -> np.ndarray
 def cell_shear_stress(x: np.ndarray, y: np.ndarray, z: float, dx: float, dy: float, nu: float) -> np.ndarray:
     """Stresses (6, ...) at (x, y, z) relative to the centre of a dx x dy cell carrying a unit traction along
     +X on the half-space (:func:`cell_stress`'s conventions)."""
-    a, b = dx / 2, dy / 2
-    x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
-    total: dict[str, np.ndarray] = {}
-    for su, sv, sign in ((a, b, 1.0), (a, -b, -1.0), (-a, b, -1.0), (-a, -b, 1.0)):
-        for k, t in shear_corner_terms(x + su, y + sv, z).items():
-            total[k] = total.get(k, 0.0) + sign * t
-    return _shear_stresses(total, z, nu)
+    return _shear_stresses(cell_sums(shear_corner_terms, x, y, z, dx, dy), z, nu)
 
 
 SWAPPED = [1, 0, 2, 3, 5, 4]
@@ -199,19 +210,12 @@ def shear_stress_table(ox: np.ndarray, oy: np.ndarray, z: float, dx: float, dy: 
     unit traction along X (``axis`` 0) or Y (1, by exchanging x and y): (6, len(ox), len(oy))."""
     if axis == 1:
         return shear_stress_table(oy, ox, z, dy, dx, nu)[SWAPPED].transpose(0, 2, 1)
-    ox, oy = np.asarray(ox, dtype=np.int64).ravel(), np.asarray(oy, dtype=np.int64).ravel()
-    cu, cv = np.union1d(2 * ox - 1, 2 * ox + 1), np.union1d(2 * oy - 1, 2 * oy + 1)  # in half cells
-    terms = shear_corner_terms(cu[:, None] * (dx / 2), cv[None, :] * (dy / 2), z)
-    sums = {k: np.diff(np.diff(t, axis=0), axis=1) for k, t in terms.items()}
-    return _shear_stresses(sums, z, nu)[:, np.searchsorted(cu, 2 * ox - 1)][:, :, np.searchsorted(cv, 2 * oy - 1)]
+    return _shear_stresses(table_sums(shear_corner_terms, ox, oy, z, dx, dy), z, nu)
 
 
 def strip_shear_stress_table(ox: np.ndarray, z: float, dx: float, nu: float) -> np.ndarray:
     """The plane-strain stresses (6, len(ox), 1) of a unit traction along X on a strip of width dx."""
-    ox = np.asarray(ox, dtype=np.int64).ravel()
-    edges = np.union1d(2 * ox - 1, 2 * ox + 1)
-    sums = {k: np.diff(t)[:, None] for k, t in strip_shear_terms(edges * (dx / 2), z).items()}
-    return _shear_stresses(sums, z, nu)[:, np.searchsorted(edges, 2 * ox - 1)]
+    return _shear_stresses(strip_sums(strip_shear_terms, ox, z, dx), z, nu)
 
 
 def von_mises(s: np.ndarray) -> np.ndarray:
