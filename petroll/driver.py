@@ -27,9 +27,9 @@ from petroll.io.rundir import DirectoryBusy, RunLock, clean_temporaries
 from petroll.model.limits import PetrollWarning, negative_friction
 from petroll.model.preflight import check_run
 from petroll.model.scene import Scene
+from petroll.records import StepRecord, series_rows
 from petroll.solver.rough import BINS
-from petroll.solver.friction_loop import series_rows
-from petroll.solver.simulation import Simulation, StepRecord
+from petroll.solver.simulation import Simulation
 
 
 def run(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, out: str | pathlib.Path | None = None,
@@ -58,7 +58,7 @@ def run(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, out: str | pathlib.Path |
     pressure in Pa, penetration in m), e.g. a neighbouring steady state (continuation).
     ``estimate_error``: after the run, solve the scene again on grids 2x (and 4x) coarser and write the
     discretisation error of the last step's force, mu_r, p_max, area, lead and trail to results.h5's group
-    error_estimate (petroll.solver.estimate; ``Results.error_estimate``; docs/accuracy.md).
+    error_estimate (petroll.studies.estimate; ``Results.error_estimate``; docs/accuracy.md).
     A step that fails (SolverError, e.g. a contact reaching the grid's edge; SceneError, [time] max_steps)
     raises :class:`RunFailed` naming the scene file, the step, its time and the distance rolled, after
     every step solved before it is written to results.h5 (complete = false).
@@ -155,8 +155,8 @@ def _run(scene: Scene, comm: MPI.Comm, out: pathlib.Path, identity: tuple[str, s
     if progress and comm.rank == 0:
         print(file=sys.stderr)
     if estimate_error:
-        from petroll.solver.estimate import as_attributes
-        from petroll.solver.estimate import estimate_error as estimate
+        from petroll.studies.estimate import as_attributes
+        from petroll.studies.estimate import estimate_error as estimate
 
         run_wall = clock.perf_counter() - wall  # the run alone: its steps and output, not the estimate
         last = sim.records[-1]
@@ -178,7 +178,7 @@ def _append(results: ResultsFile, sim: Simulation, save: bool, complete: bool, d
     continues (``newest``: this run's newest checkpoint)."""
     try:
         rough = sim.rough_outputs() if save and results.rough is not None else None
-        results.append(series_rows(sim), saved_fields(sim) if save else None, complete=complete, describe=describe,
+        results.append(_rows(sim), saved_fields(sim) if save else None, complete=complete, describe=describe,
                        rough=rough, warnings=warned)
     except OutputError as exc:
         n = results.steps
@@ -186,6 +186,11 @@ def _append(results: ResultsFile, sim: Simulation, save: bool, complete: bool, d
         then = (f"free space (or fix the cause) and continue with: petroll restart {newest}" if newest else
                 "free space (or fix the cause) and run the scene again")
         raise OutputError(f"{exc}; {kept}; {then}") from None
+
+
+def _rows(sim: Simulation) -> list:
+    """The rows of ``sim``'s series: its StepRecords, joined with their FrictionRecords with [friction]."""
+    return series_rows(sim.records, None if sim.friction is None else sim.friction.records)
 
 
 class RunFailed(PetrollError):
@@ -207,7 +212,7 @@ def _failure(scene: Scene, sim: Simulation, results: ResultsFile, checkpoint, ex
     done = len(sim.records)
     if not done:  # nothing solved, nothing kept: the error as it is
         return exc
-    results.append(series_rows(sim), None, complete=False, describe=True)
+    results.append(_rows(sim), None, complete=False, describe=True)
     t, rolled = sim.t + (sim.dt_next or 0.0), sim.records[-1].distance
     kept = f"{results.path} holds the {done} step{'s' * (done != 1)} solved before it (complete = false)"
     kept += f"; last checkpoint: {checkpoint}" if checkpoint is not None else "; no checkpoint"

@@ -12,55 +12,12 @@ global values (the series of results.h5); :attr:`FrictionLoop.fields` the newest
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, fields
-
 import numpy as np
 from mpi4py import MPI
 
+from petroll.records import FrictionRecord
 from petroll.solver.friction import Stepping, SteadyRolling
 from petroll.solver.tangential import TangentialSolution, TangentialSolver
-
-
-@dataclass
-class FrictionRecord:
-    """What one step reports of friction (global values). Forces N (N/m in line contact)."""
-
-    traction_x: float  # sum q_x dA: the tangential force the half-space exerts on the body, N
-    traction_y: float
-    creepage_x: float  # given or found (force control); NaN for a step without motion (a shift)
-    creepage_y: float
-    shift_x: float  # the body's rigid tangential displacement of the shifts so far, m
-    shift_y: float
-    stick_area: float  # cells with p > 0 and |q| < mu p (within the solver's tolerance), m^2 (m)
-    friction_power: float  # -sum q . (slip velocity) dA >= 0, W (W/m); NaN for a step of no duration
-    friction_iterations: int
-    friction_applications: int
-
-
-SERIES_UNITS = {"traction_x": "N", "traction_y": "N", "creepage_x": "-", "creepage_y": "-", "shift_x": "m",
-                "shift_y": "m", "stick_area": "m^2", "friction_power": "W", "friction_iterations": "-",
-                "friction_applications": "-"}
-"""The series of a run with friction, with their units."""
-
-LINE_ABSENT = ("traction_y", "creepage_y", "shift_y")
-"""Friction's series a line-contact run does not write."""
-
-LINE_UNITS = {"traction_x": "N/m", "stick_area": "m", "friction_power": "W/m"}
-"""Friction's series whose unit differs in line contact (per unit length)."""
-
-INTEGER_SERIES = ("friction_iterations", "friction_applications")
-
-
-def series_units(line: bool) -> dict[str, str]:
-    """Friction's series and their units (``line``: a line-contact run's)."""
-    return {name: (LINE_UNITS.get(name, unit) if line else unit) for name, unit in SERIES_UNITS.items()
-            if not (line and name in LINE_ABSENT)}
-
-
-def as_record(values: dict) -> FrictionRecord:
-    """A FrictionRecord from a step's values by name (a checkpoint's series; line contact's absent ones 0)."""
-    return FrictionRecord(**{f.name: (int if f.name in INTEGER_SERIES else float)(values.get(f.name, 0))
-                             for f in fields(FrictionRecord)})
 
 
 class FrictionLoop:
@@ -151,22 +108,5 @@ class FrictionLoop:
         st.scale = float(small[1])
         st.shift_total, st.creepage = np.array(small[2 : 2 + m]), np.array(small[2 + m : 2 + 2 * m])
         n = len(series["step"])
-        self.records = [as_record({k: v[i] for k, v in series.items()}) for i in range(n)]
+        self.records = [FrictionRecord.from_series(series, i) for i in range(n)]
 
-
-class Joined:
-    """A StepRecord with its step's FrictionRecord's values as attributes too: the rows of the series of a
-    run with friction (results.h5, checkpoints)."""
-
-    def __init__(self, record, friction: FrictionRecord):
-        self.record, self.friction = record, friction
-
-    def __getattr__(self, name: str):
-        return getattr(self.friction if name in SERIES_UNITS else self.record, name)
-
-
-def series_rows(sim) -> list:
-    """The rows of ``sim``'s series: its StepRecords, joined with their FrictionRecords with friction."""
-    if sim.friction is None:
-        return sim.records
-    return [Joined(r, f) for r, f in zip(sim.records, sim.friction.records)]
