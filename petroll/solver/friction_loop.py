@@ -12,6 +12,7 @@ global values (the series of results.h5); :attr:`FrictionLoop.fields` the newest
 from __future__ import annotations
 
 import math
+
 import numpy as np
 from mpi4py import MPI
 
@@ -33,6 +34,7 @@ class FrictionLoop:
         self.fields: dict[str, np.ndarray] = {}
 
     def _force(self, t: float) -> np.ndarray | None:
+        """The tangential force held at time t (N, an m-vector; a shift's ramp), or None: creepage control."""
         force = self.friction.force_at(t)
         return None if force is None else force[: self.solver.m]
 
@@ -43,13 +45,12 @@ class FrictionLoop:
         f, stepping = self.friction, self.stepping
         bound = f.coefficient * pressure
         distance = record.distance - before.distance if before is not None else 0.0
+        force = self._force(record.t)
         if distance > 0:
-            force = None if f.force is None else np.asarray(f.force)[: self.solver.m]
             solution = stepping.roll(bound, (record.sx, record.sy), distance, direction, f.creepage, f.spin,
                                      force)
             creepage, rate = stepping.creepage, distance / (dt * stepping.scale)
         else:
-            force = self._force(record.t)
             increment = None if force is not None else np.zeros(self.solver.m)
             solution = stepping.shift(bound, increment, force)
             creepage, rate = np.full(self.solver.m, math.nan), (1 / dt if dt > 0 else math.nan)
@@ -58,12 +59,11 @@ class FrictionLoop:
     def steady(self, record, pressure: np.ndarray, direction, speed: float) -> FrictionRecord:
         """The steady rolling state on the steady ``pressure`` (Pa, this rank's rows) of the body at
         (record.sx, record.sy) moving along ``direction`` (X or Y) at ``speed`` (m/s)."""
-        f, m = self.friction, self.solver.m
+        f = self.friction
         axis = 0 if direction[1] == 0 else 1
         rolling = SteadyRolling(self.solver, axis, 1 if direction[axis] > 0 else -1)
-        force = None if f.force is None else np.asarray(f.force)[:m]
         bound = f.coefficient * pressure
-        steady = rolling.solve(bound, f.creepage, f.spin, (record.sx, record.sy), force)
+        steady = rolling.solve(bound, f.creepage, f.spin, (record.sx, record.sy), self._force(record.t))
         return self._record(steady.solution, bound, steady.creepage, speed)
 
     def _record(self, solution: TangentialSolution, bound: np.ndarray, creepage, rate: float) -> FrictionRecord:
@@ -89,8 +89,9 @@ class FrictionLoop:
 
     # -- the checkpoint's state -------------------------------------------------------------------------
     def state(self) -> tuple[dict[str, list[np.ndarray]], np.ndarray]:
-        """(fields: name -> this rank's rows of each component, small: [last rolled distance (NaN: the last
-        step was a shift), shift (m), creepage]) of the stepping state a restart needs."""
+        """(fields: name -> this rank's rows of each component, small: [last rolled distance (m; NaN: the
+        last step was a shift), its distance in the QP's form (m), shift (m), creepage]) of the stepping
+        state a restart needs."""
         st = self.stepping
         parts = {"traction": list(st.traction)}
         if st.older is not None:
