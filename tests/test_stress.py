@@ -50,11 +50,17 @@ def test_cell_coefficients_are_the_integral_of_the_point_load(offset):
     ix, iy, z = offset
     x, y = ix * dx, iy * dy
     closed = cell_stress(np.array(x), np.array(y), z, dx, dy, nu)
-    quadrature = [sum(integrate.dblquad(lambda v, u: point_load(x - u, y - v, z, nu)[c], u0, u1, v0, v1,
-                                        epsabs=1e-13, epsrel=1e-11)[0]
-                      for u0, u1 in ((-dx / 2, 0), (0, dx / 2)) for v0, v1 in ((-dy / 2, 0), (0, dy / 2)))
-                  for c in range(6)]
-    assert np.max(np.abs(closed - quadrature)) < 1e-11
+    assert np.max(np.abs(closed - cell_quadrature(point_load, x, y, z, dx, dy, nu))) < 1e-11
+
+
+def cell_quadrature(point, x, y, z, dx, dy, nu) -> np.ndarray:
+    """The six stresses ``point(x, y, z, nu)`` of a point load integrated over a dx x dy cell centred at the
+    origin, at (x, y, z): adaptive quadrature split at the point's vertical (the integrand's axis is never
+    sampled)."""
+    return np.array([sum(integrate.dblquad(lambda v, u: point(x - u, y - v, z, nu)[c], u0, u1, v0, v1,
+                                           epsabs=1e-13, epsrel=1e-11)[0]
+                         for u0, u1 in ((-dx / 2, 0), (0, dx / 2)) for v0, v1 in ((-dy / 2, 0), (0, dy / 2)))
+                     for c in range(6)])
 
 
 def test_surface_carries_the_pressure_and_no_shear(comm):
@@ -155,7 +161,7 @@ def test_two_ranks_agree_with_one_to_round_off(comm):
 def write_patch_results(directory: pathlib.Path, scene_material: str) -> np.ndarray:
     """A results.h5 holding one saved field, a random patch on a 21 x 14 grid (rank 0 writes)."""
     from petroll.io.results import ResultsFile
-    from petroll.solver.simulation import StepRecord
+    from petroll.records import SERIES, StepRecord
 
     nx, ny = 21, 14
     p = np.zeros((nx, ny))
@@ -164,7 +170,7 @@ def write_patch_results(directory: pathlib.Path, scene_material: str) -> np.ndar
             f"{scene_material}\n")
     if MPI.COMM_WORLD.rank == 0:
         x, y = (np.arange(nx) + 0.5) * 1e-4, -1.05e-3 + (np.arange(ny) + 0.5) * 1.5e-4
-        records = [StepRecord(**{name: 0 for name in StepRecord.__annotations__} | {"step": k, "t": 0.1 * k})
+        records = [StepRecord(**{name: 0 for name in SERIES} | {"step": k, "t": 0.1 * k})
                    for k in range(5)]
         out = ResultsFile(directory / "results.h5", text, x, y, MPI.COMM_SELF)
         out.append(records[:4])

@@ -13,48 +13,22 @@ from __future__ import annotations
 import math
 import time as clock
 from collections.abc import Iterable, Iterator
-from dataclasses import dataclass
 
 import numpy as np
 from mpi4py import MPI
 
 from petroll.solver.contact import BeyondReach, ContactSolver
 from petroll.errors import SceneError
+from petroll.solver.friction_loop import FrictionLoop
 from petroll.solver.history import make_history
-from petroll.solver.rough import RoughOutputs, radial_spectrum, spectrum_edges
+from petroll.records import RoughOutputs, StepRecord
+from petroll.solver.rough import radial_spectrum, spectrum_edges
 from petroll.solver.sliding import SteadySliding
 from petroll.solver.steady import SteadySolve, steady_step
 from petroll.model.clock import step_length
 from petroll.model.scene import Scene
 from petroll.solver.wake import Wake
 from petroll.solver.warm import WarmStart
-
-
-@dataclass
-class StepRecord:
-    """What one step reports (global values; formulation §6). Lengths m, forces N, pressures Pa."""
-
-    step: int
-    t: float
-    sx: float
-    sy: float
-    delta: float
-    force: float
-    force_x: float  # rolling resistance along X: sum p dZ/dX dA, > 0 when it resists motion in +X
-    force_y: float
-    mu_r: float  # resisting force along the motion / normal force
-    area: float
-    p_max: float
-    cop_x: float  # centre of pressure relative to the body
-    cop_y: float
-    lead: float  # leading and trailing patch edges along the motion, relative to the body
-    trail: float
-    dissipation: float  # power of the resisting force, W
-    distance: float  # rolled path length so far
-    iterations: int
-    applications: int
-    residual: float
-    solve_time: float
 
 
 class Simulation:
@@ -81,6 +55,7 @@ class Simulation:
         self.steady_start = None  # a first guess for solve_steady: (whole-grid pressure in Pa, penetration in m)
         self.fixed_point_iterations = 0  # the last solve_steady's QPs (each with its extended-grid convolution)
         self.window = None  # the newest step's QP window, cells [i0, i1) x [j0, j1)
+        self.friction = FrictionLoop(scene, comm) if scene.friction is not None else None  # [friction]
         self._newest = None  # the newest step's (profile, v, J_eff, delta): what surface() needs (a steady
         # solve: (profile, w, None, delta))
 
@@ -132,7 +107,7 @@ class Simulation:
         :meth:`steps` ends with, but for its ``solve_time`` (the last step's), on a fresh simulation of a
         scene without [time] steady (whose stop needs every step's record; it is not applied here). The
         diagnostics (force, mu_r, the patch ...) are made for the last step only, and no record is kept in
-        ``self.records``: what the error estimate reads of its coarser grids (petroll.solver.estimate).
+        ``self.records``: what the error estimate reads of its coarser grids (petroll.studies.estimate).
         A steady solve ([time] mode = "steady") is its one step, solved by :meth:`steps` (which keeps its
         record). RuntimeError on a simulation that has solved or restored steps. ``after_step()``: called on
         every rank after each step (e.g. to stop on a signal by raising). Collective."""
@@ -174,6 +149,8 @@ class Simulation:
         if before is not None:
             distance = before.distance + float(np.hypot(sx - before.sx, sy - before.sy))
         record = self._diagnose(len(self.records), t, sx, sy, solution, velocity, distance, elapsed)
+        if self.friction is not None:  # the step's tangential problem on its pressure
+            self.friction.step(record, before, self.pressure, self.direction, dt)
         self.records.append(record)
         return record
 
@@ -232,6 +209,8 @@ class Simulation:
         sx, sy = self.scene.position
         velocity = solve.speed * solve.direction
         record = self._diagnose(0, 0.0, sx, sy, solution, velocity, 0.0, clock.perf_counter() - began)
+        if self.friction is not None:  # steady rolling with friction on the steady pressure
+            self.friction.steady(record, self.pressure, solve.direction, solve.speed)
         self.records.append(record)
         return record
 
