@@ -295,7 +295,6 @@ def test_line_contact_on_a_thick_layer_is_the_half_space(comm):
     assert np.abs(thick - plain).max() <= 1e-5 * plain.max()
 
 
-@pytest.mark.slow
 def test_rolling_on_a_thin_frictionless_layer_is_the_winkler_bed_of_the_conveyor_study(comm):
     """The idler scene on a frictionless cover h = 0.1 mm (contact 2.25 mm, 45 cells): petroll's transient
     run to its steady state against the Winkler model's steady state solved directly along the contact
