@@ -606,10 +606,13 @@ def test_sigterm_and_sigint_to_petroll_launch_mpirun_end_the_run_with_a_checkpoi
 def test_launch_passes_a_signal_to_a_command_without_ranks_and_exits_with_its_status(tmp_path, cli, cli_main):
     """``petroll launch`` of a command that is no MPI launch line (no child carries a rank): SIGTERM and
     SIGINT reach the command itself, which they end, and launch exits with 128 + the signal's number; no
-    command at all is refused in one line, exit 2."""
+    command at all is refused in one line, exit 2. The command sets both signals' default action, as
+    petroll's ranks set their handlers (a job started in the background inherits SIGINT ignored)."""
+    command = ("import pathlib, signal, sys, time; signal.signal(signal.SIGINT, signal.SIG_DFL); "
+               "signal.signal(signal.SIGTERM, signal.SIG_DFL); pathlib.Path(sys.argv[1]).touch(); time.sleep(60)")
     for signum in (signal.SIGTERM, signal.SIGINT):
         started = tmp_path / f"started-{signum.name}"
-        proc = cli.start("launch", "sh", "-c", f"touch {started}; exec sleep 60", cwd=tmp_path,
+        proc = cli.start("launch", sys.executable, "-c", command, started, cwd=tmp_path,
                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         limit = time.monotonic() + 60
         while not started.exists():
