@@ -413,6 +413,7 @@ def test_max_steps_depths_and_times_are_bounded(shared_dir, comm, cli_main, monk
     refused(cli_main, ["plot", "run", "--times", times], "--times: picks", "at most 16")
 
 
+@pytest.mark.slow
 @pytest.mark.serial
 @pytest.mark.parametrize("argv", [["keys"], ["check", "runs/sphere.toml"]], ids=["keys", "check"])
 def test_a_reader_that_stops_reading_ends_the_command_quietly(argv, cli):

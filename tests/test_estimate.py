@@ -158,6 +158,7 @@ def test_the_known_order_follows_the_integrator(comm, shared_dir):
     assert known_order(paper.replace(elastic)) == second
 
 
+@pytest.mark.slow
 def test_for_the_paper_integrator_the_estimate_is_within_3_of_the_true_error(comm):
     """runs/roller-2d.toml with the first-order "paper" integrator (that of tabulated materials) against a
     reference 8x finer (1472 strips, 8x the steps): the penetration's and mu_r's estimates within a factor
