@@ -100,7 +100,7 @@ def _run(scene: Scene, comm: MPI.Comm, out: pathlib.Path, identity: tuple[str, s
     sim.steady_start = steady_start
     g = scene.grid
     steady = scene.time.mode == "steady"
-    rough = None if g.line or not all(g.periodic) else BINS  # the group rough of a periodic grid
+    rough = BINS if g.topology.statistics else None  # the group rough of a 3-D grid periodic along both axes
     results = ResultsFile(out / "results.h5", scene.text, g.x, g.y, comm, fields=scene.fields, line=g.line,
                           steady=steady, source=str(scene.source), run_id=run_id, rough=rough,
                           fingerprint=inputs)

@@ -172,3 +172,24 @@ def test_no_function_over_80_lines_and_no_module_over_600_beyond_the_listed_exce
     assert not unlisted, {f: functions[f] for f in unlisted}
     assert not set(LONG_MODULES) - long_modules, "listed but no longer long: remove from LONG_MODULES"
     assert not set(LONG_FUNCTIONS) - long_functions, "listed but no longer long: remove from LONG_FUNCTIONS"
+
+
+TOPOLOGY_READERS = ("petroll/model/topology.py",)
+"""The modules that read a grid's ``periodic`` values: its topology (petroll.model.topology, which owns what
+differs between a windowed half-space, periodic grids and line contact)."""
+
+
+def test_only_the_topology_reads_whether_a_grid_repeats():
+    """No ``x.periodic`` attribute is read outside the grid's topology (a module's function of that
+    name, ``bench_rough.periodic``, is not one): what differs between topologies is a method or property
+    of the topology (``grid.topology``), not a test of the flag."""
+    readers = set()
+    for path in PACKAGE.rglob("*.py"):
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        imported = {alias.asname or alias.name for node in ast.walk(tree)
+                    if isinstance(node, (ast.Import, ast.ImportFrom)) for alias in node.names}
+        if any(isinstance(node, ast.Attribute) and node.attr == "periodic"
+               and not (isinstance(node.value, ast.Name) and node.value.id in imported) for node in ast.walk(tree)):
+            readers.add(str(path.relative_to(PACKAGE.parent)))
+    assert set(readers) <= set(TOPOLOGY_READERS), sorted(set(readers) - set(TOPOLOGY_READERS))
+    assert set(readers) == set(TOPOLOGY_READERS), "a listed reader no longer reads it: update the list"

@@ -152,7 +152,7 @@ def negative_friction(scene, mu_r: float) -> str | None:
     held = [p for p in (scene.velocity, scene.penetration, scene.load) if p is not None]
     if scene.time.mode != "steady" and not all(isinstance(p, motion.Constant) for p in held):
         return None
-    what = "sliding friction" if scene.time.mode == "steady" and any(scene.grid.periodic) else "mu_r"
+    what = "sliding friction" if scene.time.mode == "steady" and scene.grid.topology.whole else "mu_r"
     return (f"{scene.source}: {what} = {mu_r:.4g} < 0 from a dissipative material at a steady state: the "
             "material can only resist a steady motion, so this value is wrong (a time step or grid too "
             "coarse for the contact: petroll check SCENE, docs/accuracy.md)")

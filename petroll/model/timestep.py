@@ -130,7 +130,7 @@ def check_time(scene, found: TimeResolution | None) -> str | None:
                          f"is long ({longest:.3g} m): no run can use such a step; {found.at_most(longest)} keeps "
                          f"it within the grid, {found.giving(GOOD_STEPS)} gives {GOOD_STEPS} steps per contact "
                          "half-width (docs/accuracy.md)")
-    if scene.time.mode == "steady" and any(g.periodic) and found.length < FINEST_SLIDE * longest:
+    if scene.time.mode == "steady" and g.topology.whole and found.length < FINEST_SLIDE * longest:
         raise SceneError(scene.source, key, value, f"the steady sliding step moves the body {found.length:.3g} m, "
                          f"{found.length / longest:.2g} of the grid's longer side: below {FINEST_SLIDE:g} of it "
                          "the solve loses its digits to round-off; "

@@ -258,7 +258,7 @@ class InfluenceOperator:
     rows directly (Love's), is computed for the rows each rank needs, so that no rank holds a table of a
     whole large grid. :func:`influence_operator` picks a grid's.
 
-    A periodic kernel (petroll.solver.kernels.periodic; ``periodic`` True) is applied on its whole grid
+    A periodic kernel (petroll.solver.kernels.periodic; ``whole`` True) is applied on its whole grid
     only (its windows are the grid: ``window(kernel.nx, kernel.ny)``), unpadded along its periodic axes,
     and has no row-sum bounds.
     """
@@ -270,10 +270,10 @@ class InfluenceOperator:
         self.kernel, self.comm, self.workers = kernel, comm, workers
         self.dx, self.dy = kernel.dx, kernel.dy
         self.positive = kernel.positive  # every coefficient > 0 (a layer's are not: its surface bulges)
-        self.periodic = any(getattr(kernel, "fourier", (False, False)))
+        self.whole = any(getattr(kernel, "fourier", (False, False)))
         # a periodic kernel without a k = 0 response: displacements are taken from their mean plane
         self.mean_free = all(getattr(kernel, "fourier", (False, False))) and float(kernel.values(0, 0)) == 0
-        self._table = None if self.periodic else kernel.table(1, 1)
+        self._table = None if self.whole else kernel.table(1, 1)
         self._windows: dict[tuple[int, int], Convolution] = {}
 
     def coefficients(self, nx: int, ny: int) -> np.ndarray:
@@ -283,7 +283,7 @@ class InfluenceOperator:
     @property
     def diagonal(self) -> float:
         """A_ii, the displacement at a loaded cell's own centre per unit pressure (unit compliance)."""
-        if self.periodic:
+        if self.whole:
             return self.window(self.kernel.nx, self.kernel.ny).diagonal
         return float(self._table[0, 0])
 
@@ -296,7 +296,7 @@ class InfluenceOperator:
         on the torus of :meth:`pc_torus`."""
         key = (nx, ny, inverse)
         conv = self._windows.pop(key, None)
-        if conv is None and self.periodic:
+        if conv is None and self.whole:
             if (nx, ny) != (self.kernel.nx, self.kernel.ny):
                 raise ValueError(f"a periodic kernel applies to its whole grid ({self.kernel.nx} x "
                                  f"{self.kernel.ny} cells), not to a {nx} x {ny} block")

@@ -98,8 +98,8 @@ class Simulation:
         the steady state solved directly (:meth:`solve_steady`).
         """
         if self.scene.time.mode == "steady":
-            periodic = any(self.scene.grid.periodic)
-            record = (self.solve_sliding if periodic else self.solve_steady)(tol=self.scene.solver.tol)
+            sliding = self.scene.grid.topology.whole
+            record = (self.solve_sliding if sliding else self.solve_steady)(tol=self.scene.solver.tol)
             self.t, self.dt_next = 0.0, None
             yield record
             return
