@@ -193,3 +193,21 @@ def test_only_the_topology_reads_whether_a_grid_repeats():
             readers.add(str(path.relative_to(PACKAGE.parent)))
     assert set(readers) <= set(TOPOLOGY_READERS), sorted(set(readers) - set(TOPOLOGY_READERS))
     assert set(readers) == set(TOPOLOGY_READERS), "a listed reader no longer reads it: update the list"
+
+
+def test_the_time_mode_is_an_enum_never_compared_with_a_string():
+    """[time] mode is a petroll.model.clock.TimeMode: no ``x.mode == "steady"`` (or any string) anywhere, and
+    the time loop runs a steady solve through the protocol of petroll.solver.steady_state without naming
+    which (no rolling or sliding class in petroll/solver/simulation.py)."""
+    compared = []
+    for path in PACKAGE.rglob("*.py"):
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.Compare):
+                sides = [node.left, *node.comparators]
+                if (any(isinstance(s, ast.Attribute) and s.attr == "mode" for s in sides)
+                        and any(isinstance(s, ast.Constant) and isinstance(s.value, str) for s in sides)):
+                    compared.append(f"{path.relative_to(PACKAGE.parent)}:{node.lineno}")
+    assert not compared, compared
+    loop = imports()["petroll.solver.simulation"]
+    assert not {n for n in loop if within(n, "petroll.solver.steady") or within(n, "petroll.solver.sliding")}
+    assert "petroll.solver.steady_state" in loop

@@ -22,6 +22,7 @@ from petroll.model import materials
 from petroll.model import motion
 from petroll.model.bodies import Body, HeightMap, HeightProfile, make_body
 from petroll.model.bodies.rough import samples_surface
+from petroll.model.clock import TimeMode
 from petroll.model.grid import Grid, line_grid
 from petroll.model.limits import MAGNITUDES, scale_message
 from petroll.model.schema import BODY_LENGTHS, CELL_DIGITS, MAX_CELLS, MODEL_KEYS, SCHEMA, Invalid, out_of_scale
@@ -48,7 +49,7 @@ class Time:
     distance: float | None
     steady: float | None
     max_steps: int
-    mode: str = "transient"  # "steady": the steady state solved directly (one step)
+    mode: TimeMode = TimeMode.TRANSIENT  # STEADY: the steady state solved directly (one step)
     allow_coarse: bool = False  # [time] allow_coarse: run below petroll.model.preflight.LEAST_STEPS
 
 
@@ -164,7 +165,7 @@ def parse_scene(raw: dict, source: str = "<python>", base_dir: str | pathlib.Pat
         given = {k: v for k, v in raw.get("motion", {}).items() if k in ("penetration", "load")}
         raise SceneError(source, "[motion] penetration / load", given or MISSING,
                          "exactly one of penetration (m) or load (N) must be given")
-    time = Time(**values["time"])
+    time = Time(**{**values["time"], "mode": TimeMode(values["time"]["mode"])})
     _check_time(time, raw.get("time", {}), source)
     integrator = values["solver"]["integrator"]
     if integrator is None:
@@ -185,7 +186,7 @@ def parse_scene(raw: dict, source: str = "<python>", base_dir: str | pathlib.Pat
                   shift_factor=shift_factor,
                   layer=_material_layer(values["material"], raw.get("material", {}), source),
                   allow_coarse=g["allow_coarse"])
-    if time.mode == "steady":
+    if time.mode is TimeMode.STEADY:
         _check_steady(scene)
     else:
         _check_steps(scene)
@@ -401,7 +402,7 @@ STEADY_TIME_KEYS = ("mode", "steps_per_cell", "dt", "allow_coarse")
 def _check_time(time: Time, table: dict, source: str) -> None:
     if not table:
         return
-    if time.mode == "steady":
+    if time.mode is TimeMode.STEADY:
         for key in table:
             if key not in STEADY_TIME_KEYS:
                 raise SceneError(source, f"[time] {key}", table[key], 'not with mode = "steady" (one step, the '

@@ -114,6 +114,11 @@ class ContactSolver:
     def local_shape(self) -> tuple[int, int]:
         return (self.r1 - self.r0, self.grid.ny)
 
+    def own_rows(self, field) -> np.ndarray:
+        """This rank's grid rows of a ``field`` given on the whole grid (nx x ny values) or as these rows."""
+        rows = np.asarray(field, dtype=float).reshape(-1, self.grid.ny)
+        return rows[self.r0 : self.r1] if len(rows) == self.grid.nx else rows
+
     # -- displacement control ---------------------------------------------------------------------------
     def solve_penetration(self, height: np.ndarray, compliance: float, delta: float,
                           warm: np.ndarray | None = None) -> StepSolution:

@@ -44,6 +44,7 @@ from petroll.solver.contact import ContactSolver
 from petroll.solver.history import transfer
 from petroll.solver.influence import Convolution
 from petroll.solver.kernels.periodic import Spectral
+from petroll.solver.steady import steady_step
 
 FORMS = ("operator", "modulus", "lag", "newton")
 """The kernels of the steady sliding solve, each A_k times a factor of H (class SlidingKernel)."""
@@ -142,19 +143,28 @@ class ContactSystem:
 
 
 class SteadySliding:
-    """The steady sliding state of one scene on ``comm``: ``solve(profile, ...)`` (collective).
+    """The steady sliding state of ``scene`` at its constant velocity (m/s, taken at t = 0) with the
+    integrator's step dt (petroll.solver.steady.steady_step): :meth:`solve` (collective over the comm of
+    ``solver``, the scene's contact solver, whose operator's kernel is the grid's periodic kernel A_k).
+    ``tol``: the fixed point's largest change of the pressure between iterations, relative to its peak,
+    at which it stops (``steady``: unused; the fixed point ends at ``tol``). A steady solve of
+    petroll.solver.steady_state (``velocity``, ``direction``, ``profile``, ``iterations``).
 
-    ``kernel``: the grid's periodic kernel (A_k); ``velocity`` (m/s) constant; ``dt`` the integrator's
-    step (s); ``tol`` the solver's contact tolerance for the QPs. The QPs are solved by a ContactSolver on
-    the modulus kernel M (compliance 1: the kernel holds the material's); the active set method's
-    equations by GMRES (PETSc KSP) on a :class:`ContactSystem`."""
+    The QPs are solved by a ContactSolver of its own on the modulus kernel M (compliance 1: the kernel holds
+    the material's; the scene's [solver] tol); the active set method's equations by GMRES (PETSc KSP) on
+    a :class:`ContactSystem`."""
 
     SWEEPS = 30
     """Contact sets one active set solve (:meth:`_active_set`) tries before the fixed point's QP resumes."""
 
-    def __init__(self, scene, comm, kernel: Spectral, velocity, dt: float):
-        self.scene, self.comm = scene, comm
+    def __init__(self, scene, solver: ContactSolver, tol: float, steady: float | None = None):
+        self.scene, self.comm, self.tol = scene, solver.comm, tol
+        comm, kernel = solver.comm, solver.influence.kernel
         g, material, integrator = scene.grid, scene.material, scene.solver.integrator
+        velocity, dt = steady_step(scene)
+        self.velocity, self.direction = velocity, velocity / float(np.hypot(*velocity))
+        sx, sy = scene.position
+        self.profile = scene.body.height(*g.offsets(g.x[solver.r0 : solver.r1, None], g.y[None, :], sx, sy))
 
         def make(form):
             return SlidingKernel(kernel, material, integrator, velocity, dt, form)
@@ -257,16 +267,15 @@ class SteadySliding:
             tight, contact = changed == 0, new
         return np.where(contact, np.maximum(x, 0.0), 0.0), delta
 
-    def solve(self, profile: np.ndarray, tol: float, max_iterations: int = 100,
-              start: tuple[np.ndarray, float | None] | None = None):
-        """The steady pressure (Pa, this rank's rows) for the body's heights ``profile`` (m, this rank's
-        rows), under the scene's constant load or penetration: a StepSolution of the last QP, whose
-        pressure is the fixed point's to ``tol`` (its largest change over a fixed-point step, relative to
-        its peak), and the surface displacement w = K p (m). ``start``: a first guess (this rank's rows of
-        a pressure, Pa, and its penetration, m, or None), e.g. a neighbouring speed's steady state. Its
+    def solve(self, start: tuple[np.ndarray, float | None] | None = None, max_iterations: int = 500):
+        """The steady pressure (Pa, this rank's rows) for the body's heights :attr:`profile`, under the
+        scene's constant load or penetration: a StepSolution of the last QP, whose pressure is the fixed
+        point's to ``tol`` (its largest change over a fixed-point step, relative to its peak), and the
+        surface displacement w = K p (m). ``start``: a first guess (a pressure, Pa, on the whole grid or
+        this rank's rows, and its penetration, m, or None), e.g. a neighbouring speed's steady state. Its
         ``applications`` count the QPs' and the active set solves' operator applications."""
-        scene, solver, comm = self.scene, self.qp, self.comm
-        x = np.zeros(solver.local_shape) if start is None else np.array(start[0], dtype=float)
+        scene, solver, comm, profile, tol = self.scene, self.qp, self.comm, self.profile, self.tol
+        x = np.zeros(solver.local_shape) if start is None else solver.own_rows(start[0]).copy()
         delta = None if start is None else start[1]
         work, applications = list(solver.work), self.system.applications
         solution, scale, change = None, 1.0, math.inf

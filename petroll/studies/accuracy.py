@@ -22,6 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 from mpi4py import MPI
 
+from petroll.model.clock import TimeMode
 from petroll.model.scene import Scene, load_scene, parse_scene, shipped_scene
 from petroll.solver.estimate import COUNTED, ErrorEstimate, end_time, estimate_error
 from petroll.solver.simulation import Simulation, StepRecord
@@ -34,7 +35,7 @@ def refined(scene: Scene, factor: float, end: float | None) -> Scene:
     changes: dict = {"grid.nx": max(1, round(g.nx * factor))}
     if not g.line:
         changes["grid.ny"] = max(1, round(g.ny * factor))
-    if end is not None and scene.time.mode != "steady":
+    if end is not None and scene.time.mode is not TimeMode.STEADY:
         changes.update({"time.steady": None, "time.distance": None, "time.end": end})
     return scene.replace(changes)
 
