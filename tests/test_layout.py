@@ -211,3 +211,21 @@ def test_the_time_mode_is_an_enum_never_compared_with_a_string():
     loop = imports()["petroll.solver.simulation"]
     assert not {n for n in loop if within(n, "petroll.solver.steady") or within(n, "petroll.solver.sliding")}
     assert "petroll.solver.steady_state" in loop
+
+
+PETSC_IMPORTERS = {
+    "petroll.solver.petsc": "the adapter: every TAO, KSP, shell matrix, PC and vector petroll makes",
+    "petroll.solver.pk": "the Polonsky-Keer conjugate gradient is itself a TAO type, written on PETSc vectors",
+    "petroll.cli": "petsc4py.init with the command line's PETSc options, before anything starts PETSc",
+    "petroll.studies.bench_memory": "petsc4py.init in the benchmark's child processes",
+    "petroll.studies.bench_mpi": "petsc4py.init in the benchmark's child processes",
+    "petroll.studies.bench_rough": "petsc4py.init in the benchmark's child processes",
+    "petroll.studies.bench_friction": "compares TAO's types on friction's QP, as `bench tao` does the contact's",
+}
+"""The modules that import petsc4py, and why; the contact, sliding and tangential numerics are numpy."""
+
+
+def test_petsc_is_imported_only_by_the_adapter_and_the_listed_modules():
+    importers = {module for module, names in imports().items() if any(within(n, "petsc4py") for n in names)}
+    assert importers <= set(PETSC_IMPORTERS), sorted(importers - set(PETSC_IMPORTERS))
+    assert importers == set(PETSC_IMPORTERS), "listed but no longer importing petsc4py: update the list"

@@ -29,11 +29,10 @@ from mpi4py import MPI
 
 from petroll.errors import SolverError
 from petroll.model.grid import Grid
-from petroll.model.tao import DEFAULT_TAO_TYPE, TAO_TYPES
+from petroll.model.tao import DEFAULT_TAO_TYPE
 from petroll.solver.partition import RowPartition, move_rows
 from petroll.solver.influence import InfluenceOperator, influence_operator, spare_cores
-from petroll.solver.pk import PK_PYTHON_TYPE
-from petroll.solver.window_qp import WindowQP
+from petroll.solver.petsc import WindowQP, contact_options
 
 @dataclass
 class StepSolution:
@@ -66,13 +65,11 @@ class ContactSolver:
     def __init__(self, grid: Grid, comm: MPI.Comm, tao_type: str = DEFAULT_TAO_TYPE, tol: float = 1e-8,
                  prefix: str = "petroll_", max_iterations: int = 10000, precondition: bool = True,
                  layer=None, kernel=None):
-        from petsc4py import PETSc
-
         self.grid, self.comm, self.tol, self.prefix = grid, comm, tol, prefix
-        options = PETSc.Options(prefix)  # read once here and when a window shape's TAO is built
-        self.tao_type, self.max_iterations = self._resolve_type(tao_type, prefix, options), max_iterations
-        self.precondition = options.getBool("pc_circulant", precondition)
-        self.workers = options.getInt("fft_workers", spare_cores(comm))
+        # read once here and when a window shape's TAO is built
+        self.tao_type, self.precondition, self.workers = contact_options(prefix, tao_type, precondition,
+                                                                         spare_cores(comm))
+        self.max_iterations = max_iterations
         if self.workers < 1:
             raise SolverError(f"-{prefix}fft_workers {self.workers}: the FFT threads per rank must be >= 1")
         self.influence = (influence_operator(grid, comm, layer, self.workers) if kernel is None else
@@ -94,21 +91,6 @@ class ContactSolver:
 
     kept = 6
     """Window shapes whose TAO, shell matrix and vectors are kept (the most recently used)."""
-
-    @staticmethod
-    def _resolve_type(tao_type: str, prefix: str, options) -> str:
-        """The scene's type unless -<prefix>tao_type overrides it. ``pk`` is spelt for TAO as its Python
-        type, -<prefix>tao_type python -<prefix>tao_python_type petroll.solver.pk.PolonskyKeer (the
-        ``petroll`` command translates -<prefix>tao_type pk on its command line: petroll.solver.pk.command_line)."""
-        chosen = options.getString("tao_type", tao_type)
-        if chosen == "python" and options.getString("tao_python_type", "") == PK_PYTHON_TYPE:
-            chosen = "pk"
-        elif chosen == "pk" and options.hasName("tao_type"):
-            raise SolverError(f"-{prefix}tao_type pk: TAO reads this option itself and knows pk only as "
-                              f"-{prefix}tao_type python -{prefix}tao_python_type {PK_PYTHON_TYPE}")
-        if chosen not in TAO_TYPES:
-            raise SolverError(f"-{prefix}tao_type {chosen}: unknown; allowed: {', '.join(TAO_TYPES)}")
-        return chosen
 
     @property
     def local_shape(self) -> tuple[int, int]:
@@ -404,10 +386,9 @@ class ContactSolver:
         if warm is not None:
             start = move_rows(warm[:, j0:j1], grid_ranges, window_ranges, comm).ravel() / to_pressure
         total = None if load is None else load / (grid.cell_area * to_pressure)
-        qp.tao.setTolerances(gatol=self.tol, grtol=0.0, gttol=0.0)  # self.tol may change between solves
         # a cell without surface (Z = +inf, a hole in a height map) inside the window: a gap it cannot close
         gaps = np.minimum(-target.ravel() / w_ref, self.NO_SURFACE_GAP)
-        x, gap, multiplier, its, applications = qp.solve(gaps, start, total)
+        x, gap, multiplier, its, applications = qp.solve(gaps, start, total, self.tol)
         natural = np.minimum(x, gap)
         residual = comm.allreduce(float(np.abs(natural).max(initial=0.0)), op=MPI.MAX)
         p_window = np.maximum(x, 0.0).reshape(-1, j1 - j0) * to_pressure
