@@ -41,6 +41,7 @@ from __future__ import annotations
 import argparse
 import math
 import os
+import signal
 import sys
 import time
 import warnings
@@ -202,6 +203,18 @@ def main(argv: list[str] | None = None) -> int:
     from petroll.solver.pk import command_line
 
     petsc4py.init([sys.argv[0], *command_line(petsc_args)])
+    signal.signal(signal.SIGPIPE, signal.SIG_IGN)  # Python's own setting, which PETSc's handler replaced
+    try:
+        code = _verbs(args)
+        sys.stdout.flush()  # here, not at exit, where a closed pipe could not be answered
+        return code
+    except BrokenPipeError:  # stdout's reader stopped reading (``petroll check S | head -1``)
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # no second error at exit
+        return 128 + signal.SIGPIPE  # as a shell reports a command ended by SIGPIPE
+
+
+def _verbs(args: argparse.Namespace) -> int:
+    """Every verb but ``launch``, once PETSc is initialised (every rank)."""
     from mpi4py import MPI
 
     from petroll.errors import PetrollError
@@ -225,6 +238,8 @@ def main(argv: list[str] | None = None) -> int:
     except MemoryError:
         return _failed(comm, errors, "petroll: error: out of memory: the scene needs more memory than this "
                        "machine has; use fewer cells ([grid] nx, ny) or more ranks (mpirun -n)", 2)
+    except BrokenPipeError:
+        raise  # not a failure of this rank's work: main ends quietly
     except Exception:
         if errors is None:
             raise  # a bug: its traceback, as always
@@ -311,7 +326,7 @@ def _main(args: argparse.Namespace, comm) -> int:
     if args.verb == "bench":
         import pathlib
 
-        from petroll.studies.bench_verbs import run as bench
+        from petroll.bench.verbs import run as bench
 
         bench(args.which, pathlib.Path(args.out), comm, args.quick, args.ranks, args.sides, args.steady)
         return 0

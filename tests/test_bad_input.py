@@ -8,7 +8,10 @@ check the real command, and `mpirun -n 2` cases check that an error on one rank 
 
 import datetime
 import math
+import os
 import pathlib
+import signal
+import subprocess
 import time
 import tomllib
 import warnings
@@ -400,3 +403,20 @@ def test_max_steps_depths_and_times_are_bounded(shared_dir, comm, cli_main, monk
     refused(cli_main, ["stress", "run", "--depth", ",".join(["1e-5"] * 1001)], "1001 depths", "at most 1000")
     times = ",".join(str(t) for t in np.linspace(0.0, 0.02, 17))
     refused(cli_main, ["plot", "run", "--times", times], "--times: picks", "at most 16")
+
+
+@pytest.mark.serial
+@pytest.mark.parametrize("argv", [["keys"], ["check", "runs/sphere.toml"]], ids=["keys", "check"])
+def test_a_reader_that_stops_reading_ends_the_command_quietly(argv, cli):
+    """``petroll check S | head -1``: stdout's reader gone (here closed before the command starts, so its
+    first write fails), the command ends as a shell reports one ended by SIGPIPE, 141, with nothing on
+    stderr: no PETSc signal report, no MPI_ABORT (exit 59), no Python traceback."""
+    read, write = os.pipe()
+    os.close(read)
+    try:
+        child = cli.start(*argv, cwd=pathlib.Path(__file__).parents[1], stdout=write, stderr=subprocess.PIPE,
+                          text=True)
+    finally:
+        os.close(write)
+    _, err = child.communicate(timeout=120)
+    assert (child.returncode, err) == (128 + signal.SIGPIPE, "")

@@ -41,7 +41,8 @@ from petroll.errors import PetrollError
 from petroll.model.clock import TimeMode
 from petroll.model.preflight import Preflight, check
 from petroll.model.scene import Scene
-from petroll.solver.simulation import Simulation, StepRecord
+from petroll.records import StepRecord
+from petroll.solver.simulation import Simulation
 
 QUANTITIES = ("force", "mu_r", "p_max", "area", "lead", "trail")
 """The last step's values an estimate covers (plus the penetration ``delta`` under load control)."""
