@@ -23,6 +23,7 @@ from petroll.model import motion
 from petroll.model.bodies import Body, HeightMap, HeightProfile, make_body
 from petroll.model.bodies.rough import samples_surface
 from petroll.model.clock import TimeMode
+from petroll.model.friction import Friction, friction_of, saved_fields
 from petroll.model.grid import Grid, line_grid
 from petroll.model.limits import MAGNITUDES, scale_message
 from petroll.model.schema import BODY_LENGTHS, CELL_DIGITS, MAX_CELLS, MODEL_KEYS, SCHEMA, Invalid, out_of_scale
@@ -78,6 +79,7 @@ class Scene:
     shift_factor: float = 1.0  # a_T at [material] temperature: material's times / their values at T_ref
     layer: materials.Layer | None = None  # [material] layer: a layer on a rigid base (None: a half-space)
     allow_coarse: bool = False  # [grid] allow_coarse: run below petroll.model.preflight.LEAST_CELLS
+    friction: Friction | None = None  # [friction]: Coulomb friction (None: frictionless)
 
     def replace(self, changes: str | dict[str, Any], value: Any = None) -> "Scene":
         """A copy with keys changed, validated again: ``scene.replace("motion.penetration", 3e-5)`` or,
@@ -154,6 +156,7 @@ def parse_scene(raw: dict, source: str = "<python>", base_dir: str | pathlib.Pat
     _check_cells(grid, raw["grid"], source)
     material = _material(values["material"], raw.get("material", {}), base_dir, source)
     material, shift_factor = _temperature(values["material"], raw.get("material", {}), material, source)
+    material, friction = friction_of(values, raw, material, line, any(g["periodic"]), source)
     for key in BODY_LENGTHS:
         if key in raw.get("body", {}) and (bad := out_of_scale(raw["body"][key])) is not None:
             raise SceneError(source, f"[body] {key}", raw["body"][key], scale_message(bad, "m"))
@@ -182,7 +185,7 @@ def parse_scene(raw: dict, source: str = "<python>", base_dir: str | pathlib.Pat
                                 values["solver"]["history_cutoff"]),
                   output_dir=output_dir, every=values["output"]["every"], base_dir=base_dir,
                   checkpoint_every=values["output"]["checkpoint_every"], keep=values["output"]["keep"],
-                  fields=values["output"]["fields"],
+                  fields=values["output"]["fields"] + (saved_fields(line) if friction else ()), friction=friction,
                   shift_factor=shift_factor,
                   layer=_material_layer(values["material"], raw.get("material", {}), source),
                   allow_coarse=g["allow_coarse"])

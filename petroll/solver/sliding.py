@@ -152,7 +152,7 @@ class SteadySliding:
     ``solver``, the scene's contact solver, whose operator's kernel is the grid's periodic kernel A_k).
     ``tol``: the fixed point's largest change of the pressure between iterations, relative to its peak,
     at which it stops (``steady``: unused; the fixed point ends at ``tol``). A steady solve of
-    petroll.solver.steady_state (``velocity``, ``direction``, ``profile``, ``iterations``).
+    petroll.solver.steady_state (``velocity``, ``direction``, ``speed``, ``profile``, ``iterations``).
 
     The QPs are solved by a ContactSolver of its own on the modulus kernel M (compliance 1: the kernel holds
     the material's; the scene's [solver] tol); the active set method's equations by GMRES (PETSc KSP,
@@ -166,7 +166,8 @@ class SteadySliding:
         comm, kernel = solver.comm, solver.influence.kernel
         g, material, integrator = scene.grid, scene.material, scene.solver.integrator
         velocity, dt = steady_step(scene)
-        self.velocity, self.direction = velocity, velocity / float(np.hypot(*velocity))
+        self.speed = float(np.hypot(*velocity))
+        self.velocity, self.direction = velocity, velocity / self.speed
         sx, sy = scene.position
         self.profile = scene.body.height(*g.offsets(g.x[solver.r0 : solver.r1, None], g.y[None, :], sx, sy))
 

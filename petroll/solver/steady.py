@@ -56,8 +56,8 @@ def steady_step(scene) -> tuple[np.ndarray, float]:
 class SteadySolve:
     """The steady rolling state of ``scene`` at its constant velocity, by the fixed point of the module
     docstring, with the contact ``solver`` (its grid rows, TAO objects and operator); collective over its
-    comm. A steady solve of petroll.solver.steady_state (``velocity``, ``direction``, ``profile``,
-    ``iterations``, :meth:`solve`).
+    comm. A steady solve of petroll.solver.steady_state (``velocity``, ``direction``, ``speed``,
+    ``profile``, ``iterations``, :meth:`solve`).
 
     ``tol``: relative change of the memory field (scaled by Jc p_max) at which the fixed point stops; the
     QPs are solved to 1e-4 of the memory's last change until then (at most 1e-3, at least [solver] tol),

@@ -33,6 +33,8 @@ class SteadyState(Protocol):
     """The body's constant velocity (m/s, [vx, vy])."""
     direction: np.ndarray
     """Its direction (a unit vector)."""
+    speed: float
+    """Its magnitude (m/s)."""
     profile: np.ndarray
     """The body's heights Z (m) on this rank's grid rows, the body at [body] position."""
 

@@ -113,6 +113,12 @@ COLUMNS: dict[str, tuple[str, str]] = {
     "delta_J0": ("m", "Hertz penetration with J0 at the last force (sphere): the fast limit under load "
                  "control"),
     "delta_Jinf": ("m", "Hertz penetration with Jinf at the last force (sphere): the slow limit"),
+    "traction_x": ("N", "with [friction]: the tangential force on the body along X at the last step (NaN without)"),
+    "traction_y": ("N", "with [friction]: along Y"),
+    "creepage_x": ("-", "with [friction]: the creepage along X at the last step (given, or found)"),
+    "creepage_y": ("-", "with [friction]: along Y"),
+    "stick_area": ("m^2", "with [friction]: the stick area at the last step"),
+    "friction_power": ("W", "with [friction]: the slip's power at the last step"),
     **{f"{name}_error": (unit, f"estimated discretisation error of {name} at the last step (only with "
                                "--estimate-error; NaN where the grids are not in the asymptotic range)")
        for name, unit in (("force", "N"), ("delta", "m"), ("mu_r", "-"), ("p_max", "Pa"), ("area", "m^2"),
@@ -120,7 +126,11 @@ COLUMNS: dict[str, tuple[str, str]] = {
 }
 """The table's columns: name -> (unit, meaning). One row per point, in the order of the values."""
 
-LINE_UNITS = {"force": "N/m", "area": "m", "force_J0": "N/m", "force_Jinf": "N/m"}
+FRICTION_COLUMNS = ("traction_x", "traction_y", "creepage_x", "creepage_y", "stick_area", "friction_power")
+"""The columns of a sweep with [friction] (NaN without)."""
+
+LINE_UNITS = {"force": "N/m", "area": "m", "force_J0": "N/m", "force_Jinf": "N/m", "traction_x": "N/m",
+              "traction_y": "N/m", "stick_area": "m", "friction_power": "W/m"}
 """The columns whose unit differs in a line-contact sweep (per unit length; area is the contact width)."""
 
 
@@ -483,6 +493,8 @@ def table_row(scene: Scene, results: Results, value: float, estimate_error: bool
                 row[f"force_{name}"] = 4 * math.sqrt(radius) * st.delta**1.5 / (3 * J)
             if st.force > 0:
                 row[f"delta_{name}"] = (3 * J * st.force / (4 * math.sqrt(radius))) ** (2 / 3)
+    for name in FRICTION_COLUMNS:  # a run with friction (line contact: no _y series)
+        row[name] = float(s[name][-1]) if name in s else nan
     if estimate_error:
         found = results.error_estimate or {}
         for name in COLUMNS:
