@@ -7,7 +7,7 @@
 
 ``run`` writes one run directory per case (the scenes of runs/ as shipped, then variants on small grids:
 periodic along X, Y and both, transient and steady; line contact, periodic and steady; steady rolling
-along Y and under load control; a layer in 3-D and steady; other TAO types and integrators; a restart
+along Y and under load control; a layer in 3-D and steady; friction, transient; other TAO types and integrators; a restart
 from a checkpoint; the error estimate; stresses; two ranks), with the scene file each ran and its
 output. ``compare`` reads every HDF5 file of every case in both folders and compares every dataset and
 attribute bitwise, except the wall-clock values and the run's identity (``IGNORED``) and the places
@@ -86,6 +86,9 @@ CASES: dict[str, tuple[str, dict, dict]] = {
                                       "motion.load": 0.04}, {}),
     "exponential": ("sphere.toml", {**SPHERE_SMALL, "solver.integrator": "exponential"}, {}),
     "paper": ("sphere.toml", {**SPHERE_SMALL, "solver.integrator": "paper"}, {}),
+    "friction-transient": ("traction-curve.toml", {"time.mode": None, "time.steps_per_cell": 1,
+                                                   "time.distance": 0.3e-3, "grid.nx": 64,
+                                                   "grid.x": [-0.75e-3, 1.25e-3]}, {}),
     "restart": ("sphere.toml", {"output.checkpoint_every": 10, "output.keep": 10}, {"restart": 20}),
     "estimate": ("hertz.toml", {"grid.nx": 32, "grid.ny": 32}, {"estimate": True}),
     "stress": ("hertz.toml", {"output.fields": ["pressure", "displacement", "gap"]}, {"stress": True}),
