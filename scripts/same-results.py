@@ -7,8 +7,8 @@
 
 ``run`` writes one run directory per case (the scenes of runs/ as shipped, then variants on small grids:
 periodic along X, Y and both, transient and steady; line contact, periodic and steady; steady rolling
-along Y and under load control; a layer in 3-D and steady; friction, transient; other TAO types and integrators; a restart
-from a checkpoint; the error estimate; stresses; two ranks), with the scene file each ran and its
+along Y and under load control; a layer in 3-D and steady; friction, transient; other TAO types and
+integrators; a restart from a checkpoint; the error estimate; stresses; two ranks), with the scene file each ran and its
 output. ``compare`` reads every HDF5 file of every case in both folders and compares every dataset and
 attribute bitwise, except the wall-clock values and the run's identity (``IGNORED``) and the places
 listed in ``TOLERATED`` (within 1e-12 relative, each with its reason); text files (.xdmf, .csv) are
@@ -46,7 +46,8 @@ RELATIVE = 1e-12
 
 SPHERE_SMALL = {"grid.nx": 64, "grid.ny": 48, "grid.x": [-1.2e-3, 2.0e-3], "grid.y": [-1.2e-3, 1.2e-3],
                 "time.distance": 0.6e-3, "time.steady": None, "output.every": 5}
-"""runs/sphere.toml on 64 x 48 cells of 50 um over 0.6 mm of rolling (also a periodic cell the sphere fits in)."""
+"""runs/sphere.toml on 64 x 48 cells of 50 um over 0.6 mm of rolling (also a periodic cell the sphere fits
+in)."""
 
 ROUGH_SMALL = {"grid.nx": 64, "grid.ny": 64, "body.cutoff": 2.5e-4, "time.steps_per_cell": 2}
 """runs/rough-rubber.toml on 64^2 cells (its short cut-off 4 cells again)."""
@@ -77,7 +78,8 @@ CASES: dict[str, tuple[str, dict, dict]] = {
     "steady-layer": ("master-curve.toml", {"material.layer": {"thickness": 1.0e-3, "base": "bonded"}}, {}),
     "layer-3d": ("sphere.toml", {**SPHERE_SMALL, "material.layer": {"thickness": 0.6e-3, "base": "bonded"}},
                  {}),
-    "layer-line-slip": ("conveyor-idler.toml", {"material.layer": {"thickness": 6.0e-3, "base": "frictionless"},
+    "layer-line-slip": ("conveyor-idler.toml", {"material.layer": {"thickness": 6.0e-3,
+                                                                   "base": "frictionless"},
                                                 "grid.nx": 150, "time.distance": 10.0e-3}, {}),
     "tao-tron": ("hertz.toml", {"solver.tao_type": "tron"}, {}),
     "tao-blmvm": ("hertz.toml", {"solver.tao_type": "blmvm"}, {}),
@@ -203,7 +205,7 @@ def within(a, b) -> float | None:
 
 def compare(old: pathlib.Path, new: pathlib.Path) -> int:
     problems, tolerated, files, values = [], [], 0, 0
-    cases = sorted({p.name for p in old.iterdir() if p.is_dir()} | {p.name for p in new.iterdir() if p.is_dir()})
+    cases = sorted({p.name for folder in (old, new) for p in folder.iterdir() if p.is_dir()})
     for case in cases:
         names = sorted({p.relative_to(old / case) for p in (old / case).rglob("*") if p.is_file()}
                        | {p.relative_to(new / case) for p in (new / case).rglob("*") if p.is_file()})

@@ -227,7 +227,8 @@ def test_only_the_topology_reads_whether_a_grid_repeats():
         imported = {alias.asname or alias.name for node in ast.walk(tree)
                     if isinstance(node, (ast.Import, ast.ImportFrom)) for alias in node.names}
         if any(isinstance(node, ast.Attribute) and node.attr == "periodic"
-               and not (isinstance(node.value, ast.Name) and node.value.id in imported) for node in ast.walk(tree)):
+               and not (isinstance(node.value, ast.Name) and node.value.id in imported)
+               for node in ast.walk(tree)):
             readers.add(str(path.relative_to(PACKAGE.parent)))
     assert set(readers) <= set(TOPOLOGY_READERS), sorted(set(readers) - set(TOPOLOGY_READERS))
     assert set(readers) == set(TOPOLOGY_READERS), "a listed reader no longer reads it: update the list"
@@ -253,7 +254,7 @@ def test_the_time_mode_is_an_enum_never_compared_with_a_string():
 
 PETSC_IMPORTERS = {
     "petroll.solver.petsc": "the adapter: every TAO, KSP, shell matrix, PC and vector petroll makes",
-    "petroll.solver.pk": "the Polonsky-Keer conjugate gradient is itself a TAO type, written on PETSc vectors",
+    "petroll.solver.pk": "the Polonsky-Keer conjugate gradient is a TAO type itself, on PETSc vectors",
     "petroll.cli": "petsc4py.init with the command line's PETSc options, before anything starts PETSc",
     "petroll.bench.memory": "petsc4py.init in the benchmark's child processes",
     "petroll.bench.mpi": "petsc4py.init in the benchmark's child processes",

@@ -162,8 +162,8 @@ class Line(Topology):
 
     def edge_message(self) -> str:
         g = self.grid
-        return (f"[grid]: the contact reaches an end of the grid (X = {g.x0:g} or {g.x1:g}); enlarge [grid] x "
-                "or reduce the load")
+        return (f"[grid]: the contact reaches an end of the grid (X = {g.x0:g} or {g.x1:g}); "
+                "enlarge [grid] x or reduce the load")
 
 
 class Periodic(Topology):
