@@ -255,7 +255,6 @@ def test_a_scene_file_with_friction_runs_from_the_command_line(shared_dir, comm,
     assert code == 0, err
 
 
-@pytest.mark.slow
 @pytest.mark.serial  # figures: one process
 def test_petroll_plot_draws_the_tractions_and_the_stick_slip_map(tmp_path):
     """traction.png beside the other figures; its stick/slip map is 0 outside the contact, stick where the
