@@ -74,8 +74,7 @@ REFUSED = [
     ({"body__material": {"E": 1e9}}, "[body] material", "inline table"),
     ({"body__material": {"E": 1e11, "nu": 0.3}}, "[body] material", "not quasi-identical"),
     ({"body__material": None}, "[body] material", "rigid body on a half-space of nu = 0.3"),
-    ({"material__model": "sls", "material__E": None, "material__E0": 2e11, "material__Einf": 1e11,
-      "material__tau_creep": 1.0}, "[friction]", "elastic half-space"),
+    ({"material__layer": {"thickness": 1e-3, "base": "bonded"}}, "[friction]", "layers are not modelled"),
     ({"friction__coefficient": None, "motion__creepage": [0.001, 0.0]}, "[friction] coefficient", "required"),
 ]
 
