@@ -113,10 +113,6 @@ def friction_of(values: dict, raw: dict, material, line: bool, periodic: bool, s
     if elastic:
         pair, memory = _pair(m["E"] / (2 * (1 + m["nu"])), m["nu"], body, written, source), None
     else:
-        if values["time"]["mode"] == "steady":
-            raise SceneError(source, "[time] mode", "steady", "with [friction] on a viscoelastic material: "
-                             "viscoelastic steady rolling with friction is not modelled yet; run the transient "
-                             "to its steady state ([time] steady)")
         memory = 1 / (1 - m["nu"])
         _pair(1.0, m["nu"], body, written, source)  # a rigid body needs nu = 1/2
         pair = (memory * material.Jinf, m["nu"], "same" if body == "same" else "rigid")

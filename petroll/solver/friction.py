@@ -251,18 +251,22 @@ class SteadyRolling:
 
     def solve(self, bound: np.ndarray, creepage=(0.0, 0.0), spin: float = 0.0, centre=(0.0, 0.0),
               force: np.ndarray | None = None, start: np.ndarray | None = None,
-              tol: float | None = None) -> SteadySolution:
+              tol: float | None = None, memory=None) -> SteadySolution:
         """The steady tractions on the traction bound ``bound`` (Pa, this rank's grid rows) at the creepage
         (xi, eta) and the spin phi (1/m) about ``centre`` (m; the body's reference point), or at the
         tangential force ``force`` (N; N/m in line contact; an m-vector), the creepage then found (the spin
         given). ``start``: a first guess (Pa, (m, rows, ny)); ``tol``: the natural residual's tolerance
-        (default the solver's)."""
+        (default the solver's). ``memory``: a viscoelastic material's tangential state machine (h0 (1/Pa),
+        s1, M, c) at one cell per step (petroll.solver.history.state_space of the creep function c(t));
+        the window then reaches the grid's edge behind the contact (the wake; beyond it is left out)."""
         solver = self.solver
         m, tol = solver.m, solver.tol if tol is None else tol
         box = solver.box(bound > 0)
         if box is None:
             raise SolverError("steady rolling with friction: no contact")
-        problem = solver.scaled(bound, self._behind(box))
+        elastic = memory is None or memory[1] is None
+        problem = solver.scaled(bound, self._behind(box, None if elastic else solver.grid),
+                                None if elastic else memory[0])
         box, g, q_ref, s_ref = problem.box, problem.g, problem.q_ref, problem.s_ref
         total = None
         if force is not None:
@@ -270,7 +274,7 @@ class SteadyRolling:
             creepage = (0.0, 0.0)
         b = solver.to_box(self.rigid(creepage, spin, centre), box) / s_ref
         newton = SteadyNewton(problem.apply, problem.precondition, g / q_ref, b, self.comm, problem.nx,
-                              self.axis, self.sign, self.order, total)
+                              self.axis, self.sign, self.order, total, None if elastic else memory)
         q0 = None if start is None else solver.to_box(start, box) / q_ref
         at, iterations = newton.solve(q0, np.zeros(m), tol)
         self.applications += newton.applications
@@ -281,16 +285,23 @@ class SteadyRolling:
         sums = np.array(q.sum(axis=(1, 2)), dtype=float)
         self.comm.Allreduce(MPI.IN_PLACE, sums, op=MPI.SUM)
         traction = solver.from_box(q, box)
-        solution = TangentialSolution(traction, solver.from_box(slip, box), solver.displacement(traction, box),
+        if elastic:
+            displacement = solver.displacement(traction, box)
+        else:  # u = K L q, L's sources on the window
+            displacement = solver.displacement(solver.from_box(memory[0] * newton.hereditary(q), box), box, 1.0)
+        solution = TangentialSolution(traction, solver.from_box(slip, box), displacement,
                                       solver.from_box(stick, box, False), at.w * s_ref, sums * solver.grid.cell_area,
                                       iterations, newton.applications, at.largest, box)
         return SteadySolution(solution, found, iterations, newton.applications)
 
-    def _behind(self, box):
+    def _behind(self, box, wake=None):
         """``box`` grown by ``order`` cells behind it along the motion: the shifted tractions S_k q of
-        H (q - S_k q) reach that far behind the contact (SolverError at the grid's edge)."""
+        H (q - S_k q) reach that far behind the contact (SolverError at the grid's edge); with ``wake``
+        (the grid: a viscoelastic material's), to the grid's edge behind it."""
         i0, i1, j0, j1 = box
         g, k = self.solver.grid, self.order
+        if wake is not None:
+            k = max(k, (i0 if self.sign > 0 else g.nx - i1) if self.axis == 0 else (j0 if self.sign > 0 else g.ny - j1))
         if self.axis == 0:
             i0, i1 = (i0 - k, i1) if self.sign > 0 else (i0, i1 + k)
         else:

@@ -18,7 +18,7 @@ from mpi4py import MPI
 
 from petroll.records import FrictionRecord
 from petroll.solver.friction import ShearMemory, Stepping, SteadyRolling
-from petroll.solver.history import make_history
+from petroll.solver.history import make_history, state_space
 from petroll.solver.tangential import TangentialSolution, TangentialSolver
 
 
@@ -68,7 +68,12 @@ class FrictionLoop:
         axis = 0 if direction[1] == 0 else 1
         rolling = SteadyRolling(self.solver, axis, 1 if direction[axis] > 0 else -1)
         bound = f.coefficient * pressure
-        steady = rolling.solve(bound, f.creepage, f.spin, (record.sx, record.sy), self._force(record.t))
+        memory = None
+        if f.memory is not None:  # the creep function's response at one cell per step, h0 and c as c(t)'s
+            h0, s1, M, c = state_space(self.scene.material, self.scene.solver.integrator, rolling.cell / speed)
+            memory = (f.memory * h0, s1, M, None if c is None else f.memory * c)
+        steady = rolling.solve(bound, f.creepage, f.spin, (record.sx, record.sy), self._force(record.t),
+                               memory=memory)
         return self._record(steady.solution, bound, steady.creepage, speed)
 
     def _record(self, solution: TangentialSolution, bound: np.ndarray, creepage, rate: float) -> FrictionRecord:
