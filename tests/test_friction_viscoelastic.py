@@ -68,9 +68,9 @@ def test_a_held_tangential_force_creeps_as_the_creep_function(comm):
     instantaneous, Cattaneo problem with c = J0/(1 - nu)), then Q held: the tractions stay the first step's
     exactly (stick cells: K q uniform, so a larger compliance needs only a larger uniform shift; slip
     cells: the slip grows along the first step's) and the shift grows as J(t)/J0 (exact creep; J(3 tau)/J0
-    = 4.8; and a two-term Prony series). The exponential integrator is exact for tractions constant within a step (to the solver's
-    tolerance; measured 7e-16); the relaxation form (exact for a displacement linear within a step) to
-    second order in dt (measured 6.1e-3 at tau/5, 1.6e-3 at tau/10)."""
+    = 4.8; and a two-term Prony series). The exponential integrator is exact for tractions constant within
+    a step (to the solver's tolerance; measured 7e-16); the relaxation form (exact for a displacement
+    linear within a step) to second order in dt (measured 6.1e-3 at tau/5, 1.6e-3 at tau/10)."""
     worst, moved = held_shift(comm, "exponential", 5)
     print(f"exponential: shift / creep function's, worst {worst:.2e}; tractions moved {moved:.1e} mu p0")
     assert worst <= 1e-7 and moved <= 1e-7

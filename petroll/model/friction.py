@@ -18,8 +18,7 @@ one: with a constant Poisson's ratio the shear creep function is the normal one'
 compliance c(t) = J(t)/(1 - nu) with J the bodies' summed surface creep compliance (a body of the same
 material doubles J(t)), so ``memory`` = 1/(1 - nu) and ``compliance`` the relaxed c (the tangential history
 runs through the scene's integrator: petroll.solver.friction.ShearMemory). Tabulated creep functions, a
-layer, an elastic body on a viscoelastic half-space and viscoelastic steady rolling with friction are
-refused in one line.
+layer and an elastic body on a viscoelastic half-space are refused in one line.
 
 Modes, from the motion: a body at rest is a quasi-static shift under ``force`` (applied from zero to its
 value over the clock's steps, or in one step without [time]); a rolling body runs at the ``creepage`` (and

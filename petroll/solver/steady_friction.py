@@ -125,7 +125,8 @@ class Hereditary:
 
     def __init__(self, machine, lines):
         h0, s1, M, c = machine
-        self.s1, self.M, self.c, self.lines = np.asarray(s1, float), np.asarray(M, float), np.asarray(c, float) / h0, lines
+        self.s1, self.M, self.lines = np.asarray(s1, dtype=float), np.asarray(M, dtype=float), lines
+        self.c = np.asarray(c, dtype=float) / h0
 
     def _march(self, v: np.ndarray, inverse: bool) -> np.ndarray:
         out = np.empty_like(v)
