@@ -447,9 +447,11 @@ def _restart_inputs(args: argparse.Namespace, comm):
 def summary(scene, results, wall: float, resumed=None) -> str:
     """One paragraph on a finished run: its extent, the last (steady) values, wall time and output path;
     ``resumed``: the checkpoint a restart continued from (its step is named)."""
+    from petroll.model.clock import TimeMode
+
     s = results.series
     n = len(s["t"])
-    if scene.time.mode == "steady":
+    if scene.time.mode is TimeMode.STEADY:
         how = "the steady state solved directly ([time] mode = \"steady\")"
     else:
         how = f"{n} step{'s' * (n != 1)} to t = {s['t'][-1]:.4g} s over {s['distance'][-1]:.4g} m of rolling"

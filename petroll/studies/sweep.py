@@ -61,6 +61,7 @@ from petroll.model.materials import Prony, Tabulated, loss_peak_time
 from petroll.io.hdf5 import atomic_hdf5
 from petroll.io.results import Results, atomic_write, results_identity
 from petroll.io.rundir import clean_temporaries
+from petroll.model.clock import TimeMode
 from petroll.model.schema import DEFAULT_STEADY, SCHEMA
 from petroll.model.scene import Scene
 
@@ -376,7 +377,7 @@ def sweep(scene: Scene, vary: Vary | str, out: str | pathlib.Path | None = None,
             except RunInterrupted as exc:
                 raise SweepInterrupted(exc.signum, index, total, label) from None
             computed.append(index)
-        direct = point.time.mode == "steady"
+        direct = point.time.mode is TimeMode.STEADY
         following = scenes[index + 1].grid if index + 1 < total else None
         same_grid = following is not None and (following.nx, following.ny) == (point.grid.nx, point.grid.ny)
         start = (results.pressure[-1], float(results.series["delta"][-1])) if direct and same_grid else None
@@ -463,7 +464,7 @@ def table_row(scene: Scene, results: Results, value: float, estimate_error: bool
     sphere = isinstance(scene.body, Sphere)
     line = scene.grid.line  # plane strain: force per length, area a width, delta relative to the datum
     delta0 = float(s["delta"][0])
-    direct = scene.time.mode == "steady"  # no first (instantaneous) step: Hertz with J0 at its load
+    direct = scene.time.mode is TimeMode.STEADY  # no first (instantaneous) step: Hertz with J0 at its load
     if direct and line and isinstance(scene.body, CylinderSection) and isinstance(material, Prony):
         a = math.sqrt(4 * st.force * scene.body.radius * material.J0 / math.pi)
     elif direct and sphere and scene.load is not None and isinstance(material, Prony):
