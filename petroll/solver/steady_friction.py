@@ -37,6 +37,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.fft
+import scipy.linalg
 from mpi4py import MPI
 
 from petroll.errors import SolverError
@@ -119,34 +121,36 @@ def _back_substitute(upper: np.ndarray, rhs: np.ndarray) -> np.ndarray:
 class Hereditary:
     """The integrator's steady response along the motion on ``lines`` (petroll.solver.memory.Lines of a
     window): the state machine (h0, s1, M, c) of petroll.solver.history.state_space, a traction pulse giving
-    h0 on its own step and then c M^(k-1) s1 k steps later, marched from the front of each line (the
-    material arrives from the cells ahead); :meth:`__call__` L v over h0 (unit diagonal), :meth:`inverse`
-    its exact inverse on the window."""
+    h0 on its own step and h_k = c M^(k-1) s1 k steps later (the material arrives from the cells ahead).
+    :meth:`__call__` is L v over h0, (L v)_t = v_t + sum_k (h_k/h0) v_(t+k) along each line: a unit upper
+    triangular Toeplitz matrix of the line's length, whose inverse (:meth:`inverse`) is one too (its first
+    row found once); both applied as correlations along the lines by zero-padded FFTs."""
 
     def __init__(self, machine, lines):
         h0, s1, M, c = machine
-        self.s1, self.M, self.lines = np.asarray(s1, dtype=float), np.asarray(M, dtype=float), lines
-        self.c = np.asarray(c, dtype=float) / h0
+        n = lines.n_along
+        h, state = np.zeros(n), np.asarray(s1, dtype=float)
+        h[0] = 1.0
+        for k in range(1, n):
+            h[k] = float(np.asarray(c, dtype=float) @ state) / h0
+            state = np.asarray(M, dtype=float) @ state
+        inverse = scipy.linalg.solve_triangular(scipy.linalg.toeplitz(np.eye(n)[0], h), np.eye(n)[0], trans="T")
+        self.lines, self.n, self.size = lines, n, scipy.fft.next_fast_len(2 * n, real=True)
+        self.spectra = [scipy.fft.rfft(f, self.size) for f in (h, inverse)]
 
-    def _march(self, v: np.ndarray, inverse: bool) -> np.ndarray:
+    def _apply(self, spectrum: np.ndarray, v: np.ndarray) -> np.ndarray:
         out = np.empty_like(v)
-        for k, field in enumerate(v):
-            lines = self.lines.from_grid(field)
-            result = np.empty_like(lines)
-            state = np.zeros((lines.shape[0], len(self.s1)))
-            for t in range(lines.shape[1] - 1, -1, -1):
-                memory = state @ self.c
-                result[:, t] = lines[:, t] - memory if inverse else lines[:, t] + memory
-                pulse = result[:, t] if inverse else lines[:, t]
-                state = state @ self.M.T + pulse[:, None] * self.s1
-            out[k] = self.lines.to_grid(result)
+        for k, field in enumerate(v):  # (L v)_t = sum_k h_k v_(t+k): a convolution of the reversed lines
+            lines = self.lines.from_grid(field)[:, ::-1]
+            product = scipy.fft.rfft(lines, self.size, axis=1) * spectrum
+            out[k] = self.lines.to_grid(scipy.fft.irfft(product, self.size, axis=1)[:, : self.n][:, ::-1])
         return out
 
     def __call__(self, v: np.ndarray) -> np.ndarray:
-        return self._march(v, False)
+        return self._apply(self.spectra[0], v)
 
     def inverse(self, v: np.ndarray) -> np.ndarray:
-        return self._march(v, True)
+        return self._apply(self.spectra[1], v)
 
 
 @dataclass
