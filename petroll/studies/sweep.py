@@ -61,6 +61,7 @@ from petroll.model.materials import Prony, Tabulated, loss_peak_time
 from petroll.io.hdf5 import atomic_hdf5
 from petroll.io.results import Results, atomic_write, results_identity
 from petroll.io.rundir import clean_temporaries
+from petroll.model.limits import warnings_once
 from petroll.model.schema import DEFAULT_STEADY, SCHEMA
 from petroll.model.scene import Scene
 
@@ -85,6 +86,8 @@ COLUMNS: dict[str, tuple[str, str]] = {
     "mu_r": ("-", "rolling-resistance coefficient at the last step"),
     "delta": ("m", "penetration at the last step"),
     "area": ("m^2", "contact area at the last step"),
+    "area_fraction": ("-", "contact area / the cell's area, A/A0 (a grid periodic along X and Y; NaN "
+                      "otherwise)"),
     "lead": ("m", "leading patch edge along the motion, relative to the body"),
     "trail": ("m", "trailing patch edge along the motion, relative to the body"),
     "p_max": ("Pa", "peak pressure at the last step"),
@@ -335,12 +338,18 @@ def sweep(scene: Scene, vary: Vary | str, out: str | pathlib.Path | None = None,
     its estimate (a call without it, or killed while it was made) is not finished: it is run again (from
     its last checkpoint where it has one) and estimated.
     """
-    from petroll.io.checkpoint import RunInterrupted
-    from petroll.model.limits import PetrollWarning
-    from petroll.driver import prepare_output
-
     if isinstance(vary, str):
         vary = parse_vary(vary)
+    with warnings_once():
+        return _sweep(scene, vary, out, comm, progress, stop, log, plot, transient, estimate_error)
+
+
+def _sweep(scene: Scene, vary: Vary, out, comm: MPI.Comm, progress: bool, stop, log, plot: bool,
+           transient: bool, estimate_error: bool) -> SweepTable:
+    """:func:`sweep` with its warnings shown once each."""
+    from petroll.io.checkpoint import RunInterrupted
+    from petroll.model.limits import PetrollWarning
+
     if out is None:
         out = scene.output_dir.with_name(scene.output_dir.name + "-sweep")
     out = pathlib.Path(out)
@@ -348,6 +357,8 @@ def sweep(scene: Scene, vary: Vary | str, out: str | pathlib.Path | None = None,
     names = [point_name(vary.key, v) for v in vary.values]
     if len(set(names)) != len(names):
         raise SweepError(f"--vary {vary.spec or vary.key}: values closer than 10 significant digits")
+    from petroll.driver import prepare_output
+
     prepare_output(out, comm)
     unit = key_unit(scene, vary.key)
     rows, computed = [], []
@@ -382,7 +393,9 @@ def sweep(scene: Scene, vary: Vary | str, out: str | pathlib.Path | None = None,
             static = point.time.dt is None and point.time.steps_per_cell is None
             state = ("steady (solved directly)" if direct else "steady" if row["steady"] else
                      "one step (no [time])" if static else "NOT steady")
-            log(f"point {index + 1}/{total} {label}: {done}; mu_r {row['mu_r']:.4e}, force "
+            rough = (f"friction mu {row['mu_r']:.4e}, A/A0 {row['area_fraction']:.4g}"
+                     if math.isfinite(row["area_fraction"]) else f"mu_r {row['mu_r']:.4e}")
+            log(f"point {index + 1}/{total} {label}: {done}; {rough}, force "
                 f"{row['force']:.5g} N, {int(row['steps'])} steps, "
                 f"{state}"
                 + (f", V tau/a {row['v_tau_a']:.3g}" if math.isfinite(row["v_tau_a"]) else ""))
@@ -452,9 +465,14 @@ def table_row(scene: Scene, results: Results, value: float, estimate_error: bool
     tau = loss_peak_time(material) if viscous else math.nan
     sphere = isinstance(scene.body, Sphere)
     line = scene.grid.line  # plane strain: force per length, area a width, delta relative to the datum
+    g = scene.grid
+    cell = all(g.periodic) and not line  # a periodic cell: its area fraction, no Hertz radius
+    row["area_fraction"] = st.area / ((g.x1 - g.x0) * (g.y1 - g.y0)) if cell else math.nan
     delta0 = float(s["delta"][0])
     direct = scene.time.mode == "steady"  # no first (instantaneous) step: Hertz with J0 at its load
-    if direct and line and isinstance(scene.body, CylinderSection) and isinstance(material, Prony):
+    if cell:
+        a = math.nan
+    elif direct and line and isinstance(scene.body, CylinderSection) and isinstance(material, Prony):
         a = math.sqrt(4 * st.force * scene.body.radius * material.J0 / math.pi)
     elif direct and sphere and scene.load is not None and isinstance(material, Prony):
         a = (0.75 * st.force * scene.body.radius * material.J0) ** (1 / 3)
@@ -560,12 +578,12 @@ def command(scene_path: str, vary_text: Sequence[str], out: str | None, quiet: b
         raise SweepError(f"--vary given {len(vary_text)} times; a sweep varies exactly one key "
                          f"({FORMS})")
     vary = parse_vary(vary_text[0])
-    scene = load_scene(scene_path)
     start = time.perf_counter()
     stop = StopRequest()
     say = (lambda line: print(f"petroll: {line}", flush=True))
     try:
-        with stop.handling():
+        with stop.handling(), warnings_once():
+            scene = load_scene(scene_path)
             table = sweep(scene, vary, out, comm, progress=not quiet and sys.stderr.isatty(), stop=stop,
                           log=say, transient=transient, estimate_error=estimate_error)
     except SweepInterrupted as exc:
