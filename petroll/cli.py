@@ -350,6 +350,8 @@ def _main(args: argparse.Namespace, comm) -> int:
         scene, checkpoint, out = _restart_inputs(args, comm)
     else:
         scene, checkpoint, out = load_scene(args.scene), None, args.out
+        if scene.sizing is not None and comm.rank == 0:  # the grid petroll chose, before the run
+            print(f"petroll: {scene.source}: {scene.sizing.note}", flush=True)
     _test_failure(comm)
     stop = StopRequest()
     try:

@@ -398,7 +398,8 @@ def _sweep(scene: Scene, vary: Vary, out, comm: MPI.Comm, progress: bool, stop, 
             log(f"point {index + 1}/{total} {label}: {done}; {rough}, force "
                 f"{row['force']:.5g} N, {int(row['steps'])} steps, "
                 f"{state}"
-                + (f", V tau/a {row['v_tau_a']:.3g}" if math.isfinite(row["v_tau_a"]) else ""))
+                + (f", V tau/a {row['v_tau_a']:.3g}" if math.isfinite(row["v_tau_a"]) else "")
+                + (f", grid {point.grid.nx} x {point.grid.ny} (sized)" if point.sizing is not None else ""))
     columns = {name: np.array([row[name] for row in rows], dtype=float) for name in COLUMNS if name in rows[0]}
     table = SweepTable(vary.key, unit, columns, scene.text, [f"points/{n}" for n in names], out, computed)
     _on_rank0(comm, lambda: write_table(table))
