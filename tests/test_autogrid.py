@@ -136,6 +136,9 @@ def test_a_generated_rough_surface_gets_its_periodic_cell():
     (None, {"shape": "sphere", "radius": R, "roughness": {"hurst": 0.8, "rms_slope": 0.1}}, "[grid]",
      "generated [body] roughness"),
     (None, {"shape": "rough", "hurst": 0.8, "rms_slope": 0.1}, "[body] rolloff", "required"),
+    (None, {"shape": "rough", "hurst": 0.8, "rms_slope": 0.1, "rolloff": 1.0, "cutoff": 1e-7}, "[body] cutoff",
+     "more than 2147483647"),
+    (None, {"shape": "sphere", "radius": R, "position": ["a", 0]}, "[body] position", "finite numbers"),
 ])
 def test_what_cannot_be_sized_is_refused_in_one_line(grid, body, key, says):
     with pytest.raises(SceneError) as info:

@@ -32,6 +32,7 @@ from petroll.model.bodies import make_body
 from petroll.model.clock import path
 from petroll.model.preflight import contact_size, interference_box
 from petroll.model.rough_contact import GOOD_CUTOFF_CELLS
+from petroll.model.schema import MAX_CELLS, SCHEMA, Invalid
 
 DEFAULT_CELLS = 16
 """Cells per contact half-width of a grid petroll sizes (force and mu_r within about 0.3 % on the
@@ -93,8 +94,11 @@ def provisional(raw: dict, source: str, base_dir) -> dict:
         return _rough_table(body, request, source)
     made = make_body(body, base_dir, source)
     reach = 2 * max(float(made.radius_hint), float(getattr(made, "width", 0.0)))
-    position = body.get("position", [0.0, 0.0])
-    if not math.isfinite(reach) or reach <= 0 or not isinstance(position, list) or len(position) != 2:
+    try:
+        position = SCHEMA["body"]["position"].check(body.get("position", [0.0, 0.0]))
+    except Invalid as exc:
+        raise SceneError(source, "[body] position", body["position"], f"{exc} (m)") from None
+    if not math.isfinite(reach) or reach <= 0:
         raise SceneError(source, "[grid]", MISSING, "required: the body gives no size to size a grid from")
     return {"nx": PROVISIONAL_CELLS, "ny": PROVISIONAL_CELLS, "x": [position[0] - reach, position[0] + reach],
             "y": [position[1] - reach, position[1] + reach]}
@@ -114,7 +118,12 @@ def _rough_table(body: dict, request: dict, source: str) -> dict:
                              f"surface without [grid]: petroll makes its periodic cell {ROUGH_PERIODS} rolloff "
                              f"wavelengths wide with cells of cutoff / {ROUGH_CELLS}")
     side = ROUGH_PERIODS * float(body["rolloff"])
-    n = scipy.fft.next_fast_len(math.ceil(side / float(body["cutoff"]) * ROUGH_CELLS), real=True)
+    cells = side / float(body["cutoff"]) * ROUGH_CELLS
+    if cells**2 > MAX_CELLS:
+        raise SceneError(source, "[body] cutoff", body["cutoff"], f"gives a periodic cell of {cells:.3g}^2 cells "
+                         f"({ROUGH_PERIODS} rolloff wavelengths, cells of cutoff / {ROUGH_CELLS}), more than "
+                         f"{MAX_CELLS}; give [grid] for a coarser one")
+    n = scipy.fft.next_fast_len(math.ceil(cells), real=True)
     n += n % 2
     return {"nx": n, "ny": n, "x": [0.0, side], "y": [0.0, side], "periodic": True}
 
