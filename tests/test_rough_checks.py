@@ -64,6 +64,11 @@ def test_the_penetration_and_area_estimates_meet_an_elastic_run(shared_dir, comm
     delta = float(results.series["delta"][-1])
     assert found.area[1] == pytest.approx(area, rel=0.25), (found.area, area)  # Persson: about 10-20 %
     assert found.penetration[1] == pytest.approx(delta, rel=0.25), (found.penetration, delta)
+    from petroll.cli import summary
+
+    text = summary(scene, results, wall=1.0)  # the run's paragraph: sliding friction's terms
+    assert f"friction mu {results.series['mu_r'][-1]:.4e}" in text and f"A/A0 {area:.4g}" in text
+    assert "patch from" not in text and "mu_r" not in text
 
 
 def test_check_reports_the_rough_contact_not_a_curvature():
