@@ -17,9 +17,11 @@ The package, by concern (each package's ``__init__`` states its rules; docs/desi
     model/     what a scene says: schema, material laws, bodies, motion programs, limits (no PETSc, no MPI)
     solver/    numerics on the grid: partition, influence operators, the TAO step, history integrators,
                warm start, wake, the time loop (writes no files)
+    records.py what a run reports step by step (the solver makes, io stores)
     io/        results.h5, checkpoints, XDMF
-    studies/   sweeps, the stability map, benchmarks
-    driver.py, cli.py, plot.py, this file: the faces
+    studies/   workflows: the error estimate, sweeps, master curves, the stability map
+    bench/     the benchmarks (``petroll bench``; only the command line imports them)
+    driver.py, cli.py, plot/, this file: the faces
 
 ``import petroll`` starts neither MPI nor PETSc: the names below are imported when first used.
 """

@@ -326,7 +326,7 @@ def _main(args: argparse.Namespace, comm) -> int:
     if args.verb == "bench":
         import pathlib
 
-        from petroll.studies.bench_verbs import run as bench
+        from petroll.bench.verbs import run as bench
 
         bench(args.which, pathlib.Path(args.out), comm, args.quick, args.ranks, args.sides, args.steady)
         return 0

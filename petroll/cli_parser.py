@@ -76,7 +76,7 @@ def _study_verbs(verbs) -> None:
                              "(docs/benchmarks.md)")
     bench.add_argument("which", choices=["tao", "warm", "skips", "peers", "precision", "growth", "mpi",
                                          "memory", "append", "layer", "steady", "steady-growth", "estimate",
-                                         "accuracy", "periodic", "sliding"],  # studies.bench_verbs.VERBS
+                                         "accuracy", "periodic", "sliding"],  # bench.verbs.VERBS
                        help="tao: every TAO type on the Hertz step; warm: operator applications per rolling "
                        "step for each first guess; skips: each saving on and off; peers: petroll against "
                        "Tamaas and ContactMechanics on the Hertz step and a wavy sphere, from the same start; "

@@ -27,8 +27,9 @@ from petroll.io.rundir import DirectoryBusy, RunLock, clean_temporaries
 from petroll.model.limits import PetrollWarning, negative_friction
 from petroll.model.preflight import check_run
 from petroll.model.scene import Scene
+from petroll.records import StepRecord
 from petroll.solver.rough import BINS
-from petroll.solver.simulation import Simulation, StepRecord
+from petroll.solver.simulation import Simulation
 
 
 def run(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, out: str | pathlib.Path | None = None,
@@ -57,7 +58,7 @@ def run(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, out: str | pathlib.Path |
     pressure in Pa, penetration in m), e.g. a neighbouring steady state (continuation).
     ``estimate_error``: after the run, solve the scene again on grids 2x (and 4x) coarser and write the
     discretisation error of the last step's force, mu_r, p_max, area, lead and trail to results.h5's group
-    error_estimate (petroll.solver.estimate; ``Results.error_estimate``; docs/accuracy.md).
+    error_estimate (petroll.studies.estimate; ``Results.error_estimate``; docs/accuracy.md).
     A step that fails (SolverError, e.g. a contact reaching the grid's edge; SceneError, [time] max_steps)
     raises :class:`RunFailed` naming the scene file, the step, its time and the distance rolled, after
     every step solved before it is written to results.h5 (complete = false).
@@ -154,8 +155,8 @@ def _run(scene: Scene, comm: MPI.Comm, out: pathlib.Path, identity: tuple[str, s
     if progress and comm.rank == 0:
         print(file=sys.stderr)
     if estimate_error:
-        from petroll.solver.estimate import as_attributes
-        from petroll.solver.estimate import estimate_error as estimate
+        from petroll.studies.estimate import as_attributes
+        from petroll.studies.estimate import estimate_error as estimate
 
         run_wall = clock.perf_counter() - wall  # the run alone: its steps and output, not the estimate
         last = sim.records[-1]

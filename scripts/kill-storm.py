@@ -7,17 +7,19 @@
 Prints one line per trial with a loss (and every 50th), then the counts: trials, where the kills landed
 (outside an append, inside one, inside its commit; forked runs only), results.h5 left, commits cut short,
 checkpoints checked, restarts, and trials with a loss. Exit status 1 if anything was lost. What is checked:
-petroll/studies/kills.py; docs/checkpoints.md#the-kill-storm.
+tests/kills.py; docs/checkpoints.md#the-kill-storm.
 """
 
 import argparse
+import pathlib
 import sys
 
 import petsc4py
 
 petsc4py.init([])
 
-from petroll.studies.kills import storm, summary  # noqa: E402
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "tests"))  # kills.py: a test tool
+from kills import storm, summary  # noqa: E402
 
 
 def main() -> int:

@@ -1,4 +1,4 @@
-"""The rolling benchmarks (petroll.studies.bench_rolling, bench_mpi) on tiny sizes: what they measure, never how fast.
+"""The rolling benchmarks (petroll.bench.rolling, bench_mpi) on tiny sizes: what they measure, never how fast.
 
 Serial only: the MPI benchmark starts its own mpirun children (ranks 1 and 2, compared inside the test).
 """
@@ -8,8 +8,8 @@ import math
 
 import pytest
 
-from petroll.studies.bench_mpi import mpi_scaling
-from petroll.studies.bench_rolling import growth, precision
+from petroll.bench.mpi import mpi_scaling
+from petroll.bench.rolling import growth, precision
 
 pytestmark = pytest.mark.serial
 
@@ -65,7 +65,7 @@ def test_mpi_forces_agree_between_rank_counts(tmp_path):
 
 
 def test_warm_start_bench_same_answer_fewer_applications(tmp_path):
-    from petroll.studies.bench import warm_starts
+    from petroll.bench.solvers import warm_starts
 
     rows = {r["start"]: r for r in warm_starts(tmp_path, cells_per_radius=6, repeats=1)}
     assert list(rows) == ["cold", "carried", "extrapolated"]
@@ -77,7 +77,7 @@ def test_warm_start_bench_same_answer_fewer_applications(tmp_path):
 
 
 def test_skips_bench_each_saving_keeps_the_answer(tmp_path):
-    from petroll.studies.bench_rolling import skips
+    from petroll.bench.rolling import skips
 
     rows = {r["saving"].split(" (")[0]: r for r in skips(tmp_path, track_cells=140, repeats=3)}
     assert set(rows) == {"QP on the interference window", "kernels built once per window shape",
@@ -93,7 +93,7 @@ def test_skips_bench_each_saving_keeps_the_answer(tmp_path):
 
 
 def test_tao_types_on_the_rolling_scene_agree(tmp_path):
-    from petroll.studies.bench import tao_types_rolling
+    from petroll.bench.solvers import tao_types_rolling
 
     rows = tao_types_rolling(tmp_path, distance=0.3e-3)
     forces = [float(r["force"]) for r in rows]  # a failed type would not parse
@@ -109,7 +109,7 @@ def test_memory_bench_reports_every_ranks_peak_and_the_same_force_on_1_and_2_ran
     """petroll bench memory on a 256^2 grid, rolled or its steady state solved directly: a peak above the
     fixed cost on every rank, rank 0 / mean near 1, and one answer whatever the rank count (the children
     run the same scene)."""
-    from petroll.studies.bench_memory import memory
+    from petroll.bench.memory import memory
 
     rows = memory(tmp_path, sides=(256,), ranks=(1, 2), steps=2, steady=steady)
     assert [r["ranks"] for r in rows] == [1, 2] and all(r["cells"] == 256 * 256 for r in rows)
@@ -124,7 +124,7 @@ def test_steady_growth_times_the_direct_solve_on_each_grid(tmp_path):
     """bench steady-growth on two small grids of runs/sphere.toml (one round): a row per grid, the first
     grid's ratio 1, iterations and applications counted, and the refined grid's force within the first's
     discretisation error (1 %)."""
-    from petroll.studies.bench_steady import growth
+    from petroll.bench.steady import growth
 
     rows = growth(tmp_path, grids=((80, 27), (160, 54)), repeats=1)
     assert [r["grid"] for r in rows] == ["80x27", "160x54"] and rows[0]["ratio"] == "1.00"
@@ -135,7 +135,7 @@ def test_steady_growth_times_the_direct_solve_on_each_grid(tmp_path):
 
 
 def test_append_bench_times_every_append(tmp_path):
-    from petroll.studies.bench_memory import append
+    from petroll.bench.memory import append
 
     rows = append(tmp_path, side=16, steps=30, block=10)
     assert [r["steps"] for r in rows] == ["0-9", "10-19", "20-29"]
@@ -146,7 +146,7 @@ def test_peers_bench_converges_each_solver_to_the_reference(tmp_path):
     """petroll alone (the peers need their own environment), from zero and from Hertz's pressure: the
     tolerance chosen is one whose pressure is within the target of the 1e-12 reference, tighter than the
     loosest tried, with a residual to match; times and ratios filled."""
-    from petroll.studies.peers.bench import TOLERANCES, peers
+    from petroll.bench.peers import TOLERANCES, peers
 
     rows = peers(tmp_path, problems=("hertz",), cells=(24,), repeats=1, target=1e-8, solvers=("petroll",))
     assert [(r["solver"], r["start"]) for r in rows] == [("petroll", "zero"), ("petroll", "hertz")]
@@ -159,6 +159,21 @@ def test_peers_bench_converges_each_solver_to_the_reference(tmp_path):
     assert (tmp_path / "peers.csv").exists() and (tmp_path / "peers.png").stat().st_size > 0
 
 
+def test_without_the_peers_scripts_bench_peers_stops_in_one_line(cli_main, comm, shared_dir, monkeypatch):
+    """As from an install (the scripts are in the checkout's scripts/peers/ only): exit status 2, one line
+    naming where they were looked for, nothing written (tests/test_install.py: from a real install)."""
+    import petroll.bench.peers as bench_peers
+
+    assert (bench_peers.PEER_SCRIPTS / "solve_petroll.py").is_file()  # this checkout's
+    monkeypatch.setattr(bench_peers, "PEER_SCRIPTS", shared_dir / "elsewhere" / "scripts" / "peers")
+    code, out, err = cli_main(["bench", "peers", "--quick", "--out", str(shared_dir / "bench")])
+    assert code == 2
+    if comm.rank == 0:
+        assert len(err.strip().splitlines()) == 1 and "Traceback" not in err, err
+        assert str(shared_dir / "elsewhere" / "scripts" / "peers") in err and "checkout" in err
+    assert not (shared_dir / "bench" / "peers.csv").exists()
+
+
 def test_the_peers_residual_is_the_dense_gap_of_the_pressure(tmp_path):
     """residual() (the FFT operator) against the gap computed with the assembled influence matrix of the
     problem's grid, for a pressure near the solution and a perturbed one."""
@@ -168,7 +183,7 @@ def test_the_peers_residual_is_the_dense_gap_of_the_pressure(tmp_path):
     from petroll.solver.contact import ContactSolver
     from petroll.solver.influence import dense_influence
     from petroll.solver.kernels.love import love_coefficients
-    from petroll.studies.peers.bench import residual, write_problem
+    from petroll.bench.peers import residual, write_problem
     from mpi4py import MPI
 
     n = 20
@@ -187,7 +202,7 @@ def test_the_peers_residual_is_the_dense_gap_of_the_pressure(tmp_path):
 
 
 def test_load_control_bench_finds_the_same_penetration(tmp_path):
-    from petroll.studies.bench import load_control
+    from petroll.bench.solvers import load_control
 
     rows = load_control(tmp_path, cells=48)
     assert [r["tao_type"] for r in rows] == ["pk", "tron"]
@@ -203,7 +218,7 @@ def test_steady_compares_the_direct_solve_with_the_transient_run(tmp_path):
     solve at 1e-10), the direct one far cheaper in operator applications at the same tolerance, every
     convolution counted beside them."""
     from petroll.model.scene import parse_scene
-    from petroll.studies.bench_steady import steady
+    from petroll.bench.steady import steady
 
     scene = parse_scene({
         "grid": {"nx": 32, "ny": 32, "x": [-0.8e-3, 0.8e-3], "y": [-0.8e-3, 0.8e-3]},

@@ -1,4 +1,4 @@
-"""The rough-contact benchmarks (petroll.studies.bench_rough) on tiny sizes: what they measure, never how
+"""The rough-contact benchmarks (petroll.bench.rough) on tiny sizes: what they measure, never how
 fast (the peer comparison with Tamaas needs .venv-peers, made by pip: run by `petroll bench periodic`)."""
 
 import csv
@@ -6,7 +6,7 @@ import csv
 import numpy as np
 import pytest
 
-from petroll.studies import bench_rough
+from petroll.bench import rough as bench_rough
 
 pytestmark = pytest.mark.serial
 

@@ -1,4 +1,4 @@
-"""The error estimate (petroll.solver.estimate; docs/accuracy.md): Richardson extrapolation against exact
+"""The error estimate (petroll.studies.estimate; docs/accuracy.md): Richardson extrapolation against exact
 power laws, the coarser runs against the same scenes run on their own, results.h5's group, the summary
 lines and the sweep's columns; the estimate against the true error (a reference 4x finer) on a sphere, a
 roller, a roller given as a 1-D profile and a layer (docs/verification.md has the full table)."""
@@ -10,9 +10,9 @@ from mpi4py import MPI
 
 import petroll
 from petroll.model.scene import load_scene, shipped_scene
-from petroll.solver.estimate import KNOWN_ORDER, coarser, quantised, richardson
+from petroll.studies.estimate import KNOWN_ORDER, coarser, quantised, richardson
 from petroll.solver.simulation import Simulation
-from petroll.studies.accuracy import profile_roller, verify
+from petroll.bench.accuracy import profile_roller, verify
 
 
 # -- Richardson -------------------------------------------------------------------------------------------
@@ -146,7 +146,7 @@ def test_where_the_4x_grid_resolves_the_contact_its_order_is_observed(comm, shar
     mu_r's and the peak pressure's orders are observed, log2(d2 / d1) from the coarser grids' values,
     within a factor 2 of 2; the summary line states them."""
     from petroll.cli import estimate_line
-    from petroll.studies.accuracy import refined
+    from petroll.bench.accuracy import refined
 
     results = petroll.run(refined(roller(), 2, None), comm, out=shared_dir / "fine", estimate_error=True)
     found = results.error_estimate
@@ -189,7 +189,7 @@ def test_the_coarser_grids_tolerance_moves_them_little_against_their_differences
     their difference)."""
     import numpy as np
 
-    import petroll.solver.estimate as estimate
+    import petroll.studies.estimate as estimate
 
     scene = load_scene(shipped_scene(name))
     if velocity is not None:
@@ -280,7 +280,7 @@ def test_on_the_sphere_the_estimate_is_within_3_of_the_true_error(comm):
 def test_the_cost_bench_times_the_run_and_its_estimate_as_results_h5_records_them(comm, shared_dir):
     """petroll bench estimate's measure on runs/roller-2d.toml: the run's and the estimate's wall times as
     results.h5 records them, and their ratio."""
-    from petroll.studies.accuracy import cost
+    from petroll.bench.accuracy import cost
 
     found = cost(roller(), shared_dir / "cost", comm, repeats=1)
     group = petroll.Results.open(shared_dir / "cost" / "results.h5").error_estimate[""]
@@ -293,7 +293,7 @@ def test_the_run_s_wall_time_leaves_its_estimate_out(comm, shared_dir, monkeypat
     real one) leaves it at least 1 s below the whole call's wall time."""
     import time
 
-    import petroll.solver.estimate as estimate
+    import petroll.studies.estimate as estimate
 
     real = estimate.estimate_error
 

@@ -599,10 +599,10 @@ def test_runs_killed_at_random_instants_leave_results_and_checkpoints_whole(tmp_
     inside appends and their commits: every results.h5 opens and holds, value for value, the
     uninterrupted run's steps up to its last complete append (after a commit cut short, plain h5py too once
     recovered), every checkpoint is whole, and restarts from the newest ones end as the uninterrupted run
-    (petroll/studies/kills.py; scripts/kill-storm.py runs longer storms)."""
+    (tests/kills.py; scripts/kill-storm.py runs longer storms)."""
     import tempfile
 
-    from petroll.studies.kills import storm, summary
+    from kills import storm, summary
 
     fast = pathlib.Path("/dev/shm")  # memory: no fsync cost; a SIGKILL sees the same files as on a disk
     where = pathlib.Path(tempfile.mkdtemp(dir=fast if os.access(fast, os.W_OK) else tmp_path))

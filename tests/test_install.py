@@ -1,6 +1,7 @@
 """petroll from a non-editable install: ``pip install .`` (no dependencies: PETSc and the rest come from the
 system site, as in .venv) into a fresh virtual environment, then ``petroll bench warm --quick`` run from
-outside the source tree. The benchmark finds runs/sphere.toml as the package data ``petroll.scenes``."""
+outside the source tree. The benchmark finds runs/sphere.toml as the package data ``petroll.scenes``;
+``petroll bench peers``, whose scripts only a checkout has, is refused in one line."""
 
 import csv
 import pathlib
@@ -52,3 +53,8 @@ def test_an_installed_petroll_runs_its_quick_benchmark_outside_the_source_tree(t
         rows = list(csv.DictReader(fh))
     assert [r["start"] for r in rows] == ["cold", "carried", "extrapolated"]
     assert len({r["force"] for r in rows}) == 1  # the first guess changes the cost, not the answer
+    refused = installed("petroll", "bench", "peers", "--quick", "--out", "bench")  # its scripts: a checkout's
+    assert refused.returncode == 2 and len(refused.stderr.strip().splitlines()) == 1, refused.stderr
+    assert "scripts/peers" in refused.stderr and not (work / "bench" / "peers.csv").exists()
+    for room in ("petroll/bench/verbs.py", "petroll/studies/stability/runs.py"):  # every package installed
+        assert list(venv.rglob(room)), room

@@ -310,7 +310,7 @@ def test_rolling_on_a_thin_frictionless_layer_is_the_winkler_bed_of_the_conveyor
 
 
 def test_the_layer_benchmark_measures_every_case_against_its_half_space(comm, tmp_path):
-    from petroll.studies.layer import bench
+    from petroll.bench.layer import bench
 
     idler = (("conveyor-idler.toml", 1e-3, ((6.0, "bonded"),)),)
     rows = bench(tmp_path, comm, repeats=1, cases=idler)

@@ -12,10 +12,22 @@ PACKAGE = pathlib.Path(__file__).resolve().parents[1] / "petroll"
 FACES = ("petroll.driver", "petroll.cli", "petroll.cli_parser", "petroll.plot", "petroll.launch")
 
 FORBIDDEN = {
-    "petroll.model": ("petroll.solver", "petroll.io", "petroll.studies", *FACES, "petsc4py", "mpi4py"),
-    "petroll.solver": ("petroll.io", "petroll.studies", *FACES),
-    "petroll.io": ("petroll.studies", *FACES),
+    "petroll.records": ("petroll.model", "petroll.solver", "petroll.io", "petroll.studies", "petroll.bench",
+                        *FACES, "petsc4py", "mpi4py"),
+    "petroll.model": ("petroll.solver", "petroll.io", "petroll.studies", "petroll.bench", *FACES, "petsc4py",
+                      "mpi4py"),
+    "petroll.solver": ("petroll.io", "petroll.studies", "petroll.bench", *FACES),
+    "petroll.io": ("petroll.studies", "petroll.bench", *FACES),
+    "petroll.studies": ("petroll.bench", "petroll.cli", "petroll.cli_parser"),
+    # the one workflow a face runs (petroll.run(..., estimate_error=True)): built on Simulation, not on run
+    "petroll.studies.estimate": FACES,
+    "petroll.bench": ("petroll.cli", "petroll.cli_parser"),
 }
+
+IO_FROM_SOLVER = ("petroll.solver.partition",)
+"""The solver's modules io may import: how a field's rows are split over the ranks (io writes and reads each
+rank's rows). The step records io stores are petroll.records; a checkpoint restores a Simulation through
+its attributes."""
 
 
 def module_name(path: pathlib.Path) -> str:
@@ -46,6 +58,32 @@ def test_no_room_imports_what_its_rules_forbid():
     broken = [(module, name) for module, names in imports().items() for room, banned in FORBIDDEN.items()
               if within(module, room) for name in names if any(within(name, b) for b in banned)]
     assert not broken, broken
+
+
+def test_io_imports_nothing_of_the_solver_but_its_partition():
+    graph = imports()
+    broken = sorted((module, name) for module, names in graph.items() if within(module, "petroll.io")
+                    for name in names if within(name, "petroll.solver")
+                    and not any(within(name, allowed) for allowed in IO_FROM_SOLVER))
+    assert not broken, broken
+
+
+def test_only_the_command_line_imports_the_benchmarks():
+    importers = {module for module, names in imports().items() if not within(module, "petroll.bench")
+                 and any(within(name, "petroll.bench") for name in names)}
+    assert importers == {"petroll.cli"}, importers
+
+
+def test_the_install_holds_every_package_and_nothing_of_the_checkout_s_tools():
+    """pyproject.toml lists every folder of petroll/ with an __init__.py (and the scenes): an install holds
+    every room; the peers' scripts (scripts/peers/) and the fault injection (tests/kills.py) are no package
+    of it."""
+    import tomllib
+
+    listed = tomllib.loads((PACKAGE.parent / "pyproject.toml").read_text())["tool"]["setuptools"]["packages"]
+    folders = {module_name(path) for path in PACKAGE.rglob("__init__.py")}
+    assert set(listed) == folders | {"petroll.scenes"}, set(listed) ^ (folders | {"petroll.scenes"})
+    assert not list(PACKAGE.rglob("solve_*.py")) and not list(PACKAGE.rglob("kills.py"))
 
 
 def test_no_import_circles():

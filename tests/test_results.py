@@ -17,14 +17,14 @@ import pytest
 
 from petroll.io.results import ResultsFile, Results
 from petroll.solver.partition import RowPartition
-from petroll.solver.simulation import StepRecord
+from petroll.records import INTEGER_SERIES, SERIES, StepRecord
 
-NAMES = list(StepRecord.__annotations__)
+NAMES = list(SERIES)
 NX, NY = 37, 23
 
 
 def record(step: int) -> StepRecord:
-    return StepRecord(**{k: step if k in ("step", "iterations", "applications") else step + 0.25 for k in NAMES})
+    return StepRecord(**{k: step if k in INTEGER_SERIES else step + 0.25 for k in NAMES})
 
 
 def field(step: int, nx: int = NX, ny: int = NY) -> np.ndarray:

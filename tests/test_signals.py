@@ -4,7 +4,7 @@ complete = true without error_estimate), SIGTERM/SIGINT stop the estimate like a
 line) and ``petroll restart ... --estimate-error`` or the same sweep command then makes it; a sweep point
 without its estimate is not finished.
 
-Runs are forked from this process and killed for real (as petroll/studies/kills.py does): ``petroll``'s
+Runs are forked from this process and killed for real (as tests/kills.py does): ``petroll``'s
 command line (petroll.cli.main) runs in the child, which may be stopped at a chosen moment (the start of
 its error estimate's n-th coarser run: the child tells the parent through a pipe and waits there) or at a
 random instant. The oracle is the same command run once without interruption: after the resume the
@@ -25,7 +25,7 @@ import pytest
 from petroll.cli import main
 from petroll.io.results import Results
 from petroll.model.scene import dumps
-from petroll.studies.kills import SCENE
+from kills import SCENE
 
 pytestmark = pytest.mark.serial
 
@@ -109,7 +109,7 @@ class Child:
 def _pause_estimate(pipe: int, at: int, pause: float) -> None:
     """In a child: the ``at``-th coarser run of the error estimates (0-based) starts by telling the parent
     (one byte on ``pipe``) and sleeping ``pause`` s."""
-    import petroll.solver.estimate as estimate
+    import petroll.studies.estimate as estimate
 
     calls = [0]
 

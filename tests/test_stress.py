@@ -153,7 +153,7 @@ def test_two_ranks_agree_with_one_to_round_off(comm):
 def write_patch_results(directory: pathlib.Path, scene_material: str) -> np.ndarray:
     """A results.h5 holding one saved field, a random patch on a 21 x 14 grid (rank 0 writes)."""
     from petroll.io.results import ResultsFile
-    from petroll.solver.simulation import StepRecord
+    from petroll.records import SERIES, StepRecord
 
     nx, ny = 21, 14
     p = np.zeros((nx, ny))
@@ -162,7 +162,7 @@ def write_patch_results(directory: pathlib.Path, scene_material: str) -> np.ndar
             f"{scene_material}\n")
     if MPI.COMM_WORLD.rank == 0:
         x, y = (np.arange(nx) + 0.5) * 1e-4, -1.05e-3 + (np.arange(ny) + 0.5) * 1.5e-4
-        records = [StepRecord(**{name: 0 for name in StepRecord.__annotations__} | {"step": k, "t": 0.1 * k})
+        records = [StepRecord(**{name: 0 for name in SERIES} | {"step": k, "t": 0.1 * k})
                    for k in range(5)]
         out = ResultsFile(directory / "results.h5", text, x, y, MPI.COMM_SELF)
         out.append(records[:4])

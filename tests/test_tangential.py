@@ -524,7 +524,7 @@ def test_the_friction_benchmark_and_the_solvers_comparison_run(comm, shared_dir)
     friction.csv on rank 0 and reports every case; ``compare_solvers`` at 4 cells per radius (each rank
     alone: FISTA's hundreds of iterations are slow under an oversubscribed mpirun) reports every solver,
     the projected CG converging (the measured numbers: docs/friction.md)."""
-    from petroll.studies.bench_friction import bench_friction, compare_solvers
+    from petroll.bench.friction import bench_friction, compare_solvers
 
     rows = bench_friction(shared_dir, quick=True, comm=comm)
     assert len(rows) == 8 and all(row["applications"] > 0 for row in rows)

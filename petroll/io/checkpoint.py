@@ -52,8 +52,8 @@ from mpi4py import MPI
 
 from petroll import __version__
 from petroll.errors import MISSING, PetrollError, SceneError, reason
+from petroll.records import SERIES, StepRecord
 from petroll.solver.partition import RowPartition
-from petroll.solver.history import HereditaryHistory, RelaxationHistory
 from petroll.io.hdf5 import RowFile, chunk_rows, seal_broken
 
 FORMAT = "petroll-checkpoint"
@@ -287,8 +287,6 @@ class Checkpoint:
         """Why the results file ``where`` (open with h5py as ``f``) is not the one this checkpoint continues,
         None if it is: the same run id (where both have one), scene (but for the keys a restart may
         change), grid and series, value for value, up to the checkpoint's step."""
-        from petroll.solver.simulation import StepRecord
-
         theirs, mine = str(f.attrs.get("run_id", "")), self.run_id
         fix = (f"; a checkpoint continues only the results of its own run: restart from a checkpoint of "
                f"that run, or run the scene again")
@@ -305,7 +303,7 @@ class Checkpoint:
             return (f"{self.path}: holds a {self.attrs['nx']} x {self.attrs['ny']} grid, {where} a "
                     f"{shape[0]} x {shape[1]} one{fix}")
         n = len(self.series["step"])
-        for name in StepRecord.__annotations__:
+        for name in SERIES:
             if name == "solve_time" or name not in f["series"]:
                 continue
             theirs_, mine_ = np.asarray(f["series"][name][:n]), np.asarray(self.series[name])
@@ -322,11 +320,9 @@ class Checkpoint:
         """Put the state into ``sim`` (a fresh Simulation of a compatible scene, any rank count; read on a
         communicator of sim's size) and return (t, field_steps) for the time loop: the time and the steps of
         the fields saved up to the checkpoint (they are in the run's results.h5). Collective."""
-        from petroll.solver.simulation import StepRecord
-
         g, history, state = sim.scene.grid, sim.history, self.state
         nx, ny = int(self.attrs["nx"]), int(self.attrs["ny"])
-        kind = "hereditary" if isinstance(history, HereditaryHistory) else "prony"
+        kind = history.kind
         if (nx, ny) != (g.nx, g.ny) or kind != self.attrs["history"]:
             raise CheckpointError(f"{self.path}: holds a {nx} x {ny} grid with a {self.attrs['history']} "
                                   f"history, the scene a {g.nx} x {g.ny} grid with a {kind} history")
@@ -338,7 +334,7 @@ class Checkpoint:
                 raise CheckpointError(f"{self.path}: holds {len(q)} Prony state fields, the scene's material "
                                       f"has {len(history.q)} terms")
             stored = "displacement" in state
-            if stored != isinstance(history, RelaxationHistory):
+            if stored != (history.name == "relaxation"):
                 raise CheckpointError(f"{self.path}: written for another integrator than the scene's "
                                       f"({sim.scene.solver.integrator})")
             if stored:  # W as computed, not rebuilt from p and s_k (which differs in the last bits)
@@ -350,11 +346,7 @@ class Checkpoint:
             history.times = [float(v) for v in self.times]
             history.increments = list(state["increments"])
         sim.direction = np.array(self.direction, dtype=float)
-        names = list(StepRecord.__annotations__)
-        types = {name: int if name in ("step", "iterations", "applications") else float for name in names}
-        n = len(self.series["step"])
-        sim.records = [StepRecord(**{name: types[name](self.series[name][i]) for name in names})
-                       for i in range(n)]
+        sim.records = [StepRecord.from_series(self.series, i) for i in range(len(self.series["step"]))]
         positions = state.get("recent_position")
         if positions is None:  # a checkpoint written before the guesses were kept: carry the last pressure
             sim.warm.record(sim.pressure, sim.records[-1].sx, sim.records[-1].sy)
@@ -498,8 +490,6 @@ def _load(path: pathlib.Path) -> dict:
 
 def _checked(path: pathlib.Path, attrs: dict, data: dict, digests: dict, shapes: dict, version) -> dict:
     """:func:`_load`'s checks of what it read: digests, the datasets a restart needs."""
-    from petroll.solver.simulation import StepRecord
-
     for name, value in sorted(data.items()):
         if digest_of(name, np.asarray(value)) != digests[name]:
             raise CheckpointError(f"{path}: corrupted (the data of {name} do not match their checksum)")
@@ -508,7 +498,7 @@ def _checked(path: pathlib.Path, attrs: dict, data: dict, digests: dict, shapes:
                               f"checksum)")
     prony = attrs["history"] == "prony"
     needed = ["state/pressure", "state/direction", "fields/step",
-              *(f"series/{n}" for n in StepRecord.__annotations__),
+              *(f"series/{n}" for n in SERIES),
               *(["state/q"] if prony else ["state/times", "state/increments"])]
     absent = [n for n in needed if n not in data and n not in shapes]
     if absent:
@@ -521,7 +511,7 @@ def _checked(path: pathlib.Path, attrs: dict, data: dict, digests: dict, shapes:
     if "state/recent" in fields and "state/recent_position" not in data:
         del fields["state/recent"]
     small = {"recent_position": data["state/recent_position"]} if "state/recent" in fields else {}
-    return {"attrs": attrs, "series": {n: data[f"series/{n}"] for n in StepRecord.__annotations__},
+    return {"attrs": attrs, "series": {n: data[f"series/{n}"] for n in SERIES},
             "field_steps": data["fields/step"], "direction": data["state/direction"],
             "times": None if prony else data["state/times"], "fields": fields, "digests": digests,
             "small": small, "whole": whole}

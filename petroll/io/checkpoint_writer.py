@@ -25,7 +25,7 @@ from petroll.io.checkpoint import (FORMAT, FORMAT_VERSION, CheckpointError, chec
 from petroll.io.hdf5 import RowFile, chunk_rows, seal, seal_broken
 from petroll.io.journal import sync_directory
 from petroll.io.results import PACKED
-from petroll.solver.history import HereditaryHistory, RelaxationHistory
+from petroll.records import SERIES
 from petroll.solver.partition import RowPartition
 
 
@@ -40,14 +40,12 @@ def write_checkpoint(directory: str | pathlib.Path, sim, t: float, next_dt: floa
     writes them (petroll.io.hdf5.RowFile); returns the path. CheckpointError if the file cannot be written
     (every earlier checkpoint stays as it was).
     """
-    from petroll.solver.simulation import StepRecord
-
     comm, scene = sim.comm, sim.scene
     g, history = scene.grid, sim.history
     step = len(sim.records) - 1
     path = checkpoint_path(pathlib.Path(directory), step)
     sink = _Sink(path, comm, RowPartition(g.nx, comm.size), g.ny)
-    prony = not isinstance(history, HereditaryHistory)
+    prony = history.kind == "prony"
     sink.field("state/pressure", [history.pressure], stacked=False)
     sink.array("state/direction", np.asarray(sim.direction, dtype=float))
     recent = sim.warm.recent
@@ -55,19 +53,19 @@ def write_checkpoint(directory: str | pathlib.Path, sim, t: float, next_dt: floa
     sink.array("state/recent_position", np.array([r[1:] for r in recent], dtype=float).reshape(-1, 2))
     if prony:
         sink.field("state/q", list(history.q))
-        if isinstance(history, RelaxationHistory):
+        if history.name == "relaxation":
             sink.field("state/displacement", [history.displacement], stacked=False)
     else:
         sink.array("state/times", np.asarray(history.times, dtype=float))
         sink.field("state/increments", list(history.increments))
-    for name in StepRecord.__annotations__:
+    for name in SERIES:
         sink.array(f"series/{name}", np.array([getattr(r, name) for r in sim.records]))
     sink.array("fields/step", np.asarray(field_steps, dtype=np.int64))
     attrs = {
         "format": FORMAT, "format_version": FORMAT_VERSION, "petroll_version": __version__,
         "ranks": comm.size, "step": step, "t": float(t),
         "next_dt": math.nan if next_dt is None else float(next_dt),
-        "nx": g.nx, "ny": g.ny, "history": "prony" if prony else "hereditary",
+        "nx": g.nx, "ny": g.ny, "history": history.kind,
         "integrator": scene.solver.integrator, "scene": scene.text, "run_id": run_id,
         "scene_source": scene.source, "base_dir": str(pathlib.Path(scene.base_dir).resolve()),
         "fingerprint": comm.bcast(inputs if comm.rank == 0 else None, root=0),

@@ -41,6 +41,7 @@ from petroll import __version__
 from petroll.errors import PetrollError, reason
 from petroll.io.hdf5 import RowFile, add_strings, chunk_rows, string_list
 from petroll.io.journal import atomic_write, copy_committed, reading, sync_directory  # noqa: F401 - atomic_write: here too
+from petroll.records import INTEGER_SERIES, SERIES
 
 FORMAT_VERSION = 1
 
@@ -202,7 +203,7 @@ class Results:
 
 
 ROUGH_UNITS = {"area_fraction": "-", "mean_gap": "m", "q": "rad/m", "spectrum": "Pa^2 m^2", "modes": "-"}
-"""The group rough of a run on a grid periodic along every axis (petroll.solver.rough.RoughOutputs), one
+"""The group rough of a run on a grid periodic along every axis (petroll.records.RoughOutputs), one
 row per saved field: area_fraction and mean_gap (n_saved,); q, spectrum and modes (n_saved, bins)."""
 
 FIELD_UNITS = {"pressure": "Pa", "displacement": "m", "gap": "m"}
@@ -238,7 +239,7 @@ class ResultsFile:
         self.steady = bool(steady)
         self.rough = rough
         self.line = bool(line)  # a line-contact run: the series of LINE_SERIES_UNITS, with their units
-        self.names = [n for n in _series_names() if not (line and n in LINE_ABSENT)]
+        self.names = [n for n in SERIES if not (line and n in LINE_ABSENT)]
         self.steps = 0  # series rows in the file
         self.field_steps: list[int] = []  # the steps of the fields in the file
         self.started = False  # the file exists (create or resume); the first append creates it otherwise
@@ -331,7 +332,7 @@ class ResultsFile:
                describe: bool = False, rough=None, warnings=()) -> None:
         """Append the series of ``records`` (StepRecords) not yet in the file and, with ``saved`` ({field
         name: this rank's rows}), the fields of the last record's step (and with them, on a periodic grid,
-        ``rough``: its petroll.solver.rough.RoughOutputs) and rank 0's ``warnings`` lines not there yet
+        ``rough``: its petroll.records.RoughOutputs) and rank 0's ``warnings`` lines not there yet
         (attribute warnings); then mark the file (``complete``: the run is over). ``describe`` rewrites
         results.xdmf too (atomically). The first append of a file neither created nor resumed creates it
         with these records (so a run failing in its first step leaves none)."""
@@ -468,9 +469,6 @@ class ResultsFile:
             raise OutputError(errors[0])
 
 
-INTEGER_SERIES = ("step", "iterations", "applications")
-"""Series stored as 64-bit integers (the others as doubles)."""
-
 PACKED = dict(compression="gzip", compression_opts=1, shuffle=True)
 """How fields are stored: gzip (in every HDF5 build) after byte shuffling, fast level."""
 
@@ -482,12 +480,6 @@ each, so its size is what an append rewrites (and journals) per series: 1 KiB.""
 def series_dtype(name: str):
     """The stored type of series ``name``."""
     return np.int64 if name in INTEGER_SERIES else np.float64
-
-
-def _series_names() -> list[str]:
-    from petroll.solver.simulation import StepRecord
-
-    return list(StepRecord.__annotations__)
 
 
 def _resumable(source: pathlib.Path, steps: int, field_steps: list[int], check=None) -> str | None:

@@ -47,10 +47,13 @@ class History:
 
     Subclasses keep ``pressure`` (p^n, Pa, this rank's rows) and provide ``compliance(dt)`` (J_eff, 1/Pa),
     ``preceding(dt)`` (v with u = A v, or None) and ``advance(pressure, dt)``; ``dt = 0`` is a jump (the
-    sudden first step).
+    sudden first step). ``name`` is the integrator's (``[solver] integrator``), ``kind`` the state a
+    checkpoint holds (petroll.io.checkpoint): "prony" (p^n and one field per term, plus W^n for the
+    relaxation form) or "hereditary" (all past times and pressure increments).
     """
 
     name = ""
+    kind = "prony"
 
     def __init__(self, material) -> None:
         self.material = material
@@ -194,6 +197,7 @@ class HereditaryHistory(History):
     """
 
     name = "paper"
+    kind = "hereditary"
 
     def __init__(self, material, local_shape: tuple[int, int]):
         super().__init__(material)

@@ -1,6 +1,7 @@
 """What a run on a grid periodic along every axis reports beyond the series of every run (results.h5's
-group ``rough``, docs/results.md): the real contact area's fraction of the cell, the mean gap, and the
-radially averaged power spectrum of the pressure.
+group ``rough``, docs/results.md; one step's values: petroll.records.RoughOutputs): the real
+contact area's fraction of the cell, the mean gap, and the radially averaged power spectrum of the
+pressure.
 
 The spectrum is Persson's C(q) (as petroll.model.roughness.radial_psd computes it for a whole field), of a
 field whose rows are split over the ranks: each rank bins the modes of its Y-frequencies (the operator's
@@ -10,7 +11,6 @@ distributed transform, petroll.solver.influence.Convolution.forward), and the bi
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 from mpi4py import MPI
@@ -18,19 +18,6 @@ from mpi4py import MPI
 BINS = 32
 """Logarithmic wavenumber bins of the pressure spectrum, from the cell's longest wavelength to its
 shortest (2 pi / L to pi sqrt(1/dx^2 + 1/dy^2))."""
-
-
-@dataclass(frozen=True)
-class RoughOutputs:
-    """One step's values: ``area_fraction`` (-), ``mean_gap`` (m; mean of Z + w - delta over the cell),
-    the spectrum's bins: ``q`` (mean |k| of each bin's modes, rad/m; NaN for an empty bin), ``spectrum``
-    (mean C(q) of the pressure, Pa^2 m^2), ``modes`` (the independent modes in each bin)."""
-
-    area_fraction: float
-    mean_gap: float
-    q: np.ndarray
-    spectrum: np.ndarray
-    modes: np.ndarray
 
 
 def spectrum_edges(grid, bins: int = BINS) -> np.ndarray:

@@ -13,7 +13,6 @@ from __future__ import annotations
 import math
 import time as clock
 from collections.abc import Iterable, Iterator
-from dataclasses import dataclass
 
 import numpy as np
 from mpi4py import MPI
@@ -21,40 +20,14 @@ from mpi4py import MPI
 from petroll.solver.contact import BeyondReach, ContactSolver
 from petroll.errors import SceneError
 from petroll.solver.history import make_history
-from petroll.solver.rough import RoughOutputs, radial_spectrum, spectrum_edges
+from petroll.records import RoughOutputs, StepRecord
+from petroll.solver.rough import radial_spectrum, spectrum_edges
 from petroll.solver.sliding import SteadySliding
 from petroll.solver.steady import SteadySolve, steady_step
 from petroll.model.clock import step_length
 from petroll.model.scene import Scene
 from petroll.solver.wake import Wake
 from petroll.solver.warm import WarmStart
-
-
-@dataclass
-class StepRecord:
-    """What one step reports (global values; formulation §6). Lengths m, forces N, pressures Pa."""
-
-    step: int
-    t: float
-    sx: float
-    sy: float
-    delta: float
-    force: float
-    force_x: float  # rolling resistance along X: sum p dZ/dX dA, > 0 when it resists motion in +X
-    force_y: float
-    mu_r: float  # resisting force along the motion / normal force
-    area: float
-    p_max: float
-    cop_x: float  # centre of pressure relative to the body
-    cop_y: float
-    lead: float  # leading and trailing patch edges along the motion, relative to the body
-    trail: float
-    dissipation: float  # power of the resisting force, W
-    distance: float  # rolled path length so far
-    iterations: int
-    applications: int
-    residual: float
-    solve_time: float
 
 
 class Simulation:
@@ -132,7 +105,7 @@ class Simulation:
         :meth:`steps` ends with, but for its ``solve_time`` (the last step's), on a fresh simulation of a
         scene without [time] steady (whose stop needs every step's record; it is not applied here). The
         diagnostics (force, mu_r, the patch ...) are made for the last step only, and no record is kept in
-        ``self.records``: what the error estimate reads of its coarser grids (petroll.solver.estimate).
+        ``self.records``: what the error estimate reads of its coarser grids (petroll.studies.estimate).
         A steady solve ([time] mode = "steady") is its one step, solved by :meth:`steps` (which keeps its
         record). RuntimeError on a simulation that has solved or restored steps. ``after_step()``: called on
         every rank after each step (e.g. to stop on a signal by raising). Collective."""

@@ -51,9 +51,9 @@ def run(which: str, out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, quick: b
     if steady and which != "memory":
         raise PetrollError(f"petroll bench {which}: --steady applies to petroll bench memory only")
     if which == "sliding" and (ranks or sides):  # memory and time per rank of the rough sliding solve
-        from petroll.studies import bench_rough
+        from petroll.bench import rough
 
-        return bench_rough.scale(out, sides or bench_rough.SCALE_SIDES, ranks or (1, 2))
+        return rough.scale(out, sides or rough.SCALE_SIDES, ranks or (1, 2))
     options = dict(QUICK[which]) if quick else {}
     if ranks is not None:
         options["ranks"] = ranks
@@ -69,34 +69,34 @@ def run(which: str, out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, quick: b
 def _function(which: str):
     """The function of verb ``which`` (imported on use: each pulls in its own modules)."""
     if which in ("tao", "warm"):
-        from petroll.studies import bench
+        from petroll.bench import solvers
 
-        return {"tao": bench.tao_types, "warm": bench.warm_starts}[which]
+        return {"tao": solvers.tao_types, "warm": solvers.warm_starts}[which]
     if which == "peers":
-        from petroll.studies.peers.bench import peers
+        from petroll.bench.peers import peers
 
         return peers
     if which in ("periodic", "sliding"):
-        from petroll.studies import bench_rough
+        from petroll.bench import rough
 
-        return {"periodic": bench_rough.periodic, "sliding": bench_rough.sliding}[which]
+        return {"periodic": rough.periodic, "sliding": rough.sliding}[which]
     if which in ("estimate", "accuracy"):
-        from petroll.studies import accuracy
+        from petroll.bench import accuracy
 
         return {"estimate": accuracy.bench_cost, "accuracy": accuracy.bench}[which]
     if which in ("precision", "growth", "skips", "mpi"):
-        from petroll.studies import bench_mpi, bench_rolling
+        from petroll.bench import mpi, rolling
 
-        return {"precision": bench_rolling.precision, "growth": bench_rolling.growth,
-                "skips": bench_rolling.skips, "mpi": bench_mpi.mpi_scaling}[which]
+        return {"precision": rolling.precision, "growth": rolling.growth, "skips": rolling.skips,
+                "mpi": mpi.mpi_scaling}[which]
     if which in ("memory", "append"):
-        from petroll.studies import bench_memory
+        from petroll.bench import memory
 
-        return {"memory": bench_memory.memory, "append": bench_memory.append}[which]
+        return {"memory": memory.memory, "append": memory.append}[which]
     if which == "layer":
-        from petroll.studies.layer import bench as layer_bench
+        from petroll.bench.layer import bench as layer_bench
 
         return layer_bench
-    from petroll.studies import bench_steady
+    from petroll.bench import steady
 
-    return {"steady": bench_steady.steady, "steady-growth": bench_steady.growth}[which]
+    return {"steady": steady.steady, "steady-growth": steady.growth}[which]

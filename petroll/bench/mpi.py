@@ -24,7 +24,7 @@ import numpy as np
 from mpi4py import MPI
 
 from petroll.errors import PetrollError
-from petroll.studies.bench_rolling import roll, rolling_scene
+from petroll.bench.rolling import roll, rolling_scene
 from petroll.studies.tables import new_figure, save_figure, write_table
 
 
@@ -92,7 +92,7 @@ def _mpirun_steps(k: int, windows: tuple[int, ...], steps: int, skip: int) -> li
     env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
                OMPI_MCA_btl_vader_single_copy_mechanism="none")
     command = ["mpirun", "-n", str(k), *(["--oversubscribe"] if k > (os.cpu_count() or 1) else []),
-               sys.executable, "-m", "petroll.studies.bench_mpi", ",".join(map(str, windows)), str(steps),
+               sys.executable, "-m", "petroll.bench.mpi", ",".join(map(str, windows)), str(steps),
                str(skip)]
     done = subprocess.run(command, env=env, capture_output=True, text=True)
     if done.returncode != 0:

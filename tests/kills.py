@@ -16,7 +16,10 @@ Runs are forked from this process (``fork``: no start-up cost, one rank) or star
 ``mpirun -n RANKS petroll run`` (``ranks`` > 0: every rank killed at once, as when a node fails). Each
 forked run reports where it was when killed (outside an append, inside one, inside its commit), and may be
 slowed inside appends (``slow`` seconds per disk write of results.h5) so that more kills land there.
-``scripts/kill-storm.py`` runs a storm and prints the table; tests/test_faults.py runs a small one.
+``scripts/kill-storm.py`` runs a storm and prints the table; tests/test_faults.py runs a small one. Fault
+injection is a tool of the checkout's tests, not part of the installed package: this module lives beside
+the tests (``from kills import ...``, the tests' folder is on sys.path under pytest; the script puts it
+there).
 """
 
 from __future__ import annotations

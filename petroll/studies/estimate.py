@@ -40,7 +40,8 @@ from mpi4py import MPI
 from petroll.errors import PetrollError
 from petroll.model.preflight import Preflight, check
 from petroll.model.scene import Scene
-from petroll.solver.simulation import Simulation, StepRecord
+from petroll.records import StepRecord
+from petroll.solver.simulation import Simulation
 
 QUANTITIES = ("force", "mu_r", "p_max", "area", "lead", "trail")
 """The last step's values an estimate covers (plus the penetration ``delta`` under load control)."""

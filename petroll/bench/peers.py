@@ -11,8 +11,8 @@ solver), a uniform pressure per cell in every solver's kernel, an elastic half-s
   3 x 3 (non-periodic: the ripple does not repeat across its edges), the load 0.0115, the force of a 0.01
   penetration: about 124 contact islands at 512^2 (no start is privileged).
 
-Every solver runs through its script (``solve_<name>.py``: petroll's with this Python, the peers' with
-.venv-peers'; common.py), from the same start: p = 0 (``zero``). petroll's cold start for smooth bodies,
+Every solver runs through its script (``scripts/peers/solve_<name>.py`` of a petroll checkout, beside
+petroll/: petroll's with this Python, the peers' with .venv-peers'; common.py), from the same start: p = 0 (``zero``). petroll's cold start for smooth bodies,
 Hertz's pressure for the radius (``hertz``), is a row of its own. Convergence: a reference solved by
 petroll to tol 1e-12 on each grid; each solver and start at the loosest of :data:`TOLERANCES` whose
 pressure lies within ``target`` (relative L2) of it, searched in one process; petroll from zero is held
@@ -21,13 +21,13 @@ answer's ``residual`` is computed here alike (:func:`residual`). Times: ``cold_s
 its first answer (interpreter, imports, set-up, first solve: the process's wall time, timed here, less
 the second solve), ``warm_s`` the second solve in that process (from the same start), timed by the script; medians of ``repeats`` runs; ratios petroll (zero) / solver (< 1: petroll faster).
 Writes peers.csv and peers.png. The peers live in .venv-peers (created or completed on first use with
-pip: they need numpy 2, which must not enter petroll's environment).
+pip: they need numpy 2, which must not enter petroll's environment). The scripts are no part of an
+install: run from one, the benchmark stops at once with a one-line error (:func:`peer_scripts`).
 """
 
 from __future__ import annotations
 
 import compileall
-import importlib.resources
 import json
 import math
 import pathlib
@@ -49,6 +49,8 @@ SOLVERS = ("petroll", "tamaas", "contactmechanics")
 TOLERANCES = (1e-5, 3e-6, 1e-6, 3e-7, 1e-7, 3e-8, 1e-8, 3e-9, 1e-9, 3e-10, 1e-10)
 """The tolerances tried, loosest first, until a solver's pressure is within the target of the reference."""
 PEERS_VENV = pathlib.Path(".venv-peers")
+PEER_SCRIPTS = pathlib.Path(__file__).resolve().parents[2] / "scripts" / "peers"
+"""Where the solvers' scripts are: scripts/peers/ of the checkout this petroll is imported from."""
 _PEER_PACKAGES = {"tamaas": "tamaas", "ContactMechanics": "ContactMechanics"}  # import name: pip name
 
 
@@ -100,6 +102,7 @@ def residual(problem: pathlib.Path, pressure: np.ndarray) -> float:
 def peers(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, problems=PROBLEMS, cells=(256, 512),
           repeats: int = 3, target: float = 1e-6, solvers=SOLVERS) -> list[dict]:
     """The benchmark (module docstring); rank 0 runs the scripts; the rows on every rank."""
+    peer_scripts()  # on every rank (one file system): an install stops here, on all alike
     rows = _rows(pathlib.Path(out), problems, cells, repeats, target, solvers) if comm.rank == 0 else None
     return comm.bcast(rows)
 
@@ -108,7 +111,7 @@ def _rows(out: pathlib.Path, problems, cells, repeats: int, target: float, solve
     """The rows (rank 0). petroll's modules are byte-compiled first, as an install leaves them (pip
     compiles the peers' in .venv-peers; a checkout run with PYTHONDONTWRITEBYTECODE set, as on the
     project's machine, would otherwise compile every petroll module in every timed process)."""
-    compileall.compile_dir(pathlib.Path(__file__).parents[2], quiet=2)  # unwritable (an install): silent
+    compileall.compile_dir(pathlib.Path(__file__).parents[1], quiet=2)  # unwritable: silent
     runs = [(name, "zero") for name in solvers if name != "petroll"]
     if "petroll" in solvers:
         runs = [*runs, ("petroll", "zero"), ("petroll", "hertz")]  # after the peers: held to their error
@@ -152,13 +155,22 @@ def _rows(out: pathlib.Path, problems, cells, repeats: int, target: float, solve
     return rows
 
 
+def peer_scripts() -> pathlib.Path:
+    """:data:`PEER_SCRIPTS`, or PetrollError (one line) where this petroll is an install without them."""
+    if not (PEER_SCRIPTS / "common.py").is_file():
+        raise PetrollError(f"petroll bench: the peers' scripts are not in {PEER_SCRIPTS}: they come with a "
+                           f"petroll checkout (scripts/peers/), not with an install; run the benchmark from "
+                           f"a checkout")
+    return PEER_SCRIPTS
+
+
 def peer_process(python: str, name: str, args: list) -> dict:
-    """One whole run of ``solve_<name>.py`` (this package's) with ``python``: its JSON answer, with the process's wall time as cold_s."""
-    script = importlib.resources.files("petroll.studies.peers") / f"solve_{name}.py"
-    with importlib.resources.as_file(script) as path:
-        start = time.perf_counter()
-        done = subprocess.run([python, str(path), *map(str, args)], capture_output=True, text=True)
-        seconds = time.perf_counter() - start
+    """One whole run of ``solve_<name>.py`` (:func:`peer_scripts`) with ``python``: its JSON answer, with the
+    process's wall time as cold_s."""
+    path = peer_scripts() / f"solve_{name}.py"
+    start = time.perf_counter()
+    done = subprocess.run([python, str(path), *map(str, args)], capture_output=True, text=True)
+    seconds = time.perf_counter() - start
     if done.returncode:
         last = (done.stderr or done.stdout).strip().splitlines()[-1:]
         raise PetrollError(f"bench peers: {name} failed: {last}")

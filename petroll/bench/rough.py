@@ -254,8 +254,9 @@ def tamaas(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, sides=(128, 256, 
 
     from petroll.model.limits import PetrollWarning
     from petroll.solver.simulation import Simulation
-    from petroll.studies.peers.bench import peer_process, peers_python
+    from petroll.bench.peers import peer_process, peer_scripts, peers_python
 
+    peer_scripts()  # every rank: from an install, a one-line error before anything is solved or installed
     python = peers_python() if comm.rank == 0 else None
     rows = []
     for n in sides:
@@ -313,12 +314,12 @@ def scale(out: pathlib.Path, sides=SCALE_SIDES, ranks=(1, 2)) -> list[dict]:
     built (the interpreter, numpy, PETSc, MPI), the wall time, the friction (the same on every rank
     count). ``per_rank_vs_1``: the run's own memory (peak - fixed) times the ranks over one rank's.
     Writes ``out/scale.csv``."""
-    from petroll.studies.bench_memory import mpirun_child
+    from petroll.bench.memory import mpirun_child
 
     rows = []
     for side in sides:
         for k in ranks:
-            m = mpirun_child(k, "petroll.studies.bench_rough", [str(side)], "bench sliding scale")
+            m = mpirun_child(k, "petroll.bench.rough", [str(side)], "bench sliding scale")
             peaks, fixed = np.array(m["peak_mib"]), np.array(m["fixed_mib"])
             rows.append(dict(cells=f"{side}x{side}", ranks=k, seconds=f"{m['seconds']:.1f}",
                              peak_mib=" ".join(f"{v:.0f}" for v in peaks), fixed_mib=f"{fixed.mean():.0f}",
@@ -337,7 +338,7 @@ if __name__ == "__main__":  # the child of ``scale``: SIDE DIR; one JSON line on
     import petsc4py
 
     petsc4py.init([])
-    from petroll.studies.bench_memory import peak_mib, rss_mib
+    from petroll.bench.memory import peak_mib, rss_mib
 
     world, fixed = MPI.COMM_WORLD, rss_mib()
     row = rough_sliding(pathlib.Path(sys.argv[2]), world, cells=int(sys.argv[1]), show=False)[0]

@@ -1,6 +1,6 @@
 """How accurate petroll's answers are, measured (docs/accuracy.md, docs/verification.md, docs/benchmarks.md).
 
-- :func:`verify`: a scene's error estimate (petroll.solver.estimate) against its true error, the
+- :func:`verify`: a scene's error estimate (petroll.studies.estimate) against its true error, the
   difference from a reference on a grid 4x finer (the time step 4x smaller where the steps follow the
   cell), both at the fine run's last time;
 - :func:`convergence`: the last step's values on grids of 2, 4, 8 ... cells per contact half-width against
@@ -23,8 +23,9 @@ import numpy as np
 from mpi4py import MPI
 
 from petroll.model.scene import Scene, load_scene, parse_scene, shipped_scene
-from petroll.solver.estimate import COUNTED, ErrorEstimate, end_time, estimate_error
-from petroll.solver.simulation import Simulation, StepRecord
+from petroll.studies.estimate import COUNTED, ErrorEstimate, end_time, estimate_error
+from petroll.records import StepRecord
+from petroll.solver.simulation import Simulation
 
 
 def refined(scene: Scene, factor: float, end: float | None) -> Scene:

@@ -1,5 +1,5 @@
 """Rolling benchmarks: work-precision of the integrators, cost growth, what each saving is worth (the
-scenes and the step-by-step timing that petroll.studies.bench_mpi shares).
+scenes and the step-by-step timing that petroll.bench.mpi shares).
 
 ``petroll bench precision [--out DIR]``: the default scene (runs/sphere.toml, changed in memory: no
 ``[time] steady`` stop, so every run rolls the scene's whole track and ends at the same body position)

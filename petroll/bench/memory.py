@@ -141,19 +141,17 @@ def append_times(side: int, steps: int, path: pathlib.Path, comm: MPI.Comm) -> l
     """Seconds of each of ``steps`` appends (a side x side field each) to a new results file at path."""
     from petroll.io.results import ResultsFile
     from petroll.solver.partition import RowPartition
-    from petroll.solver.simulation import StepRecord
+    from petroll.records import INTEGER_SERIES, SERIES, StepRecord
 
     x = np.linspace(0.0, 1.0, side)
     writer = ResultsFile(path, "", x, x, comm)
     r0, r1 = RowPartition(side, comm.size).range(comm.rank)
-    names = list(StepRecord.__annotations__)
     rng = np.random.default_rng(comm.rank)
     local = np.zeros((r1 - r0, side))  # a contact patch's worth of non-zero values, like a pressure field
     patch = min(64, r1 - r0)
     records, seconds = [], []
     for step in range(steps):
-        records.append(StepRecord(**{k: step if k in ("step", "iterations", "applications") else 0.0
-                                     for k in names}))
+        records.append(StepRecord(**{k: step if k in INTEGER_SERIES else 0.0 for k in SERIES}))
         local[:patch, :64] = rng.random((patch, min(64, side)))
         comm.Barrier()
         start = time.perf_counter()
@@ -197,7 +195,7 @@ def append(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, side: int = 512, 
 
 def _mpirun(k: int, args: list[str]) -> dict:
     """This module's child (``args``) under ``mpirun -n k``; its JSON line."""
-    return mpirun_child(k, "petroll.studies.bench_memory", args, "bench memory")
+    return mpirun_child(k, "petroll.bench.memory", args, "bench memory")
 
 
 def mpirun_child(k: int, module: str, args: list[str], what: str) -> dict:

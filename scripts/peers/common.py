@@ -4,7 +4,7 @@ with its own folder first on sys.path, so ``import common`` finds this file.
 
     python solve_<name>.py PROBLEM.npz START PRESSURE.npy TOL [TOL ...] [--reference REF.npy --target T]
 
-PROBLEM.npz (written by petroll.studies.peers.bench.write_problem): ``heights`` (N x N, m, the rigid body's
+PROBLEM.npz (written by petroll.bench.peers.write_problem): ``heights`` (N x N, m, the rigid body's
 height above its lowest point at the cell centres, index [i, j] the cell at x_i, y_j), ``cell`` (its side,
 m; the grid is N cells wide, centred on 0), ``compliance`` (J = (1 - nu^2) / E, 1/Pa), ``load`` (N: every
 solver holds the force), ``radius`` (m, petroll's radius hint), ``delta`` and ``pressure`` (a penetration,
