@@ -10,7 +10,8 @@ line contact: the line-contact form a = sqrt(4 P R J / pi) with P the load per l
 The contact half-widths are those of the region where the body lies within delta_e / 2 of its lowest
 point, along X and Y (for a sphere exactly Hertz's radius: a^2 = R delta). Lengths in m.
 
-Resolution. Cells per contact half-width along X and Y, the smaller over the compliance range: below
+Resolution. Cells per contact half-width along X and Y, the smaller over the compliance range (a steady
+rolling state under load control: its contact at J(a/V), ContactSize.resolved): below
 ``GOOD_CELLS`` the run warns (one line naming the key and the value that gives ``GOOD_CELLS``), below
 ``LEAST_CELLS`` it is refused unless ``[grid] allow_coarse = true``, above ``MOST_CELLS`` (a contact
 smaller than half the grid) it is refused (docs/accuracy.md: errors against cells per half-width).
@@ -408,8 +409,9 @@ def path_leaves(scene, size: ContactSize, walked: Path, glassy: bool = True) -> 
 
 @dataclass(frozen=True)
 class Preflight:
-    """What :func:`check` found: the contact size, cells per half-width (X, Y; the smaller over the
-    compliance range), the run's path and steps, and the predicted memory per rank (MiB)."""
+    """What :func:`check` found: the contact size, cells per half-width (X, Y; ContactSize.resolved; a
+    periodic rough surface: per short cut-off wavelength), the run's path and steps, and the predicted
+    memory per rank (MiB)."""
 
     scene: object
     contact: ContactSize

@@ -27,7 +27,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.fft
 from scipy.special import erf
 
 from petroll.model.bodies.rough import PeriodicSurface
@@ -94,22 +93,6 @@ def periodic_surface(scene) -> PeriodicSurface | None:
     return scene.body if all(g.periodic) and not g.line and isinstance(scene.body, PeriodicSurface) else None
 
 
-def spectrum(surface: PeriodicSurface) -> tuple[np.ndarray, np.ndarray]:
-    """(|q| in rad/m, power |h_q|^2 normalised to the mean square height) of every mode of the surface's
-    samples but the mean, the half spectrum's columns weighted for their conjugates."""
-    nx, ny = surface.heights.shape
-    qx = 2.0 * np.pi * scipy.fft.fftfreq(nx, surface.cell[0])
-    qy = 2.0 * np.pi * scipy.fft.rfftfreq(ny, surface.cell[1])
-    weight = np.full(len(qy), 2.0)
-    weight[0] = 1.0
-    if ny % 2 == 0:
-        weight[-1] = 1.0
-    power = np.abs(scipy.fft.rfft2(surface.heights)) ** 2 * weight / (nx * ny) ** 2
-    q = np.hypot(qx[:, None], qy[None, :])
-    power[0, 0] = 0.0
-    return q.ravel(), power.ravel()
-
-
 @functools.lru_cache(maxsize=2)
 def surface_statistics(surface: PeriodicSurface) -> tuple[float, float, np.ndarray]:
     """(lambda_s, h'_rms, the heights Z at the samples sorted): :func:`cutoff_wavelength` and the heights
@@ -122,7 +105,7 @@ def surface_statistics(surface: PeriodicSurface) -> tuple[float, float, np.ndarr
 def cutoff_wavelength(surface: PeriodicSurface) -> tuple[float, float]:
     """(lambda_s in m, h'_rms): the wavelength 2 pi / q_s with SLOPE_SHARE of the mean square slope at
     |q| <= q_s, and the rms slope of the samples' trigonometric interpolant; (inf, 0) for a flat surface."""
-    q, power = spectrum(surface)
+    q, power = surface.spectrum()
     slope = q**2 * power
     total = float(slope.sum())
     if not total > 0.0:
