@@ -15,7 +15,7 @@ from mpi4py import MPI
 from petroll.errors import PetrollError
 
 VERBS = ("tao", "warm", "skips", "peers", "precision", "growth", "mpi", "memory", "append", "layer", "steady",
-         "steady-growth", "estimate", "accuracy", "periodic", "sliding")
+         "steady-growth", "estimate", "accuracy", "periodic", "sliding", "cutoff", "sized")
 
 QUICK = {
     "tao": dict(repeats=1, cells_per_radius=(6,), load_cells=48, rolling_distance=0.1e-3),
@@ -35,6 +35,8 @@ QUICK = {
     "accuracy": dict(scenes=("roller-2d.toml",), factors=(0.5,), reference=2.0),
     "periodic": dict(sides=(32,), repeats=1, tamaas_sides=()),
     "sliding": dict(cells=32, curve_cells=32, points=2),
+    "cutoff": dict(cells=(2,), reference=4, side=0.5e-3),
+    "sized": dict(speeds="0.01,1", fine=80),
 }
 """Keyword arguments of each verb's function under ``--quick``."""
 
@@ -93,6 +95,10 @@ def _function(which: str):
         from petroll.bench import memory
 
         return {"memory": memory.memory, "append": memory.append}[which]
+    if which in ("cutoff", "sized"):
+        from petroll.bench import sizing
+
+        return {"cutoff": sizing.cutoff, "sized": sizing.sized}[which]
     if which == "layer":
         from petroll.bench.layer import bench as layer_bench
 

@@ -300,6 +300,7 @@ MODEL_KEYS: dict[str, tuple[set[str], set[str]]] = {
 }
 """Per model: the [material] keys it requires, and those it may take."""
 
+
 def _cells_per_half_width(value: Any) -> float:
     from petroll.model.preflight import GOOD_CELLS, MOST_CELLS
 
@@ -326,7 +327,7 @@ SCHEMA: dict[str, dict[str, Key]] = {
                                     "this many per estimated contact half-width; the domain from the contact, "
                                     "the load or penetration, the material's compliance and the path; a "
                                     "generated rough surface: docs/rough.md), prints it and stores it in "
-                                    "results.h5; absent with [grid]: 16 (docs/accuracy.md)",
+                                    "results.h5; a scene without [grid] gets 16 (docs/accuracy.md)",
                                     _cells_per_half_width, default=None),
         "allow_coarse": Key("boolean", "run even with fewer than 2 cells per estimated contact half-width "
                             "(refused otherwise; below 8 a run warns: docs/accuracy.md)", _flag, default=False),
