@@ -118,6 +118,8 @@ def _info(args: argparse.Namespace) -> None:
     else:
         lines.append("  checkpoints: none")
     lines.append(f"  other files: {', '.join(found.others) or 'none'}")
+    if r.error_estimate is not None:
+        lines += ["  " + line for line in estimate_lines(r.error_estimate)]
     lines += [f"  warning: {line}" for line in r.warnings]
     print("\n".join(lines))
 
@@ -373,29 +375,40 @@ def _main(args: argparse.Namespace, comm) -> int:
     if comm.rank == 0:
         print(summary(scene, results, wall=time.perf_counter() - start, resumed=checkpoint))
         if results.error_estimate is not None:
-            print(estimate_line(results.error_estimate))
+            print("petroll: " + "\n".join(estimate_lines(results.error_estimate)))
     return 0
 
 
-def estimate_line(estimate: dict) -> str:
-    """The summary's lines on results.h5's error_estimate group: a heading naming the grids, then each
-    quantity's value +- its discretisation error (with the order where it was observed), or why it has
-    none."""
+def estimate_lines(estimate: dict) -> list[str]:
+    """results.h5's error_estimate group as lines (``petroll run --estimate-error`` prints them after the
+    summary, ``petroll info`` indented): a heading naming the grids, the integrator and the order taken
+    where none is observed; a line where no 4x grid checked the asymptotic range; then each quantity's value
+    +- its discretisation error (with the order where it was observed; marked where its range was not
+    checked), or why it has none. Files written before the integrator's order was stored read as order 2."""
     group = estimate[""]
     if group.get("failed"):
-        return f"petroll: no error estimate: {group['failed']}"
+        return [f"no error estimate: {group['failed']}"]
     grids = ", ".join(f"{nx} x {ny}" for nx, ny in group["grids"])
-    lines = [(f"petroll: error estimate of the last step (grids {grids}; orders the method's, 2 and 1 for "
-              "what counts cells, unless observed):")]
+    known = {name: float(estimate[name].get("known_order", 2.0))
+             for name in ("force", "delta", "mu_r", "p_max") if name in estimate}
+    common = known["mu_r"]
+    others = ", ".join(f"{name} {order:g}" for name, order in known.items() if order != common)
+    integrator = f'integrator "{group["integrator"]}": ' if group.get("integrator") else ""
+    lines = [f"error estimate of the last step (grids {grids}; {integrator}order {common:g}"
+             + (f" ({others})" if others else "") + ", 1 for what counts cells, unless observed):"]
+    if group.get("range_unchecked"):
+        lines.append(f"  the asymptotic range was not checked ({group['range_unchecked']}): the errors "
+                     "assume the orders above (docs/accuracy.md)")
     for name in ("force", "delta", "mu_r", "p_max", "area", "lead", "trail"):
         if name in estimate:
             q = estimate[name]
             observed = (f", observed order {q['order']:.2f}" if q["observed_order"] and math.isfinite(q["order"])
                         else "")
+            unchecked = "" if q.get("range_checked", True) else ", asymptotic range not checked"
             lines.append(f"  {name} {q['value']:.4e} " + (
                 "(the grids are not in the asymptotic range: no estimate)" if math.isnan(q["error"]) else
-                f"+- {q['error']:.1e} (discretisation{observed})"))
-    return "\n".join(lines)
+                f"+- {q['error']:.1e} (discretisation{observed}{unchecked})"))
+    return lines
 
 
 def _stress(args: argparse.Namespace, comm) -> int:

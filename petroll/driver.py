@@ -27,7 +27,7 @@ from petroll.io.rundir import DirectoryBusy, RunLock, clean_temporaries
 from petroll.model.limits import PetrollWarning, negative_friction
 from petroll.model.preflight import check_run
 from petroll.model.scene import Scene
-from petroll.records import StepRecord
+from petroll.records import StepRecord, series_rows
 from petroll.solver.rough import BINS
 from petroll.solver.simulation import Simulation
 
@@ -104,7 +104,7 @@ def _run(scene: Scene, comm: MPI.Comm, out: pathlib.Path, identity: tuple[str, s
     rough = None if g.line or not all(g.periodic) else BINS  # the group rough of a periodic grid
     results = ResultsFile(out / "results.h5", scene.text, g.x, g.y, comm, fields=scene.fields, line=g.line,
                           steady=steady, source=str(scene.source), run_id=run_id, rough=rough,
-                          fingerprint=inputs)
+                          fingerprint=inputs, friction=scene.friction is not None)
     if restart is not None:
         t, field_steps = restart.restore(sim)
         results.resume(run_directory(restart.path) / "results.h5", len(sim.records), field_steps,
@@ -178,7 +178,7 @@ def _append(results: ResultsFile, sim: Simulation, save: bool, complete: bool, d
     continues (``newest``: this run's newest checkpoint)."""
     try:
         rough = sim.rough_outputs() if save and results.rough is not None else None
-        results.append(sim.records, saved_fields(sim) if save else None, complete=complete, describe=describe,
+        results.append(_rows(sim), saved_fields(sim) if save else None, complete=complete, describe=describe,
                        rough=rough, warnings=warned)
     except OutputError as exc:
         n = results.steps
@@ -186,6 +186,11 @@ def _append(results: ResultsFile, sim: Simulation, save: bool, complete: bool, d
         then = (f"free space (or fix the cause) and continue with: petroll restart {newest}" if newest else
                 "free space (or fix the cause) and run the scene again")
         raise OutputError(f"{exc}; {kept}; {then}") from None
+
+
+def _rows(sim: Simulation) -> list:
+    """The rows of ``sim``'s series: its StepRecords, joined with their FrictionRecords with [friction]."""
+    return series_rows(sim.records, None if sim.friction is None else sim.friction.records)
 
 
 class RunFailed(PetrollError):
@@ -207,7 +212,7 @@ def _failure(scene: Scene, sim: Simulation, results: ResultsFile, checkpoint, ex
     done = len(sim.records)
     if not done:  # nothing solved, nothing kept: the error as it is
         return exc
-    results.append(sim.records, None, complete=False, describe=True)
+    results.append(_rows(sim), None, complete=False, describe=True)
     t, rolled = sim.t + (sim.dt_next or 0.0), sim.records[-1].distance
     kept = f"{results.path} holds the {done} step{'s' * (done != 1)} solved before it (complete = false)"
     kept += f"; last checkpoint: {checkpoint}" if checkpoint is not None else "; no checkpoint"
@@ -219,9 +224,10 @@ def _failure(scene: Scene, sim: Simulation, results: ResultsFile, checkpoint, ex
 
 def saved_fields(sim: Simulation) -> dict[str, np.ndarray]:
     """The fields of ``[output] fields`` at the newest step, this rank's rows: pressure (Pa) and, when
-    asked, the surface displacement and the gap (m, from ``Simulation.surface``: one more convolution)."""
-    fields = {"pressure": sim.pressure}
-    if len(sim.scene.fields) > 1:
+    asked, the surface displacement and the gap (m, from ``Simulation.surface``: one more convolution); with
+    friction the tangential tractions (Pa) and the slip velocity (m/s)."""
+    fields = {"pressure": sim.pressure, **(sim.friction.fields if sim.friction is not None else {})}
+    if "displacement" in sim.scene.fields:
         fields["displacement"], fields["gap"] = sim.surface()
     return fields
 
@@ -345,7 +351,8 @@ class StressSummary:
 
 def stress(run_dir: str | pathlib.Path, step: int | None = None, depths=None, nu: float | None = None,
            comm: MPI.Comm = MPI.COMM_WORLD) -> StressSummary:
-    """The stresses below the pressure saved at ``step`` (None: the last saved field) of the run in
+    """The stresses below the pressure (with friction: and the tangential tractions) saved at ``step``
+    (None: the last saved field) of the run in
     ``run_dir``, written to ``run_dir/stress.h5`` (layout: petroll/io/stress.py, docs/results.md).
 
     ``depths``: the depths z >= 0 in m, or None / "auto" (0 to twice the contact's smaller half-width, 41
@@ -380,11 +387,12 @@ def stress(run_dir: str | pathlib.Path, step: int | None = None, depths=None, nu
     r0, r1 = saved["rows"]
     z = _depths(depths, p, x[r0:r1], y, dx, dy, saved["step"], comm, line)
     solver = SubsurfaceStress(len(x), len(y), dx, dy, nu, comm, line)
+    traction = None if saved["traction"] is None else -saved["traction"]  # the body's on the half-space
     best = {"von_mises": (-1.0, (0.0, 0.0, 0.0)), "max_shear": (-1.0, (0.0, 0.0, 0.0))}
 
     def fields():
         for depth in z:
-            s = solver.at(p, float(depth))
+            s = solver.at(p, float(depth), traction)
             out = np.concatenate([s, von_mises(s)[None], max_shear(s)[None]])
             for name, field in (("von_mises", out[6]), ("max_shear", out[7])):
                 if field.size:

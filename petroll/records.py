@@ -49,8 +49,68 @@ class StepRecord:
 SERIES = tuple(f.name for f in fields(StepRecord))
 """The per-step series of a run, in order: the fields of :class:`StepRecord`."""
 
-INTEGER_SERIES = ("step", "iterations", "applications")
+INTEGER_SERIES = ("step", "iterations", "applications", "friction_iterations", "friction_applications")
 """Series stored as 64-bit integers (the others as doubles)."""
+
+
+@dataclass
+class FrictionRecord:
+    """What one step of a run with [friction] reports beside its StepRecord (global values; forces N, N/m
+    in line contact; docs/results.md)."""
+
+    traction_x: float  # sum q_x dA: the tangential force the half-space exerts on the body, N
+    traction_y: float
+    creepage_x: float  # given or found (force control); NaN for a step without motion (a shift)
+    creepage_y: float
+    shift_x: float  # the body's rigid tangential displacement of the shifts so far, m
+    shift_y: float
+    stick_area: float  # cells with p > 0 and |q| < mu p (within the solver's tolerance), m^2 (m)
+    friction_power: float  # -sum q . (slip velocity) dA >= 0, W (W/m); NaN for a step of no duration
+    friction_iterations: int
+    friction_applications: int
+
+    @classmethod
+    def from_series(cls, series, i: int) -> FrictionRecord:
+        """Step ``i`` of ``series`` (a line-contact run's absent _y series: 0)."""
+        return cls(**{name: (int if name in INTEGER_SERIES else float)(series[name][i] if name in series else 0)
+                      for name in FRICTION_SERIES})
+
+
+FRICTION_SERIES = tuple(f.name for f in fields(FrictionRecord))
+"""The series a run with [friction] writes beside :data:`SERIES` (line contact: without
+:data:`FRICTION_LINE_ABSENT`)."""
+
+FRICTION_UNITS = {"traction_x": "N", "traction_y": "N", "creepage_x": "-", "creepage_y": "-", "shift_x": "m",
+                  "shift_y": "m", "stick_area": "m^2", "friction_power": "W", "friction_iterations": "-",
+                  "friction_applications": "-"}
+"""The units of friction's series (3-D)."""
+
+FRICTION_LINE_ABSENT = ("traction_y", "creepage_y", "shift_y")
+FRICTION_LINE_UNITS = {"traction_x": "N/m", "stick_area": "m", "friction_power": "W/m"}
+"""Friction's series a line-contact run does not write, and those whose unit is per unit length there."""
+
+
+def friction_units(line: bool) -> dict[str, str]:
+    """Friction's series and their units (``line``: a line-contact run's)."""
+    return {name: (FRICTION_LINE_UNITS.get(name, unit) if line else unit) for name, unit in FRICTION_UNITS.items()
+            if not (line and name in FRICTION_LINE_ABSENT)}
+
+
+class Joined:
+    """A StepRecord with its step's FrictionRecord's values as attributes too: a row of the series of a run
+    with friction (results.h5, checkpoints)."""
+
+    def __init__(self, record: StepRecord, friction: FrictionRecord):
+        self.record, self.friction = record, friction
+
+    def __getattr__(self, name: str):
+        return getattr(self.friction if name in FRICTION_UNITS else self.record, name)
+
+
+def series_rows(records: list[StepRecord], friction: list[FrictionRecord] | None) -> list:
+    """The rows of a run's series: its StepRecords, joined with their FrictionRecords (``friction``; None:
+    a run without friction)."""
+    return records if friction is None else [Joined(r, f) for r, f in zip(records, friction)]
 
 
 @dataclass(frozen=True)

@@ -15,7 +15,6 @@ from petroll.model.limits import PetrollWarning, largest_penetration
 from petroll.model.preflight import check, check_run
 from petroll.model.rough_contact import GOOD_CUTOFF_CELLS, rough_contact
 from petroll.model.scene import parse_scene
-from petroll.studies.sweep import sweep
 
 L, N = 1.0e-3, 32
 RAW = {
@@ -92,20 +91,27 @@ def test_a_run_warns_below_the_least_cells_per_cut_off(cutoff_cells, warned):
         assert f"fewer than {GOOD_CUTOFF_CELLS}" in texts[0] and "\n" not in texts[0]
 
 
-def test_a_rough_sweep_warns_once_and_speaks_of_friction(shared_dir, comm):
-    """Three speeds on a coarse surface (2 cells per cut-off): its warning once, not at every point; the
-    table's A/A0 is the area over the cell's; the figure's terms are sliding friction's."""
+def test_a_rough_sweep_warns_once_and_speaks_of_friction(shared_dir, comm, cli_main):
+    """``petroll sweep`` over three speeds on a coarse surface (2 cells per cut-off): its warning once, not
+    at every point; the table's A/A0 is the area over the cell's; the figure's terms are sliding
+    friction's."""
+    from petroll.model.scene import dumps
     from petroll.plot.sweep import SweepData
+    from petroll.studies.sweep import SweepTable
 
-    scene = scene_with(SLS, body__cutoff=2 * L / N)
-    shown = []
-    with warnings.catch_warnings():
-        warnings.simplefilter("always")
-        warnings.showwarning = lambda message, *args, **kwargs: shown.append(str(message))
-        table = sweep(scene, "motion.velocity=1e-3,1e-2,1e-1", shared_dir / "sweep", comm, plot=False)
-    coarse = [text for text in shown if "cut-off" in text]
-    assert len(coarse) == 1, shown
-    assert len(shown) == len(set(shown)), shown
+    raw = {**RAW, "material": SLS, "body": {**RAW["body"], "cutoff": 2 * L / N}}
+    if comm.rank == 0:
+        (shared_dir / "rough.toml").write_text(dumps(raw), encoding="utf-8")
+    comm.Barrier()
+    code, out, err = cli_main(["sweep", str(shared_dir / "rough.toml"), "--vary", "motion.velocity=1e-3,1e-2,1e-1",
+                               "--out", str(shared_dir / "sweep"), "--quiet"])
+    assert code == 0
+    if comm.rank == 0:
+        lines = err.splitlines()
+        assert len([line for line in lines if "cut-off" in line]) == 1, err
+        assert len(lines) == len(set(lines)), err
+        assert out.count("friction mu ") == 3 and "mu_r" not in out, out
+    table = SweepTable.open(shared_dir / "sweep")
     assert np.allclose(table.columns["area_fraction"], table.columns["area"] / L**2, rtol=1e-12, atol=0)
     assert np.all(np.isnan(table.columns["v_tau_a"])) and np.all(np.isnan(table.columns["a"]))
     d = SweepData.of(table)

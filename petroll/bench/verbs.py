@@ -15,7 +15,7 @@ from mpi4py import MPI
 from petroll.errors import PetrollError
 
 VERBS = ("tao", "warm", "skips", "peers", "precision", "growth", "mpi", "memory", "append", "layer", "steady",
-         "steady-growth", "estimate", "accuracy", "periodic", "sliding", "cutoff", "sized")
+         "steady-growth", "estimate", "accuracy", "periodic", "sliding", "friction", "cutoff", "sized")
 
 QUICK = {
     "tao": dict(repeats=1, cells_per_radius=(6,), load_cells=48, rolling_distance=0.1e-3),
@@ -32,9 +32,11 @@ QUICK = {
     "steady": dict(speeds=(1.0,), track=8),
     "steady-growth": dict(grids=((64, 32),), repeats=1),
     "estimate": dict(factors=(1,), repeats=1),
-    "accuracy": dict(scenes=("roller-2d.toml",), factors=(0.5,), reference=2.0),
+    "accuracy": dict(scenes=("roller-2d.toml",), factors=(0.5,), reference=2.0,
+                     integrators=("roller-2d.toml, paper",), order_factors=(1.0, 2.0, 4.0)),
     "periodic": dict(sides=(32,), repeats=1, tamaas_sides=()),
     "sliding": dict(cells=32, curve_cells=32, points=2),
+    "friction": dict(quick=True),
     "cutoff": dict(cells=(2,), reference=4, side=0.5e-3),
     "sized": dict(speeds="0.01,1", fine=80),
 }
@@ -95,6 +97,10 @@ def _function(which: str):
         from petroll.bench import memory
 
         return {"memory": memory.memory, "append": memory.append}[which]
+    if which == "friction":
+        from petroll.bench.friction import bench_friction
+
+        return lambda out, comm, **options: bench_friction(out, comm=comm, **options)
     if which in ("cutoff", "sized"):
         from petroll.bench import sizing
 

@@ -22,6 +22,7 @@ step N exactly as if it had never stopped (format version 2, readable with plain
     /state/recent        (k, nx, ny)   the last k <= 12 solutions, Pa (3 per lag, petroll.solver.warm), and
                                        /state/recent_position (k, 2) the body's positions, m: the first
                                        guess of the next step
+    /state/traction      (m, nx, ny)   [friction]: last tractions, Pa; traction_older, friction: FrictionLoop.state
     /series/<name>       (N + 1,)      the per-step series so far (as in results.h5)
     /fields/step         (n_saved,)    the steps of the fields saved so far (the fields are in results.h5)
 
@@ -244,7 +245,8 @@ def fingerprint(scene) -> str:
 
 
 # -- reading ----------------------------------------------------------------------------------------------
-FIELDS = ("state/pressure", "state/displacement", "state/q", "state/recent", "state/increments")
+FIELDS = ("state/pressure", "state/displacement", "state/q", "state/recent", "state/increments",
+          "state/traction", "state/traction_older")
 """The checkpoint's grid fields: (nx, ny) or (k, nx, ny), each rank reading and writing its own rows."""
 
 
@@ -347,6 +349,10 @@ class Checkpoint:
             history.increments = list(state["increments"])
         sim.direction = np.array(self.direction, dtype=float)
         sim.records = [StepRecord.from_series(self.series, i) for i in range(len(self.series["step"]))]
+        if (sim.friction is not None) != ("friction" in state):
+            raise CheckpointError(f"{self.path}: its friction state and the scene's [friction] disagree")
+        if sim.friction is not None:
+            sim.friction.restore(state, self.series)
         positions = state.get("recent_position")
         if positions is None:  # a checkpoint written before the guesses were kept: carry the last pressure
             sim.warm.record(sim.pressure, sim.records[-1].sx, sim.records[-1].sy)
@@ -511,7 +517,8 @@ def _checked(path: pathlib.Path, attrs: dict, data: dict, digests: dict, shapes:
     if "state/recent" in fields and "state/recent_position" not in data:
         del fields["state/recent"]
     small = {"recent_position": data["state/recent_position"]} if "state/recent" in fields else {}
-    return {"attrs": attrs, "series": {n: data[f"series/{n}"] for n in SERIES},
+    small.update({"friction": data["state/friction"]} if "state/friction" in data else {})  # [friction]'s
+    return {"attrs": attrs, "series": {n[7:]: data[n] for n in data if n.startswith("series/")},
             "field_steps": data["fields/step"], "direction": data["state/direction"],
             "times": None if prony else data["state/times"], "fields": fields, "digests": digests,
             "small": small, "whole": whole}

@@ -25,7 +25,7 @@ from petroll.io.checkpoint import (FORMAT, FORMAT_VERSION, CheckpointError, chec
 from petroll.io.hdf5 import RowFile, chunk_rows, seal, seal_broken
 from petroll.io.journal import sync_directory
 from petroll.io.results import PACKED
-from petroll.records import SERIES
+from petroll.records import FRICTION_SERIES, SERIES
 from petroll.solver.partition import RowPartition
 
 
@@ -60,6 +60,13 @@ def write_checkpoint(directory: str | pathlib.Path, sim, t: float, next_dt: floa
         sink.field("state/increments", list(history.increments))
     for name in SERIES:
         sink.array(f"series/{name}", np.array([getattr(r, name) for r in sim.records]))
+    if sim.friction is not None:  # its stepping state and series (petroll.solver.friction_loop)
+        parts, small = sim.friction.state()
+        for name, components in parts.items():
+            sink.field(f"state/{name}", components)
+        sink.array("state/friction", small)
+        for name in FRICTION_SERIES:
+            sink.array(f"series/{name}", np.array([getattr(r, name) for r in sim.friction.records]))
     sink.array("fields/step", np.asarray(field_steps, dtype=np.int64))
     attrs = {
         "format": FORMAT, "format_version": FORMAT_VERSION, "petroll_version": __version__,

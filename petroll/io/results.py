@@ -41,7 +41,7 @@ from petroll import __version__
 from petroll.errors import PetrollError, reason
 from petroll.io.hdf5 import RowFile, add_strings, chunk_rows, string_list
 from petroll.io.journal import atomic_write, copy_committed, reading, sync_directory  # noqa: F401 - atomic_write: here too
-from petroll.records import INTEGER_SERIES, SERIES
+from petroll.records import INTEGER_SERIES, SERIES, friction_units
 
 FORMAT_VERSION = 1
 
@@ -206,10 +206,12 @@ ROUGH_UNITS = {"area_fraction": "-", "mean_gap": "m", "q": "rad/m", "spectrum": 
 """The group rough of a run on a grid periodic along every axis (petroll.records.RoughOutputs), one
 row per saved field: area_fraction and mean_gap (n_saved,); q, spectrum and modes (n_saved, bins)."""
 
-FIELD_UNITS = {"pressure": "Pa", "displacement": "m", "gap": "m"}
+FIELD_UNITS = {"pressure": "Pa", "displacement": "m", "gap": "m", "traction_x": "Pa", "traction_y": "Pa",
+               "slip": "m/s"}
 """The fields a run can save (name: unit), each as /fields/<name> (n_saved, nx, ny): the contact pressure,
 the surface displacement (into the half-space; line contact: relative to the datum) and the gap between
-the body and the deformed surface ([output] fields)."""
+the body and the deformed surface ([output] fields); with [friction] the tangential tractions on the body
+and the slip velocity's magnitude (0 in stick and outside the contact; docs/results.md)."""
 
 
 class ResultsFile:
@@ -227,7 +229,8 @@ class ResultsFile:
 
     def __init__(self, path: str | pathlib.Path, scene_text: str, x: np.ndarray, y: np.ndarray, comm,
                  fields: tuple[str, ...] = ("pressure",), line: bool = False, steady: bool = False,
-                 source: str = "", run_id: str = "", rough: int | None = None, fingerprint: str = ""):
+                 source: str = "", run_id: str = "", rough: int | None = None, fingerprint: str = "",
+                 friction: bool = False):
         from petroll.solver.partition import RowPartition
 
         self.path, self.scene_text, self.comm = pathlib.Path(path), scene_text, comm
@@ -240,6 +243,8 @@ class ResultsFile:
         self.rough = rough
         self.line = bool(line)  # a line-contact run: the series of LINE_SERIES_UNITS, with their units
         self.names = [n for n in SERIES if not (line and n in LINE_ABSENT)]
+        self.friction_units = friction_units(line) if friction else {}  # a run with [friction]: its series
+        self.names += list(self.friction_units)
         self.steps = 0  # series rows in the file
         self.field_steps: list[int] = []  # the steps of the fields in the file
         self.started = False  # the file exists (create or resume); the first append creates it otherwise
@@ -262,7 +267,8 @@ class ResultsFile:
                 group = h.create_group("series")
                 for name in self.names:
                     group.create_dataset(name, shape=(0,), maxshape=(None,), chunks=(SERIES_CHUNK,),
-                                         dtype=series_dtype(name)).attrs["units"] = units.get(name, "-")
+                                         dtype=series_dtype(name)).attrs["units"] = units.get(
+                                             name, self.friction_units.get(name, "-"))
                 fields = h.create_group("fields")
                 chunks = (1, min(nx, chunk_rows(ny)), ny)
                 for name in self.fields:

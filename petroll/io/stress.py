@@ -1,4 +1,5 @@
-"""stress.h5: the stresses below a saved pressure field of a run (``petroll stress``; docs/results.md).
+"""stress.h5: the stresses below a saved pressure field of a run (``petroll stress``; docs/results.md), and
+its tangential tractions with friction.
 
     /z                    (nz,) depths below the surface in m (z into the half-space)
     /x, /y                (nx,), (ny,) cell-centre coordinates in m (material frame), as in results.h5
@@ -37,7 +38,8 @@ def read_saved_pressure(path: pathlib.Path, step: int | None, comm) -> dict:
     """This rank's rows (:class:`RowPartition` over ``comm``) of the pressure field saved at ``step`` (None:
     the last saved) of a results file, with what a stress computation needs: ``pressure`` (local rows, ny)
     Pa, ``rows`` (r0, r1), ``step``, ``t`` (s), ``x``, ``y`` (m), ``scene`` (its TOML text), ``sx``, ``sy``
-    (the body's path, m), ``line`` (a line-contact run: ny = 1). Collective in effect (every rank reads its rows). Raises PetrollError naming the
+    (the body's path, m), ``line`` (a line-contact run: ny = 1), ``traction`` (a run with friction: the
+    tangential tractions on the body, (m, local rows, ny) Pa; None without). Collective in effect (every rank reads its rows). Raises PetrollError naming the
     file or the step (with the saved steps) when it cannot."""
     try:
         with reading(path) as f:
@@ -54,7 +56,10 @@ def read_saved_pressure(path: pathlib.Path, step: int | None, comm) -> dict:
             series = f["series"]
             n = int(f.attrs.get("steps_written", len(series["step"])))  # a growing file: its valid part
             row = int(np.flatnonzero(series["step"][:n] == steps[k])[0])
+            tangential = [f["fields"][name][k, r0:r1, :] for name in ("traction_x", "traction_y")
+                          if name in f["fields"]]
             return {"pressure": f["fields/pressure"][k, r0:r1, :], "rows": (r0, r1), "step": int(steps[k]),
+                    "traction": np.stack(tangential) if tangential else None,
                     "line": bool(f.attrs.get("line_contact", False)),
                     "t": float(series["t"][row]), "x": f["fields/x"][()], "y": f["fields/y"][()],
                     "scene": str(f.attrs["scene"]), "sx": series["sx"][:n], "sy": series["sy"][:n]}

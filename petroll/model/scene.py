@@ -25,6 +25,7 @@ from petroll.model import motion
 from petroll.model.autogrid import REQUEST_KEYS, GridChoice, automatic, choose, provisional
 from petroll.model.bodies import Body, HeightMap, HeightProfile, make_body
 from petroll.model.bodies.rough import samples_surface
+from petroll.model.friction import Friction, friction_of, saved_fields
 from petroll.model.grid import Grid, line_grid
 from petroll.model.limits import MAGNITUDES, PetrollWarning, scale_message
 from petroll.model.schema import BODY_LENGTHS, CELL_DIGITS, MAX_CELLS, MODEL_KEYS, SCHEMA, Invalid, out_of_scale
@@ -80,6 +81,7 @@ class Scene:
     shift_factor: float = 1.0  # a_T at [material] temperature: material's times / their values at T_ref
     layer: materials.Layer | None = None  # [material] layer: a layer on a rigid base (None: a half-space)
     allow_coarse: bool = False  # [grid] allow_coarse: run below petroll.model.preflight.LEAST_CELLS
+    friction: Friction | None = None  # [friction]: Coulomb friction (None: frictionless)
     sizing: GridChoice | None = None  # the grid petroll sized (raw and text hold it); None: [grid] as given
 
     def replace(self, changes: str | dict[str, Any], value: Any = None) -> "Scene":
@@ -167,6 +169,7 @@ def parse_scene(raw: dict, source: str = "<python>", base_dir: str | pathlib.Pat
     _check_cells(grid, raw["grid"], source)
     material = _material(values["material"], raw.get("material", {}), base_dir, source)
     material, shift_factor = _temperature(values["material"], raw.get("material", {}), material, source)
+    material, friction = friction_of(values, raw, material, line, any(g["periodic"]), source)
     for key in BODY_LENGTHS:
         if key in raw.get("body", {}) and (bad := out_of_scale(raw["body"][key])) is not None:
             raise SceneError(source, f"[body] {key}", raw["body"][key], scale_message(bad, "m"))
@@ -195,7 +198,7 @@ def parse_scene(raw: dict, source: str = "<python>", base_dir: str | pathlib.Pat
                                 values["solver"]["history_cutoff"]),
                   output_dir=output_dir, every=values["output"]["every"], base_dir=base_dir,
                   checkpoint_every=values["output"]["checkpoint_every"], keep=values["output"]["keep"],
-                  fields=values["output"]["fields"],
+                  fields=values["output"]["fields"] + (saved_fields(line) if friction else ()), friction=friction,
                   shift_factor=shift_factor,
                   layer=_material_layer(values["material"], raw.get("material", {}), source),
                   allow_coarse=g["allow_coarse"])

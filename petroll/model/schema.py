@@ -16,7 +16,7 @@ import numpy as np
 from petroll.errors import MISSING
 from petroll.model import materials
 from petroll.model import motion
-from petroll.model.limits import MAGNITUDES
+from petroll.model.limits import MAGNITUDES, scale_message
 from petroll.model.bodies import BODY_KEYS
 from petroll.model.tao import DEFAULT_TAO_TYPE, TAO_TYPES
 
@@ -24,7 +24,8 @@ DEFAULT_STEADY = 1e-3
 """The [time] steady tolerance a sweep gives a scene that has none (docs/sweep.md)."""
 
 SAVED_FIELDS = ("pressure", "displacement", "gap")
-"""The fields a run can save at its saved steps ([output] fields; units in petroll.io.results.FIELD_UNITS)."""
+"""The fields a run can save at its saved steps ([output] fields; units in petroll.io.results.FIELD_UNITS);
+a run with [friction] saves friction's too (petroll.model.friction.FIELDS)."""
 
 
 @dataclass(frozen=True)
@@ -258,6 +259,54 @@ def _program(vector: bool, positive: bool) -> Callable[[Any], Any]:
     return check
 
 
+def _creepage(value: Any) -> tuple[float, float]:
+    """[motion] creepage: [xi, eta] (line contact: a number, or [xi, 0]), each within [-1, 1]."""
+    allowed = "must be a pair [xi, eta] of numbers between -1 and 1 (line contact: a number)"
+    pair = _tangential(value, allowed)
+    if max(abs(pair[0]), abs(pair[1])) > 1:
+        raise Invalid(allowed)
+    return pair
+
+
+def _tangential(value: Any, allowed: str = "must be a pair [Fx, Fy] of finite numbers (line contact: a "
+                "number)") -> tuple[float, float]:
+    """A tangential vector: [x, y] or a number (line contact's [x, 0])."""
+    try:
+        return (_number(value), 0.0) if not isinstance(value, list) else _point(value)
+    except Invalid:
+        raise Invalid(allowed) from None
+
+
+BODY_MATERIAL_FORM = '"same" (the half-space\'s) or an inline table {E = Young\'s modulus (Pa), nu = Poisson\'s ratio}'
+"""What [body] material may be written as."""
+
+
+def _body_material(value: Any) -> str | tuple[float, float]:
+    """[body] material: "same", or (E, nu) of an elastic body."""
+    if value == "same":
+        return value
+    if not isinstance(value, dict) or set(value) != {"E", "nu"}:
+        raise Invalid(f"must be {BODY_MATERIAL_FORM}")
+    try:
+        E, nu = _positive(value["E"]), _poisson(value["nu"])
+    except Invalid as exc:
+        raise Invalid(f"{exc}; allowed: {BODY_MATERIAL_FORM}") from None
+    if out_of_scale(E) is not None:
+        raise Invalid(f"E: {scale_message(E, 'Pa')}")
+    return E, nu
+
+
+MAX_FRICTION = 100.0
+"""The largest [friction] coefficient (dry rubber reaches 3 to 4; beyond 100 mu p is no friction)."""
+
+
+def _coefficient(value: Any) -> float:
+    mu = _positive(value)
+    if mu > MAX_FRICTION:
+        raise Invalid(f"must be a number > 0, at most {MAX_FRICTION:g}")
+    return mu
+
+
 def _text(value: Any) -> str:
     if not isinstance(value, str) or not value:
         raise Invalid("must be a non-empty string")
@@ -382,6 +431,11 @@ SCHEMA: dict[str, dict[str, Key]] = {
                      _choice(*BODY_KEYS)),
         "position": Key("[x, y]", "position of the body's reference point at t = 0", _point,
                         default=[0.0, 0.0], unit="m"),
+        "material": Key("string or inline table", "the body is elastic: " + BODY_MATERIAL_FORM + "; the "
+                        "bodies' compliances add (absent: a rigid body); with [friction] the pair must be "
+                        "quasi-identical, (1 - 2 nu)/G equal (a rigid body: [material] nu = 0.5); needs "
+                        "[material] model = \"elastic\" (docs/friction.md)", _body_material, default=None,
+                        fields=(("E", "Pa"),)),
     },
     "motion": {
         "velocity": Key("[vx, vy] or program", "velocity of the body over the half-space (its path s(t) "
@@ -397,6 +451,18 @@ SCHEMA: dict[str, dict[str, Key]] = {
                     "penetration, load); line contact: force per unit length, N/m; a periodic grid: the "
                     "force on its cell (the mean pressure is load / cell area)",
                     _program(vector=False, positive=True), default=None, unit="N"),
+        "creepage": Key("[xi, eta]", "with [friction]: the rigid slip velocity of the body relative to the "
+                        "half-space over the rolling speed, along X and Y, each within [-1, 1] (line contact: "
+                        "a number); creepage control, default [0, 0] (free rolling); needs a velocity",
+                        _creepage, default=None),
+        "spin": Key("number", "with [friction]: the body's rigid angular velocity relative to the half-space "
+                    "about the normal (counter-clockwise from X to Y) over the rolling speed, about the "
+                    "body's reference point; not in line contact", _number, default=None, unit="1/m"),
+        "tangential_force": Key("[Fx, Fy]", "with [friction]: the tangential force the half-space exerts on "
+                                "the body (line contact: a number, N/m), held (force control; the creepage "
+                                "found); a body at rest is shifted by it (Cattaneo), from zero to it over "
+                                "[time] end, or at once without [time]; at most mu x the normal force",
+                                _tangential, default=None, unit="N"),
     },
     "time": {
         "mode": Key("string", '"transient" (march from the start in time steps) or "steady" (the steady '
@@ -436,6 +502,13 @@ SCHEMA: dict[str, dict[str, Key]] = {
                               "left out of the preceding displacement (the fading wake behind a rolling "
                               "body); changes it by at most this fraction of its scale; 0: keep all "
                               "(docs/design.md)", _cutoff, default=1e-9),
+    },
+    "friction": {
+        "coefficient": Key("number > 0", "Coulomb's friction coefficient mu: tangential tractions |q| <= mu p, "
+                           "stick and slip (docs/friction.md); [friction] absent: frictionless; needs an "
+                           "elastic half-space, a non-periodic grid (required in [friction]); at most 100",
+                           _coefficient,
+                           default=None),
     },
     "output": {
         "dir": Key("string", "output directory, relative to the current directory (command line: --out); "

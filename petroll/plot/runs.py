@@ -11,6 +11,7 @@ import numpy as np
 
 from petroll.errors import PetrollError
 from petroll.io.results import Results
+from petroll.plot.friction import traction_figure
 from petroll.plot.common import MM, cell_edges, constrained_figure, pressure_unit, write_figure
 
 MAX_PANELS = 4
@@ -22,7 +23,8 @@ MAX_TIMES = 16
 def plot_results(results_dir: str | pathlib.Path, out_dir: str | pathlib.Path | None = None,
                  times: Sequence[float] | None = None, fmt: str = "png") -> list[pathlib.Path]:
     """Write pressure.png, patches.png and series.png for ``results_dir/results.h5``, surface.png
-    when the run saved the surface displacement and gap ([output] fields), and islands.png for a run on a
+    when the run saved the surface displacement and gap ([output] fields), traction.png for a run with
+    friction (its tractions and stick/slip map, petroll.plot.friction), and islands.png for a run on a
     periodic grid (the contact islands of the last saved field and the pressure's spectrum); ``fmt`` (png,
     pdf, svg) replaces the suffix.
 
@@ -53,6 +55,8 @@ def plot_results(results_dir: str | pathlib.Path, out_dir: str | pathlib.Path | 
                "patches": lambda: patches(results, label), "series": lambda: _series_figure(results, label)}
     if "displacement" in results.fields:
         figures["surface"] = lambda: _surface_figure(results, label)
+    if "traction_x" in results.fields:  # a run with friction
+        figures["traction"] = lambda: traction_figure(results, label)
     if results.rough is not None:
         figures["islands"] = lambda: _islands_figure(results, label)
     for name, figure in figures.items():

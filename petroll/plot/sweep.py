@@ -51,7 +51,7 @@ class SweepData:
 
             tol = DEFAULT_STEADY
         unit = "" if table.unit == "-" else f" ({table.unit})"
-        vector = table.key in ("motion.velocity", "body.position")
+        vector = table.key in ("motion.velocity", "body.position", "motion.creepage", "motion.tangential_force")
         dense = np.geomspace(x.min(), x.max(), 200) if logx else np.linspace(x.min(), x.max(), 200)
         cell = "area_fraction" in c and bool(np.all(np.isfinite(c["area_fraction"])))
         xlabel = ("sliding speed V (m/s)" if cell and table.key == "motion.velocity" else
@@ -86,7 +86,10 @@ def plot_sweep(table, path: str | pathlib.Path) -> pathlib.Path:
     top_title = dict(TITLE, pad=40 if d.secondary is not None else 6)  # above the V tau/a axis
     (mu_ax, log_ax), (force_ax, area_ax), (edge_ax, conv_ax) = axes
     mu_panel(mu_ax, d, top_title)
-    log_mu_panel(log_ax, d, top_title)
+    if np.any(np.isfinite(d.c.get("traction_x", np.nan))):  # a sweep with friction: its creep-force curve
+        creep_panel(log_ax, d, top_title, table.scene_text)
+    else:
+        log_mu_panel(log_ax, d, top_title)
     force_panel(force_ax, d)
     area_panel(area_ax, d)
     (pressure_panel if d.cell else edges_panel)(edge_ax, d)
@@ -95,6 +98,22 @@ def plot_sweep(table, path: str | pathlib.Path) -> pathlib.Path:
     label = pathlib.Path(table.directory).resolve().name
     figure.suptitle(f"{label}: steady state against {table.key} ({len(d.x)} runs)")
     return write_figure(figure, path, dpi=110)
+
+
+def creep_panel(ax, d: SweepData, title: dict, scene_text: str) -> None:
+    """A sweep with [friction]: the tangential force over mu x the normal force (the creep-force curve)
+    and the stick area's fraction of the contact area, against the varied value."""
+    import tomllib
+
+    mu = float(tomllib.loads(scene_text)["friction"]["coefficient"])
+    c = d.c
+    tangential = np.hypot(c["traction_x"], np.nan_to_num(c.get("traction_y", 0.0 * c["traction_x"])))
+    ax.plot(d.x, tangential / (mu * c["force"]), color="tab:blue", label=r"$|F_t| / (\mu F)$", **STYLE)
+    ax.plot(d.x, c["stick_area"] / c["area"], color="tab:orange", label="stick area / contact area", **STYLE)
+    ax.set_ylim(-0.02, 1.05)
+    ax.set_title("creep-force curve", **title)
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3)
 
 
 def mu_panel(ax, d: SweepData, title: dict) -> None:

@@ -75,6 +75,8 @@ class Stepping:
         self.last_distance = None
         self.shift_total = np.zeros(solver.m)  # the body's rigid tangential displacement of the shifts, m
         self.creepage = np.zeros(solver.m)  # the last rolling step's (given or found)
+        self.scale = 0.0  # the last rolling step's rolled distance in the QP's form (m): its slip is the
+        # slip velocity over the rolling speed times it (order 2: distance/a0)
 
     def _previous(self, bound: np.ndarray, combination: np.ndarray) -> np.ndarray:
         """c K ``combination`` (m) on this rank's rows, on the box of the new contact and the field."""
@@ -135,6 +137,7 @@ class Stepping:
         self.creepage = (np.asarray(creepage, dtype=float)[: solver.m] if force is None
                          else solution.shift / scale)
         self.older, self.traction, self.last_distance = self.traction, solution.traction, distance
+        self.scale = scale
         return solution
 
 

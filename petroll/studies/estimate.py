@@ -18,10 +18,15 @@ last step, with f1 its fine value, f2 the 2x grids' (mean; s half their spread) 
   size, the grids are not in the asymptotic range: no error and no extrapolated value (nan), rather than a
   false bound;
 - the order p: observed, log2(d2 / d1), where the 4x grid resolves the contact (``THIRD_GRID_CELLS``) and
-  that lies within a factor 2 of the method's known order (:data:`KNOWN_ORDER`; else not asymptotic);
+  that lies within a factor 2 of the method's known order (:func:`known_order`: 1 for the "paper"
+  integrator where the step follows the cell (its peak pressure 1.5), else 2; else not asymptotic);
   otherwise the known order;
 - extrapolated = f1 - d1 / (2^p - 1); the error of f1 is (|d1| + s) / (2^q - 1) with q = min(p, the known
   order) (an observed order above the known one does not shrink the bound).
+
+A quantity whose asymptotic range no 4x grid checked (none solved: in 3-D below 16 cells per contact
+half-width; or |d1| within s) has its error from the known order alone: it is marked (``checked`` False),
+and so is the estimate (:attr:`ErrorEstimate.range_checked`; results.h5, the printed lines).
 
 What counts cells (the area, the patch edges lead and trail) moves by whole cells, not by a power of the
 cell: it is not extrapolated, and its error is the larger of its 2x grids' difference and its quantisation
@@ -46,11 +51,38 @@ from petroll.solver.simulation import Simulation
 QUANTITIES = ("force", "mu_r", "p_max", "area", "lead", "trail")
 """The last step's values an estimate covers (plus the penetration ``delta`` under load control)."""
 
-KNOWN_ORDER = {"force": 2.0, "mu_r": 2.0, "p_max": 2.0, "delta": 2.0}
-"""The order in the cell size taken for each quantity's error where it is not observed: 2 for the force,
-the penetration, mu_r and the peak pressure (the integrals and values of the piecewise-constant pressure
-on Love's rectangles, and the second-order time integrator with the step following the cell; measured
-orders between successive grids 1.1 to 2.4 around 10 cells per half-width, docs/accuracy.md)."""
+SPACE_ORDER = 2.0
+"""The order in the cell size of the force, the penetration, mu_r and the peak pressure with the time step
+held (the integrals and values of the piecewise-constant pressure on Love's rectangles)."""
+
+KNOWN_ORDER = {
+    "relaxation": {"force": 2.0, "delta": 2.0, "mu_r": 2.0, "p_max": 2.0},
+    "exponential": {"force": 2.0, "delta": 2.0, "mu_r": 2.0, "p_max": 2.0},
+    "paper": {"force": 1.0, "delta": 1.0, "mu_r": 1.0, "p_max": 1.5},
+}
+"""Each time integrator's order in the cell size, the cell and the step refined together ([solver]
+integrator; "paper" is also the hereditary sum of a tabulated material), per quantity, measured by
+``petroll bench accuracy`` (orders.csv, docs/accuracy.md): the second-order integrators 2 (observed 0.6 to
+2.7, scattered by where the contact's edges fall in their cells; 1.7 to 2.4 in the step alone); "paper",
+first order in its step, 1 (observed 0.9 to 1.3), except the peak pressure, whose observed orders fall
+towards 1 only slowly (2.4, 1.5, 1.2 on the roller from 4 to 70 cells per half-width; 1.6, 1.4 on the
+sphere): 1.5 keeps its estimate within a factor 3 of the true error over that range, where 1 makes it
+3.3 to 3.8 times too large at the shipped grids."""
+
+
+def known_order(scene: Scene) -> dict[str, float]:
+    """The order in the cell size taken for the error of the force, penetration, mu_r and peak pressure
+    where it is not observed (name -> order): the integrator's (:data:`KNOWN_ORDER`), at most
+    :data:`SPACE_ORDER`, where the coarser grids' steps grow with their cells (``steps_per_cell``; a steady
+    solve without ``dt``) and the material has a memory (J0 < Jinf); else the space's, 2 (a fixed ``dt``:
+    its time error is the same on every grid, and not estimated; an elastic material: no time error)."""
+    t = scene.time
+    follows = t.steps_per_cell is not None or (t.mode == "steady" and t.dt is None)
+    memory = scene.material.J0 < scene.material.Jinf
+    orders = KNOWN_ORDER[scene.solver.integrator]
+    return {name: min(SPACE_ORDER, order) if follows and memory else SPACE_ORDER
+            for name, order in orders.items()}
+
 
 ROUND_OFF = {"mu_r": 1e-15}
 """Differences below which a quantity's values agree whatever their size (absolute): mu_r of a symmetric
@@ -77,7 +109,10 @@ true error)."""
 class QuantityEstimate:
     """One quantity's estimate: the fine ``value``, the ``extrapolated`` one, the estimated ``error`` of
     the fine value (>= 0; nan: not in the asymptotic range), the ``order`` used (observed on three grids or
-    the known one), whether it was ``observed``, and the coarser grids' values (``coarse``)."""
+    the known one), whether it was ``observed``, the coarser grids' values (``coarse``), and whether the
+    asymptotic range was ``checked`` (False: the error rests on the known order alone, no 4x grid having
+    compared its difference; True also where there is nothing to check: values that agree to round-off,
+    what counts cells)."""
 
     value: float
     extrapolated: float
@@ -85,6 +120,7 @@ class QuantityEstimate:
     order: float
     observed: bool
     coarse: tuple[float, ...]
+    checked: bool = True
 
     @property
     def asymptotic(self) -> bool:
@@ -117,7 +153,7 @@ def richardson(fine: float, twice: tuple[float, ...], four: float | None, known:
     trusted = min(order, known)
     extrapolated = fine - d1 / (2**order - 1)
     return QuantityEstimate(fine, extrapolated, (abs(d1) + spread) / (2**trusted - 1), order,
-                            observed, coarse)
+                            observed, coarse, checked or d1 == spread == 0)
 
 
 def quantised(fine: float, twice: tuple[float, ...], floor: float) -> QuantityEstimate:
@@ -207,12 +243,22 @@ def _floor(scene: Scene, fine: StepRecord, name: str) -> float:
 @dataclass
 class ErrorEstimate:
     """The estimate of a run: ``quantities`` (name -> QuantityEstimate), the grids' cell counts
-    (``grids``: (nx, ny) fine first), its wall time (s) and, where it could not be made, ``failed`` (why)."""
+    (``grids``: (nx, ny) fine first), its wall time (s), where it could not be made ``failed`` (why), the
+    ``integrator`` and the ``orders`` it takes where none is observed (:func:`known_order`), and why no 4x
+    grid checked the asymptotic range (``unchecked``; "" where one was solved)."""
 
     quantities: dict[str, QuantityEstimate] = field(default_factory=dict)
     grids: list[tuple[int, int]] = field(default_factory=list)
     wall_s: float = 0.0
     failed: str | None = None
+    integrator: str = ""
+    orders: dict[str, float] = field(default_factory=dict)
+    unchecked: str = ""
+
+    @property
+    def range_checked(self) -> bool:
+        """Every quantity's asymptotic range was checked (:attr:`QuantityEstimate.checked`)."""
+        return bool(self.quantities) and all(q.checked for q in self.quantities.values())
 
 
 def estimate_error(scene: Scene, fine: StepRecord, comm: MPI.Comm = MPI.COMM_WORLD,
@@ -229,9 +275,14 @@ def estimate_error(scene: Scene, fine: StepRecord, comm: MPI.Comm = MPI.COMM_WOR
     end = end_time(scene, fine)
     cells = min((preflight or check(scene)).cells) / 4  # on the 4x grid
     names = QUANTITIES + (("delta",) if scene.penetration is None else ())
-    found = ErrorEstimate(grids=[(g.nx, g.ny)])
+    orders = known_order(scene)
+    found = ErrorEstimate(grids=[(g.nx, g.ny)], integrator=scene.solver.integrator, orders=orders)
     solved: dict[tuple[int, float], dict[str, float]] = {}
-    fourth = cells >= (SIGN_CELLS if g.line else THIRD_GRID_CELLS)
+    least = SIGN_CELLS if g.line else THIRD_GRID_CELLS
+    fourth = cells >= least
+    if not fourth:
+        found.unchecked = (f"no grid 4x coarser: it would keep {cells:.1f} cells per contact half-width, "
+                           f"{least:g} needed")
     runs = [(2, 0.0)] + ([] if g.line else [(2, 0.5)]) + ([(4, 0.0)] if fourth else [])
     for factor, shift in runs:
         coarse = coarser(scene, factor, end, shift)
@@ -239,6 +290,7 @@ def estimate_error(scene: Scene, fine: StepRecord, comm: MPI.Comm = MPI.COMM_WOR
             record = Simulation(coarse, comm).last_step(after_step)  # diagnosed at the last step only
         except PetrollError as exc:
             if factor == 4:
+                found.unchecked = f"the grid 4x coarser ({coarse.grid.nx} x {coarse.grid.ny}) failed: {exc}"
                 break
             found.failed = f"the grid {factor}x coarser ({coarse.grid.nx} x {coarse.grid.ny}) failed: {exc}"
             found.wall_s = comm.allreduce(clock.perf_counter() - began, op=MPI.MAX)
@@ -250,17 +302,21 @@ def estimate_error(scene: Scene, fine: StepRecord, comm: MPI.Comm = MPI.COMM_WOR
         four = solved[4, 0.0][name] if (4, 0.0) in solved else None
         found.quantities[name] = (
             quantised(value, twice, _floor(scene, fine, name)) if name in COUNTED else
-            richardson(value, twice, four, KNOWN_ORDER[name], observe=cells >= THIRD_GRID_CELLS,
+            richardson(value, twice, four, orders[name], observe=cells >= THIRD_GRID_CELLS,
                        round_off=ROUND_OFF.get(name, 0.0)))
     found.wall_s = comm.allreduce(clock.perf_counter() - began, op=MPI.MAX)
     return found
 
 
 def as_attributes(found: ErrorEstimate) -> tuple[dict[str, dict], dict]:
-    """(per quantity: value, extrapolated, error, order, observed, coarse; the group's attributes):
-    what results.h5's group error_estimate holds (docs/results.md)."""
+    """(per quantity: value, extrapolated, error, order, observed, coarse, range_checked, known_order (what
+    counts cells: 1); the group's attributes): what results.h5's group error_estimate holds
+    (docs/results.md)."""
     per = {name: {"value": q.value, "extrapolated": q.extrapolated, "error": q.error, "order": q.order,
-                  "observed_order": q.observed, "coarse": np.array(q.coarse)}
+                  "observed_order": q.observed, "coarse": np.array(q.coarse), "range_checked": q.checked,
+                  "known_order": found.orders.get(name, 1.0)}
            for name, q in found.quantities.items()}
-    attrs = {"grids": np.array(found.grids), "wall_s": found.wall_s, "failed": found.failed or ""}
+    attrs = {"grids": np.array(found.grids), "wall_s": found.wall_s, "failed": found.failed or "",
+             "integrator": found.integrator, "range_checked": found.range_checked,
+             "range_unchecked": found.unchecked}
     return per, attrs

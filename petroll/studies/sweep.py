@@ -86,8 +86,7 @@ COLUMNS: dict[str, tuple[str, str]] = {
     "mu_r": ("-", "rolling-resistance coefficient at the last step"),
     "delta": ("m", "penetration at the last step"),
     "area": ("m^2", "contact area at the last step"),
-    "area_fraction": ("-", "contact area / the cell's area, A/A0 (a grid periodic along X and Y; NaN "
-                      "otherwise)"),
+    "area_fraction": ("-", "A/A0: contact area / the cell's area (a grid periodic along X and Y; else NaN)"),
     "lead": ("m", "leading patch edge along the motion, relative to the body"),
     "trail": ("m", "trailing patch edge along the motion, relative to the body"),
     "p_max": ("Pa", "peak pressure at the last step"),
@@ -115,6 +114,12 @@ COLUMNS: dict[str, tuple[str, str]] = {
     "delta_J0": ("m", "Hertz penetration with J0 at the last force (sphere): the fast limit under load "
                  "control"),
     "delta_Jinf": ("m", "Hertz penetration with Jinf at the last force (sphere): the slow limit"),
+    "traction_x": ("N", "with [friction]: the tangential force on the body along X at the last step (NaN without)"),
+    "traction_y": ("N", "with [friction]: along Y"),
+    "creepage_x": ("-", "with [friction]: the creepage along X at the last step (given, or found)"),
+    "creepage_y": ("-", "with [friction]: along Y"),
+    "stick_area": ("m^2", "with [friction]: the stick area at the last step"),
+    "friction_power": ("W", "with [friction]: the slip's power at the last step"),
     **{f"{name}_error": (unit, f"estimated discretisation error of {name} at the last step (only with "
                                "--estimate-error; NaN where the grids are not in the asymptotic range)")
        for name, unit in (("force", "N"), ("delta", "m"), ("mu_r", "-"), ("p_max", "Pa"), ("area", "m^2"),
@@ -122,7 +127,11 @@ COLUMNS: dict[str, tuple[str, str]] = {
 }
 """The table's columns: name -> (unit, meaning). One row per point, in the order of the values."""
 
-LINE_UNITS = {"force": "N/m", "area": "m", "force_J0": "N/m", "force_Jinf": "N/m"}
+FRICTION_COLUMNS = ("traction_x", "traction_y", "creepage_x", "creepage_y", "stick_area", "friction_power")
+"""The columns of a sweep with [friction] (NaN without)."""
+
+LINE_UNITS = {"force": "N/m", "area": "m", "force_J0": "N/m", "force_Jinf": "N/m", "traction_x": "N/m",
+              "traction_y": "N/m", "stick_area": "m", "friction_power": "W/m"}
 """The columns whose unit differs in a line-contact sweep (per unit length; area is the contact width)."""
 
 
@@ -338,18 +347,12 @@ def sweep(scene: Scene, vary: Vary | str, out: str | pathlib.Path | None = None,
     its estimate (a call without it, or killed while it was made) is not finished: it is run again (from
     its last checkpoint where it has one) and estimated.
     """
-    if isinstance(vary, str):
-        vary = parse_vary(vary)
-    with warnings_once():
-        return _sweep(scene, vary, out, comm, progress, stop, log, plot, transient, estimate_error)
-
-
-def _sweep(scene: Scene, vary: Vary, out, comm: MPI.Comm, progress: bool, stop, log, plot: bool,
-           transient: bool, estimate_error: bool) -> SweepTable:
-    """:func:`sweep` with its warnings shown once each."""
     from petroll.io.checkpoint import RunInterrupted
     from petroll.model.limits import PetrollWarning
+    from petroll.driver import prepare_output
 
+    if isinstance(vary, str):
+        vary = parse_vary(vary)
     if out is None:
         out = scene.output_dir.with_name(scene.output_dir.name + "-sweep")
     out = pathlib.Path(out)
@@ -357,8 +360,6 @@ def _sweep(scene: Scene, vary: Vary, out, comm: MPI.Comm, progress: bool, stop, 
     names = [point_name(vary.key, v) for v in vary.values]
     if len(set(names)) != len(names):
         raise SweepError(f"--vary {vary.spec or vary.key}: values closer than 10 significant digits")
-    from petroll.driver import prepare_output
-
     prepare_output(out, comm)
     unit = key_unit(scene, vary.key)
     rows, computed = [], []
@@ -465,15 +466,12 @@ def table_row(scene: Scene, results: Results, value: float, estimate_error: bool
     viscous = isinstance(material, Tabulated) or (isinstance(material, Prony) and len(material.tau) > 0)
     tau = loss_peak_time(material) if viscous else math.nan
     sphere = isinstance(scene.body, Sphere)
-    line = scene.grid.line  # plane strain: force per length, area a width, delta relative to the datum
-    g = scene.grid
+    g, line = scene.grid, scene.grid.line  # plane strain: force per length, area a width, delta to the datum
     cell = all(g.periodic) and not line  # a periodic cell: its area fraction, no Hertz radius
     row["area_fraction"] = st.area / ((g.x1 - g.x0) * (g.y1 - g.y0)) if cell else math.nan
     delta0 = float(s["delta"][0])
     direct = scene.time.mode == "steady"  # no first (instantaneous) step: Hertz with J0 at its load
-    if cell:
-        a = math.nan
-    elif direct and line and isinstance(scene.body, CylinderSection) and isinstance(material, Prony):
+    if direct and line and isinstance(scene.body, CylinderSection) and isinstance(material, Prony):
         a = math.sqrt(4 * st.force * scene.body.radius * material.J0 / math.pi)
     elif direct and sphere and scene.load is not None and isinstance(material, Prony):
         a = (0.75 * st.force * scene.body.radius * material.J0) ** (1 / 3)
@@ -483,6 +481,7 @@ def table_row(scene: Scene, results: Results, value: float, estimate_error: bool
         a = math.sqrt(scene.body.radius * delta0)
     else:
         a = math.sqrt(float(s["area"][0]) / math.pi)
+    a = math.nan if cell else a
     row.update(speed=speed, tau=tau, a_T=scene.shift_factor, a=a,
                v_tau_a=speed * tau / a if a > 0 and speed > 0 else math.nan)
     nan = math.nan
@@ -501,6 +500,8 @@ def table_row(scene: Scene, results: Results, value: float, estimate_error: bool
                 row[f"force_{name}"] = 4 * math.sqrt(radius) * st.delta**1.5 / (3 * J)
             if st.force > 0:
                 row[f"delta_{name}"] = (3 * J * st.force / (4 * math.sqrt(radius))) ** (2 / 3)
+    for name in FRICTION_COLUMNS:  # a run with friction (line contact: no _y series)
+        row[name] = float(s[name][-1]) if name in s else nan
     if estimate_error:
         found = results.error_estimate or {}
         for name in COLUMNS:

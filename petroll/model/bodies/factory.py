@@ -77,7 +77,7 @@ _DEFAULTS: dict[str, dict[str, object]] = {
     "heightmap": {"cell": None, "format": None, "unit": "m"},
     "rough": {key: None for key in ROUGH_KEYS if key != "hurst"},  # absent: the generator's defaults
 }
-_COMMON_KEYS = ("shape", "position")  # position is read by the scene reader, not here
+_COMMON_KEYS = ("shape", "position", "material")  # position, material: read by the scene reader, not here
 
 
 def _profile_from_npy(path: pathlib.Path, cell: object, source: str) -> HeightProfile:

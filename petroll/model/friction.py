@@ -1,0 +1,158 @@
+"""Coulomb friction in a scene: [friction] coefficient, the tangential keys of [motion] and [body] material
+read into one frozen :class:`Friction` (docs/friction.md).
+
+A scene without [friction] has none (``Scene.friction`` None): frictionless, as before. With it, the
+tangential problem of petroll.solver.tangential is solved after each step's normal one, with
+
+- ``compliance`` c, the bodies' summed shear compliance 1/(2 G_1) + 1/(2 G_2) (1/Pa; a rigid body adds
+  nothing), and ``nu`` the Poisson's ratio of their summed Cerruti kernel: Cerruti's kernel is linear in
+  nu, so (1/(2 G_1)) K(nu_1) + (1/(2 G_2)) K(nu_2) = c K(nu) with nu = (nu_1/G_1 + nu_2/G_2)/(1/G_1 + 1/G_2);
+- the normal problem's compliance is the bodies' summed (1 - nu_i^2)/E_i (``body_compliance``: the body's,
+  added to the half-space's elastic material by the scene);
+- the bodies quasi-identical, (1 - 2 nu_1)/G_1 = (1 - 2 nu_2)/G_2 (a body of the same material, or a rigid
+  body on a half-space of nu = 1/2): the normal-tangential coupling then vanishes. Other pairs are
+  refused in one line: the coupling's outer iteration is not modelled.
+
+Modes, from the motion: a body at rest is a quasi-static shift under ``force`` (applied from zero to its
+value over the clock's steps, or in one step without [time]); a rolling body runs at the ``creepage`` (and
+``spin``) or at the tangential ``force``, its creepage then found.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from petroll.errors import MISSING, SceneError
+from petroll.model import materials, motion
+
+FIELDS = ("traction_x", "traction_y", "slip")
+"""The fields a run with friction saves beside the pressure (units in petroll.io.results.FIELD_UNITS); line
+contact: no traction_y."""
+
+
+def saved_fields(line: bool) -> tuple[str, ...]:
+    """The friction fields a run saves (line contact: without traction_y)."""
+    return tuple(f for f in FIELDS if not (line and f == "traction_y"))
+
+MOTION_KEYS = ("creepage", "spin", "tangential_force")
+"""The [motion] keys of friction (they need [friction])."""
+
+QUASI_IDENTICAL = 1e-9
+"""Two bodies are quasi-identical when their (1 - 2 nu)/G agree to this fraction of the larger."""
+
+
+@dataclass(frozen=True)
+class Friction:
+    """A scene's friction (module docstring). ``creepage`` (xi, eta) and ``spin`` (1/m) of a rolling body
+    under creepage control; ``force`` (Fx, Fy) (N; N/m in line contact), the force the half-space exerts
+    on the body, under force control (None: creepage control); ``body`` "rigid", "same" or "elastic"."""
+
+    coefficient: float
+    compliance: float
+    nu: float
+    creepage: tuple[float, float] = (0.0, 0.0)
+    spin: float = 0.0
+    force: tuple[float, float] | None = None
+    body: str = "rigid"
+    ramp: float | None = None  # a shift's force grows as t / ramp up to the [time] end (None: at once)
+
+    def force_at(self, t: float) -> np.ndarray | None:
+        """The tangential force (N, a 2-vector) at time t (s): a shift's ramp, or the force; None: none."""
+        if self.force is None:
+            return None
+        scale = 1.0 if self.ramp is None else min(t / self.ramp, 1.0)
+        return scale * np.asarray(self.force, dtype=float)
+
+
+def friction_of(values: dict, raw: dict, material, line: bool, periodic: bool, source: str):
+    """(material, Friction or None) of a scene: ``values`` its sections read by the schema, ``raw`` its
+    TOML, ``material`` the half-space's J (petroll.model.materials.Prony), to which a deformable body's
+    compliance is added. SceneError (one line) for friction's keys without [friction] or with what it
+    does not model."""
+    table, motion_values, body = raw.get("friction"), values["motion"], values["body"]["material"]
+    if table is None:
+        for key in MOTION_KEYS:
+            if key in raw.get("motion", {}):
+                raise SceneError(source, f"[motion] {key}", raw["motion"][key],
+                                 "needs [friction] coefficient (friction is off without [friction])")
+    m = values["material"]
+    if (table is not None or body is not None) and (m["model"] != "elastic" or m["layer"] is not None):
+        key, value = ("[friction]", table) if table is not None else ("[body] material", body)
+        raise SceneError(source, key, value, 'needs an elastic half-space ([material] model = "elastic" '
+                         "without layer); viscoelastic friction is not modelled yet")
+    if body is not None:
+        material = materials.Prony(2 * material.Jinf if body == "same"
+                                   else material.Jinf + (1 - body[1] ** 2) / body[0])
+    if table is None:
+        return material, None
+    if values["friction"]["coefficient"] is None:
+        raise SceneError(source, "[friction] coefficient", MISSING, "required in [friction]: Coulomb's "
+                         "friction coefficient mu (a number > 0)")
+    if periodic:
+        raise SceneError(source, "[friction]", table, "not on a periodic grid (rough contacts): friction "
+                         "needs the contact to lie inside a non-periodic grid")
+    G = m["E"] / (2 * (1 + m["nu"]))
+    pair = _pair(G, m["nu"], body, raw.get("body", {}).get("material", MISSING), source)
+    return material, Friction(values["friction"]["coefficient"], *pair[:2], body=pair[2],
+                              **_motion(motion_values, raw.get("motion", {}), values["time"], line,
+                                       values["friction"]["coefficient"], source))
+
+
+def _pair(G: float, nu: float, body, written, source: str) -> tuple[float, float, str]:
+    """(compliance, nu, body kind) of the half-space (G, nu) and the body ([body] material: None, "same"
+    or (E, nu)); SceneError unless quasi-identical."""
+    if body is None:
+        if nu != 0.5:
+            raise SceneError(source, "[body] material", MISSING, f"a rigid body on a half-space of nu = {nu:g}: "
+                             "the bodies are not quasi-identical ((1 - 2 nu)/G differs) and the normal-"
+                             "tangential coupling is not modelled; give [body] material = \"same\", or "
+                             "[material] nu = 0.5")
+        return 1 / (2 * G), nu, "rigid"
+    if body == "same":
+        return 1 / G, nu, "same"
+    E2, nu2 = body
+    G2 = E2 / (2 * (1 + nu2))
+    one, two = (1 - 2 * nu) / G, (1 - 2 * nu2) / G2
+    if abs(one - two) > QUASI_IDENTICAL * max(abs(one), abs(two)):
+        raise SceneError(source, "[body] material", written, f"(1 - 2 nu)/G = {two:.6g} 1/Pa, the half-space's "
+                         f"{one:.6g} 1/Pa: the bodies are not quasi-identical and the normal-tangential "
+                         "coupling of dissimilar materials is not modelled; give \"same\", or E and nu "
+                         "with the half-space's (1 - 2 nu)/G")
+    weights = 1 / G + 1 / G2
+    return 0.5 * weights, (nu / G + nu2 / G2) / weights, "elastic"
+
+
+def _motion(m: dict, table: dict, time: dict, line: bool, coefficient: float, source: str) -> dict:
+    """The tangential motion's keyword arguments of Friction, checked against the velocity."""
+    velocity = m["velocity"]
+    rest = isinstance(velocity, motion.Constant) and not np.any(velocity.value)
+    if m["creepage"] is not None and m["tangential_force"] is not None:
+        raise SceneError(source, "[motion] creepage / tangential_force", [table["creepage"],
+                         table["tangential_force"]], "at most one of them (creepage control or force control)")
+    for key in ("creepage", "spin"):
+        if rest and m[key] is not None:
+            raise SceneError(source, f"[motion] {key}", table[key], "needs a rolling body ([motion] velocity); "
+                             "a body at rest is shifted by [motion] tangential_force")
+    if line:
+        if m["spin"] is not None:
+            raise SceneError(source, "[motion] spin", table["spin"], "not in line contact (no rotation about "
+                             "the normal in plane strain)")
+        for key in ("creepage", "tangential_force"):
+            if m[key] is not None and m[key][1] != 0:
+                raise SceneError(source, f"[motion] {key}", table[key], "line contact: along X only, a number "
+                                 "or [x, 0]")
+    out: dict = {"spin": m["spin"] or 0.0}
+    if m["creepage"] is not None:
+        out["creepage"] = m["creepage"]
+    if m["tangential_force"] is not None:
+        out["force"] = m["tangential_force"]
+        load = m["load"].peak() if m["load"] is not None else None
+        if load is not None and np.hypot(*out["force"]) > coefficient * load:
+            raise SceneError(source, "[motion] tangential_force", table["tangential_force"], f"exceeds the "
+                             f"friction bound mu x load = {coefficient * load:g} (N): the body would slide; "
+                             "give a smaller force, or a creepage")
+        if rest and time["end"] is not None:
+            out["ramp"] = time["end"]
+    return out

@@ -1,0 +1,113 @@
+"""Friction in the time loop: the tangential problem of each step solved on the normal one's pressure
+(scene [friction]; docs/friction.md), its series, fields and checkpoint state.
+
+:class:`FrictionLoop` is what a :class:`petroll.solver.simulation.Simulation` of a scene with friction
+holds beside its contact solver: after a step's normal solve, :meth:`FrictionLoop.step` solves the step's
+tangential problem (petroll.solver.friction.Stepping: a quasi-static shift while the body has not moved
+over the step, Kalker's transient rolling otherwise) on the traction bound mu p, and :meth:`steady` the
+steady rolling state (SteadyRolling) on the steady pressure. Each step's :class:`FrictionRecord` holds its
+global values (the series of results.h5); :attr:`FrictionLoop.fields` the newest step's fields.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from mpi4py import MPI
+
+from petroll.records import FrictionRecord
+from petroll.solver.friction import Stepping, SteadyRolling
+from petroll.solver.tangential import TangentialSolution, TangentialSolver
+
+
+class FrictionLoop:
+    """The tangential problems of a run of ``scene`` (its [friction]) on ``comm``: the solver, the stepping
+    state (the last tractions), the records so far and the newest step's fields (this rank's rows)."""
+
+    def __init__(self, scene, comm: MPI.Comm):
+        self.scene, self.friction, self.comm = scene, scene.friction, comm
+        f = scene.friction
+        self.solver = TangentialSolver(scene.grid, comm, f.nu, f.compliance, tol=scene.solver.tol)
+        self.stepping = Stepping(self.solver)
+        self.records: list[FrictionRecord] = []
+        self.fields: dict[str, np.ndarray] = {}
+
+    def _force(self, t: float) -> np.ndarray | None:
+        """The tangential force held at time t (N, an m-vector; a shift's ramp), or None: creepage control."""
+        force = self.friction.force_at(t)
+        return None if force is None else force[: self.solver.m]
+
+    def step(self, record, before, pressure: np.ndarray, direction, dt: float) -> FrictionRecord:
+        """The tangential problem of the step of ``record`` (a StepRecord; ``before`` the step before's, or
+        None) on its ``pressure`` (Pa, this rank's rows), the body moving along ``direction`` (a unit
+        vector) over the step of length ``dt`` (s)."""
+        f, stepping = self.friction, self.stepping
+        bound = f.coefficient * pressure
+        distance = record.distance - before.distance if before is not None else 0.0
+        force = self._force(record.t)
+        if distance > 0:
+            solution = stepping.roll(bound, (record.sx, record.sy), distance, direction, f.creepage, f.spin,
+                                     force)
+            creepage, rate = stepping.creepage, distance / (dt * stepping.scale)
+        else:
+            increment = None if force is not None else np.zeros(self.solver.m)
+            solution = stepping.shift(bound, increment, force)
+            creepage, rate = np.full(self.solver.m, math.nan), (1 / dt if dt > 0 else math.nan)
+        return self._record(solution, bound, creepage, rate)
+
+    def steady(self, record, pressure: np.ndarray, direction, speed: float) -> FrictionRecord:
+        """The steady rolling state on the steady ``pressure`` (Pa, this rank's rows) of the body at
+        (record.sx, record.sy) moving along ``direction`` (X or Y) at ``speed`` (m/s)."""
+        f = self.friction
+        axis = 0 if direction[1] == 0 else 1
+        rolling = SteadyRolling(self.solver, axis, 1 if direction[axis] > 0 else -1)
+        bound = f.coefficient * pressure
+        steady = rolling.solve(bound, f.creepage, f.spin, (record.sx, record.sy), self._force(record.t))
+        return self._record(steady.solution, bound, steady.creepage, speed)
+
+    def _record(self, solution: TangentialSolution, bound: np.ndarray, creepage, rate: float) -> FrictionRecord:
+        """The step's record and fields: ``rate`` turns the solution's slip into a slip velocity (1/s; NaN:
+        a step of no duration)."""
+        q, s, m = solution.traction, solution.slip, self.solver.m
+        magnitude = np.sqrt((s * s).sum(axis=0))
+        moving = (bound > 0) & ~solution.stick
+        sums = np.array([np.count_nonzero(solution.stick), -(q * s).sum() if math.isfinite(rate) else 0.0])
+        self.comm.Allreduce(MPI.IN_PLACE, sums, op=MPI.SUM)
+        area = self.scene.grid.cell_area
+        self.fields = {"traction_x": q[0], "slip": np.where(moving, magnitude * rate, 0.0)}
+        if m == 2:
+            self.fields["traction_y"] = q[1]
+        pad = [0.0] * (2 - m)
+        force, creepage = [*solution.force, *pad], [*np.asarray(creepage, dtype=float), *pad]
+        shift = [*self.stepping.shift_total, *pad]
+        record = FrictionRecord(force[0], force[1], creepage[0], creepage[1], shift[0], shift[1],
+                                sums[0] * area, sums[1] * area * rate if math.isfinite(rate) else math.nan,
+                                solution.iterations, solution.applications)
+        self.records.append(record)
+        return record
+
+    # -- the checkpoint's state -------------------------------------------------------------------------
+    def state(self) -> tuple[dict[str, list[np.ndarray]], np.ndarray]:
+        """(fields: name -> this rank's rows of each component, small: [last rolled distance (m; NaN: the
+        last step was a shift), its distance in the QP's form (m), shift (m), creepage]) of the stepping
+        state a restart needs."""
+        st = self.stepping
+        parts = {"traction": list(st.traction)}
+        if st.older is not None:
+            parts["traction_older"] = list(st.older)
+        last = math.nan if st.last_distance is None else st.last_distance
+        return parts, np.array([last, st.scale, *st.shift_total, *st.creepage], dtype=float)
+
+    def restore(self, state: dict, series: dict[str, np.ndarray]) -> None:
+        """Put a checkpoint's state (this rank's rows: "traction", "traction_older" as :meth:`state` gave
+        them, "friction" its small array) and ``series`` (name: values) back."""
+        st, m, small = self.stepping, self.solver.m, state["friction"]
+        st.traction = np.stack(state["traction"])
+        st.older = np.stack(state["traction_older"]) if "traction_older" in state else None
+        st.last_distance = None if math.isnan(small[0]) else float(small[0])
+        st.scale = float(small[1])
+        st.shift_total, st.creepage = np.array(small[2 : 2 + m]), np.array(small[2 + m : 2 + 2 * m])
+        n = len(series["step"])
+        self.records = [FrictionRecord.from_series(series, i) for i in range(n)]
+
