@@ -449,9 +449,11 @@ def _restart_inputs(args: argparse.Namespace, comm):
 def summary(scene, results, wall: float, resumed=None) -> str:
     """One paragraph on a finished run: its extent, the last (steady) values, wall time and output path;
     ``resumed``: the checkpoint a restart continued from (its step is named)."""
+    from petroll.model.clock import TimeMode
+
     s = results.series
     n = len(s["t"])
-    if scene.time.mode == "steady":
+    if scene.time.mode is TimeMode.STEADY:
         how = "the steady state solved directly ([time] mode = \"steady\")"
     else:
         how = f"{n} step{'s' * (n != 1)} to t = {s['t'][-1]:.4g} s over {s['distance'][-1]:.4g} m of rolling"
@@ -466,7 +468,7 @@ def summary(scene, results, wall: float, resumed=None) -> str:
     if resumed is not None:
         how = f"resumed after step {resumed.step} (t = {resumed.t:.4g} s; {resumed.path}), {how}"
     g = scene.grid
-    if all(g.periodic) and not line:  # a periodic cell: sliding friction, area fraction, no single patch
+    if g.topology.statistics:  # a periodic cell: sliding friction, area fraction, no single patch
         resisting = f"friction mu {s['mu_r'][-1]:.4e}"
         patch = f"area fraction A/A0 {s['area'][-1] / ((g.x1 - g.x0) * (g.y1 - g.y0)):.4g}"
     else:

@@ -24,6 +24,7 @@ from petroll.io.checkpoint import RunInterrupted, checkpoint_dir, fingerprint, r
 from petroll.io.checkpoint_writer import remove_foreign_checkpoints, write_checkpoint
 from petroll.io.results import OutputError, Results, ResultsFile, results_identity
 from petroll.io.rundir import DirectoryBusy, RunLock, clean_temporaries
+from petroll.model.clock import TimeMode
 from petroll.model.limits import PetrollWarning, negative_friction
 from petroll.model.preflight import check_run
 from petroll.model.scene import Scene
@@ -100,8 +101,8 @@ def _run(scene: Scene, comm: MPI.Comm, out: pathlib.Path, identity: tuple[str, s
     sim = Simulation(scene, comm)
     sim.steady_start = steady_start
     g = scene.grid
-    steady = scene.time.mode == "steady"
-    rough = None if g.line or not all(g.periodic) else BINS  # the group rough of a periodic grid
+    steady = scene.time.mode is TimeMode.STEADY
+    rough = BINS if g.topology.statistics else None  # the group rough of a 3-D grid periodic along both axes
     results = ResultsFile(out / "results.h5", scene.text, g.x, g.y, comm, fields=scene.fields, line=g.line,
                           steady=steady, source=str(scene.source), run_id=run_id, rough=rough,
                           fingerprint=inputs, friction=scene.friction is not None)

@@ -40,7 +40,7 @@ def test_pk_on_the_command_line_and_its_view(tmp_path, cli):
                    "-petroll_tao_monitor", cwd=tmp_path)
     assert done.returncode == 0, done.stderr
     assert "Polonsky-Keer" in done.stdout and "type: preonly" in done.stdout
-    assert "petroll.solver.precondition.CirculantInverse" in done.stdout and "gmres" not in done.stdout
+    assert "petroll.solver.petsc.CirculantInverse" in done.stdout and "gmres" not in done.stdout
     values = [float(line.split("Function value:")[1].split(",")[0]) for line in done.stdout.splitlines()
               if "Function value:" in line]
     assert values[0] == 0 and min(values) < 0  # the objective from p = 0 down: real values, not 0.

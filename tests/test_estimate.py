@@ -9,6 +9,7 @@ import pytest
 from mpi4py import MPI
 
 import petroll
+from petroll.model.clock import TimeMode
 from petroll.model.scene import load_scene, shipped_scene
 from petroll.studies.estimate import coarser, known_order, quantised, richardson
 from petroll.solver.simulation import Simulation
@@ -145,7 +146,7 @@ def test_the_known_order_follows_the_integrator(comm, shared_dir):
     base = roller()
     paper = base.replace({"solver.integrator": "paper"})
     steady = load_scene(shipped_scene("master-curve.toml"))
-    assert steady.time.mode == "steady" and steady.time.dt is None
+    assert steady.time.mode is TimeMode.STEADY and steady.time.dt is None
     for name in ("relaxation", "exponential"):
         assert known_order(base.replace({"solver.integrator": name})) == second
     assert known_order(paper) == first and known_order(tabulated(base, shared_dir, comm)) == first

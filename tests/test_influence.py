@@ -5,7 +5,8 @@ import pytest
 from mpi4py import MPI
 
 from petroll.solver.partition import RowPartition, columns_to_rows, move_rows, rows_to_columns
-from petroll.solver.influence import Convolution, InfluenceOperator, dense_influence, shell_matrix
+from petroll.solver.influence import Convolution, InfluenceOperator, dense_influence
+from petroll.solver.petsc import shell_matrix
 from petroll.solver.kernels.love import Rectangles, love_coefficients, rectangle_displacement
 from compare import assert_close
 

@@ -210,3 +210,61 @@ def test_no_function_over_80_lines_and_no_module_over_600_beyond_the_listed_exce
     assert not unlisted, {f: functions[f] for f in unlisted}
     assert not set(LONG_MODULES) - long_modules, "listed but no longer long: remove from LONG_MODULES"
     assert not set(LONG_FUNCTIONS) - long_functions, "listed but no longer long: remove from LONG_FUNCTIONS"
+
+
+TOPOLOGY_READERS = ("petroll/model/topology.py",)
+"""The modules that read a grid's ``periodic`` values: its topology (petroll.model.topology, which owns what
+differs between a windowed half-space, periodic grids and line contact)."""
+
+
+def test_only_the_topology_reads_whether_a_grid_repeats():
+    """No ``x.periodic`` attribute is read outside the grid's topology (a module's function of that
+    name, ``bench_rough.periodic``, is not one): what differs between topologies is a method or property
+    of the topology (``grid.topology``), not a test of the flag."""
+    readers = set()
+    for path in PACKAGE.rglob("*.py"):
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        imported = {alias.asname or alias.name for node in ast.walk(tree)
+                    if isinstance(node, (ast.Import, ast.ImportFrom)) for alias in node.names}
+        if any(isinstance(node, ast.Attribute) and node.attr == "periodic"
+               and not (isinstance(node.value, ast.Name) and node.value.id in imported)
+               for node in ast.walk(tree)):
+            readers.add(str(path.relative_to(PACKAGE.parent)))
+    assert set(readers) <= set(TOPOLOGY_READERS), sorted(set(readers) - set(TOPOLOGY_READERS))
+    assert set(readers) == set(TOPOLOGY_READERS), "a listed reader no longer reads it: update the list"
+
+
+def test_the_time_mode_is_an_enum_never_compared_with_a_string():
+    """[time] mode is a petroll.model.clock.TimeMode: no ``x.mode == "steady"`` (or any string) anywhere, and
+    the time loop runs a steady solve through the protocol of petroll.solver.steady_state without naming
+    which (no rolling or sliding class in petroll/solver/simulation.py)."""
+    compared = []
+    for path in PACKAGE.rglob("*.py"):
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.Compare):
+                sides = [node.left, *node.comparators]
+                if (any(isinstance(s, ast.Attribute) and s.attr == "mode" for s in sides)
+                        and any(isinstance(s, ast.Constant) and isinstance(s.value, str) for s in sides)):
+                    compared.append(f"{path.relative_to(PACKAGE.parent)}:{node.lineno}")
+    assert not compared, compared
+    loop = imports()["petroll.solver.simulation"]
+    assert not {n for n in loop if within(n, "petroll.solver.steady") or within(n, "petroll.solver.sliding")}
+    assert "petroll.solver.steady_state" in loop
+
+
+PETSC_IMPORTERS = {
+    "petroll.solver.petsc": "the adapter: every TAO, KSP, shell matrix, PC and vector petroll makes",
+    "petroll.solver.pk": "the Polonsky-Keer conjugate gradient is a TAO type itself, on PETSc vectors",
+    "petroll.cli": "petsc4py.init with the command line's PETSc options, before anything starts PETSc",
+    "petroll.bench.memory": "petsc4py.init in the benchmark's child processes",
+    "petroll.bench.mpi": "petsc4py.init in the benchmark's child processes",
+    "petroll.bench.rough": "petsc4py.init in the benchmark's child processes",
+    "petroll.bench.friction": "compares TAO's types on friction's QP, as `bench tao` does the contact's",
+}
+"""The modules that import petsc4py, and why; the contact, sliding and tangential numerics are numpy."""
+
+
+def test_petsc_is_imported_only_by_the_adapter_and_the_listed_modules():
+    importers = {module for module, names in imports().items() if any(within(n, "petsc4py") for n in names)}
+    assert importers <= set(PETSC_IMPORTERS), sorted(importers - set(PETSC_IMPORTERS))
+    assert importers == set(PETSC_IMPORTERS), "listed but no longer importing petsc4py: update the list"

@@ -103,8 +103,8 @@ def test_a_rough_sweep_warns_once_and_speaks_of_friction(shared_dir, comm, cli_m
     if comm.rank == 0:
         (shared_dir / "rough.toml").write_text(dumps(raw), encoding="utf-8")
     comm.Barrier()
-    code, out, err = cli_main(["sweep", str(shared_dir / "rough.toml"), "--vary", "motion.velocity=1e-3,1e-2,1e-1",
-                               "--out", str(shared_dir / "sweep"), "--quiet"])
+    code, out, err = cli_main(["sweep", str(shared_dir / "rough.toml"), "--vary",
+                               "motion.velocity=1e-3,1e-2,1e-1", "--out", str(shared_dir / "sweep"), "--quiet"])
     assert code == 0
     if comm.rank == 0:
         lines = err.splitlines()

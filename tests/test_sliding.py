@@ -277,3 +277,67 @@ def test_the_shipped_rough_rubber_scene_slides_to_its_steady_state(comm, shared_
     slope = np.fft.irfft2(1j * kx[:, None] * np.fft.rfft2(z), s=z.shape)
     assert series["mu_r"][-1] == pytest.approx((p * slope).sum() / p.sum(), rel=1e-6)
     assert series["mu_r"][-1] > 0.01
+
+
+NUMPY_ONLY = """
+import inspect, json, sys
+import numpy as np
+from mpi4py import MPI
+from scipy.sparse.linalg import LinearOperator, gmres
+from petroll.model.scene import parse_scene
+from petroll.solver.influence import Convolution
+from petroll.solver.kernels import grid_kernel
+from petroll.solver.sliding import ContactSystem, SlidingKernel
+from petroll.solver.steady import steady_step
+
+scene = parse_scene(json.loads(sys.argv[1]))
+g, comm = scene.grid, MPI.COMM_SELF
+velocity, dt = steady_step(scene)
+made = {form: SlidingKernel(grid_kernel(g), scene.material, scene.solver.integrator, velocity, dt, form)
+        for form in ("operator", "modulus")}
+operator = Convolution(made["operator"], g.nx, g.ny, comm)
+system = ContactSystem(operator, Convolution(made["modulus"], g.nx, g.ny, comm, inverse=True), (g.nx, g.ny),
+                       comm, border=True)
+contact = np.asarray(json.loads(sys.argv[2]), dtype=bool).reshape(g.nx, g.ny)
+local, total = system.set_contact(contact)
+x = np.random.default_rng(3).standard_normal(local)
+b = np.random.default_rng(4).standard_normal(local)
+matrix = LinearOperator((local, local), matvec=system.mult)
+preconditioner = LinearOperator((local, local), matvec=system.apply)
+tolerance = {"rtol" if "rtol" in inspect.signature(gmres).parameters else "tol": 1e-13}  # scipy >= 1.12: rtol
+solution, info = gmres(matrix, b, M=preconditioner, atol=0.0, restart=60, maxiter=200, **tolerance)
+print(json.dumps({"product": system.mult(x).tolist(), "solution": solution.tolist(), "info": info,
+                  "c": system.c, "weight": system.weight, "petsc": "petsc4py.PETSc" in sys.modules}))
+"""
+
+
+@pytest.mark.serial
+def test_the_sliding_contact_equations_are_numpy_and_solve_without_petsc(tmp_path):
+    """The steady sliding contact's bordered equations (ContactSystem: K_CC p_C - delta = b, the force's
+    row) and their preconditioner are plain numpy: a process that never imports PETSc applies them, and
+    scipy's GMRES solves them, against the dense operator summed from its Fourier definition."""
+    import json
+    import subprocess
+    import sys
+
+    from mpi4py import MPI
+
+    raw = {**rough_raw(MPI.COMM_SELF, tmp_path, n=8), "time": {"mode": "steady"}}
+    scene = parse_scene(raw)
+    g = scene.grid
+    contact = np.random.default_rng(5).random((g.nx, g.ny)) < 0.4
+    done = subprocess.run([sys.executable, "-c", NUMPY_ONLY, json.dumps(raw), json.dumps(contact.ravel().tolist())],
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    out = json.loads(done.stdout)
+    assert out["petsc"] is False and out["info"] == 0
+    cells = np.flatnonzero(contact.ravel())
+    dense = dense_sliding_operator(scene)[np.ix_(cells, cells)]
+    n, c = len(cells), out["c"]
+    bordered = np.zeros((n + 1, n + 1))  # unknowns p_C and delta / c; rows the gap on C and the force
+    bordered[:n, :n], bordered[:n, n], bordered[n, :n] = dense, -c, out["weight"]
+    x = np.random.default_rng(3).standard_normal(n + 1)
+    b = np.random.default_rng(4).standard_normal(n + 1)
+    assert np.abs(np.array(out["product"]) - bordered @ x).max() <= 1e-12 * np.abs(bordered @ x).max()
+    exact = np.linalg.solve(bordered, b)
+    assert np.abs(np.array(out["solution"]) - exact).max() <= 1e-9 * np.abs(exact).max()

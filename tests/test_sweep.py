@@ -10,6 +10,7 @@ import pytest
 
 import petroll
 from petroll.errors import SceneError
+from petroll.model.clock import TimeMode
 from petroll.model.scene import dumps
 from petroll.studies.sweep import (COLUMNS, DEFAULT_STEADY, SweepError, SweepInterrupted, SweepTable, Vary,
                            parse_vary, point_scene, sweep)
@@ -173,7 +174,7 @@ def test_a_constant_speed_sweep_solves_each_point_directly_from_its_neighbour(co
     continued = alone = 0
     for k, speed in enumerate((0.001, 0.002, 0.004)):
         point = point_scene(scene, "motion.velocity", speed)
-        assert point.time.mode == "steady" and point.time.steps_per_cell == 1 and point.time.distance is None
+        assert point.time.mode is TimeMode.STEADY and point.time.steps_per_cell == 1 and point.time.distance is None
         record = Simulation(point, comm).solve_steady(tol=1e-10)
         assert table.columns["force"][k] == pytest.approx(record.force, rel=1e-8)
         assert table.columns["mu_r"][k] == pytest.approx(record.mu_r, rel=1e-7)

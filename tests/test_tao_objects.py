@@ -10,9 +10,9 @@ from petroll.model.bodies import Sphere
 from petroll.model.grid import Grid
 from petroll.solver.contact import ContactSolver
 from petroll.errors import SolverError
-from petroll.solver.influence import Convolution, dense_influence, shell_matrix, spare_cores
+from petroll.solver.influence import Convolution, dense_influence, spare_cores
+from petroll.solver.petsc import CirculantInverse, shell_matrix
 from petroll.solver.kernels.love import love_coefficients
-from petroll.solver.precondition import CirculantInverse
 
 R, J = 0.01, 7.5e-8
 

@@ -26,6 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 from mpi4py import MPI
 
+from petroll.model.clock import TimeMode
 from petroll.model.scene import Scene, load_scene, parse_scene, shipped_scene
 from petroll.studies.estimate import COUNTED, ErrorEstimate, end_time, estimate_error
 from petroll.records import StepRecord
@@ -39,7 +40,7 @@ def refined(scene: Scene, factor: float, end: float | None) -> Scene:
     changes: dict = {"grid.nx": max(1, round(g.nx * factor))}
     if not g.line:
         changes["grid.ny"] = max(1, round(g.ny * factor))
-    if end is not None and scene.time.mode != "steady":
+    if end is not None and scene.time.mode is not TimeMode.STEADY:
         changes.update({"time.steady": None, "time.distance": None, "time.end": end})
     return scene.replace(changes)
 

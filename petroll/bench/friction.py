@@ -284,10 +284,10 @@ def _tao_box(solver: TangentialSolver, bound, b, g, kind: str, tol: float):
     """Applications of TAO ``kind`` on the scaled box QP to the natural residual ``tol``."""
     from petsc4py import PETSc
 
-    from petroll.solver.influence import Convolution, shell_matrix
+    from petroll.solver.influence import Convolution
+    from petroll.solver.petsc import CirculantInverse, shell_matrix
     from petroll.solver.kernels.cerruti import strip_tangential
     from petroll.solver.pk import PolonskyKeer
-    from petroll.solver.precondition import CirculantInverse
 
     box = solver.box(bound > 0)
     nx = box[1] - box[0]

@@ -94,7 +94,8 @@ def sized(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, speeds: str = "1e-
     raw["motion"] = {"velocity": [0.01, 0.0], "load": 0.2}
     raw.pop("output", None)
     tables = {}
-    for name, grid in (("auto", None), ("fine", {"nx": fine, "ny": fine, "x": [-half, half], "y": [-half, half]})):
+    hand_made = {"nx": fine, "ny": fine, "x": [-half, half], "y": [-half, half]}
+    for name, grid in (("auto", None), ("fine", hand_made)):
         if grid is None:
             raw.pop("grid")
         else:

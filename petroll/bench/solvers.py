@@ -31,7 +31,7 @@ from mpi4py import MPI
 from petroll.model.bodies import Sphere
 from petroll.model.tao import TAO_TYPES
 from petroll.solver.contact import ContactSolver
-from petroll.solver.window_qp import KRYLOV_TYPES
+from petroll.solver.petsc import KRYLOV_TYPES
 from petroll.errors import PetrollError
 from petroll.model.grid import Grid
 from petroll.solver.warm import DEPTH, WarmStart

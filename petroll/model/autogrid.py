@@ -132,7 +132,7 @@ def choose(scene, request: dict) -> GridChoice:
     """The grid for ``scene`` (the provisional scene of :func:`provisional`, or a rough surface's scene on
     its own grid) and ``request`` ([grid] as written)."""
     g = scene.grid
-    if all(g.periodic):  # a rough surface's periodic cell: already chosen
+    if g.topology.whole:  # a rough surface's periodic cell: already chosen
         table = {"nx": g.nx, "ny": g.ny, "x": [g.x0, g.x1], "y": [g.y0, g.y1], "periodic": True}
         note = (f"[grid] sized by petroll: a periodic cell of {ROUGH_PERIODS} rolloff wavelengths, "
                 f"{g.x1 - g.x0:.4g} m, {g.nx} x {g.ny} cells of {g.dx:.4g} m ({ROUGH_CELLS} per cut-off)")

@@ -10,10 +10,20 @@ the time-resolution check of petroll.model.preflight weighs against the contact.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from enum import Enum
 
 import numpy as np
 
 from petroll.errors import SceneError
+
+
+class TimeMode(Enum):
+    """[time] mode: how a run goes in time. TRANSIENT marches from the start in steps of this clock;
+    STEADY solves the steady state at constant velocity directly, one step without a clock (which steady
+    solve, rolling or sliding, is the grid topology's: petroll.solver.steady_state)."""
+
+    TRANSIENT = "transient"
+    STEADY = "steady"
 
 
 def step_length(scene, t: float, distance: float) -> float | None:
@@ -68,7 +78,7 @@ def path(scene) -> Path:
     steps), the body at position + integral of V. A steady scene ([time] mode = "steady") is its start."""
     times, points, rolled = [0.0], [np.asarray(scene.position, dtype=float)], [0.0]
     t, distance, complete = 0.0, 0.0, True
-    dt = None if scene.time.mode == "steady" else step_length(scene, t, distance)
+    dt = None if scene.time.mode is TimeMode.STEADY else step_length(scene, t, distance)
     while dt is not None:
         if len(times) > scene.time.max_steps + 1:
             complete = False
@@ -99,7 +109,7 @@ def moves(scene, walked: Path) -> np.ndarray:
     """(steps, 2): the body's displacement (m, along X and Y) over each step of the run: those of
     ``walked`` (its path, :func:`path`), or a steady solve's V(0) times :func:`steady_dt` (one row). Empty
     for a run of one step at t = 0 (no [time] step) or a steady solve at rest."""
-    if scene.time.mode == "steady":
+    if scene.time.mode is TimeMode.STEADY:
         velocity = np.asarray(scene.velocity(0.0), dtype=float)
         if not np.any(velocity):
             return np.zeros((0, 2))

@@ -5,7 +5,9 @@ Fields on the grid are numpy arrays of shape (nx, ny), axis 0 along X; a flatten
 ix * ny + iy.
 
 A *periodic* grid repeats along X, Y or both (``periodic``): the cells tile a cell of the periodic
-surface, and a body's offsets from its reference point wrap around (:meth:`Grid.offsets`).
+surface, and a body's offsets from its reference point wrap around (:meth:`Grid.offsets`). What differs
+between a grid that repeats and one that does not (and line contact) is the grid's ``topology``
+(petroll.model.topology); nothing else reads ``periodic``.
 
 A *line-contact* grid (plane strain; a scene whose [grid] has nx and x only) is the same object with
 ``line = True``, ny = 1 and Y from -1/2 to 1/2: its cells are strips of unit length along Y, so that
@@ -16,8 +18,11 @@ contact width (m). Its influence operator is the plane-strain strip kernel (petr
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
+
+from petroll.model.topology import Topology, topology
 
 
 @dataclass(frozen=True)
@@ -57,15 +62,15 @@ class Grid:
         None for a 3-D grid."""
         return self.x1 - self.x0 if self.line else None
 
+    @cached_property
+    def topology(self) -> Topology:
+        """Windowed half-space, periodic along both axes or one, or line contact (petroll.model.topology)."""
+        return topology(self)
+
     def offsets(self, x, y, sx: float, sy: float) -> tuple[np.ndarray, np.ndarray]:
         """Offsets (x - sx, y - sy) (m) of points from a body's reference point at (sx, sy), taken along a
-        periodic axis to the nearest image of the reference point: in [-L/2, L/2), L the grid's length."""
-        out = []
-        for value, s, periodic, length in ((x, sx, self.periodic[0], self.x1 - self.x0),
-                                           (y, sy, self.periodic[1], self.y1 - self.y0)):
-            offset = np.asarray(value, dtype=float) - s
-            out.append(offset - length * np.floor(offset / length + 0.5) if periodic else offset)
-        return out[0], out[1]
+        repeating axis to the nearest image of the reference point (:meth:`Topology.offsets`)."""
+        return self.topology.offsets(x, y, sx, sy)
 
     @property
     def x(self) -> np.ndarray:

@@ -25,6 +25,7 @@ import numpy as np
 
 from petroll.errors import SceneError
 from petroll.model import motion
+from petroll.model.clock import TimeMode
 
 SLOPE_WARN = 0.3
 SLOPE_MAX = 1.0
@@ -175,9 +176,9 @@ def negative_friction(scene, mu_r: float) -> str | None:
     if not (mu_r < -NEGATIVE_ROUND_OFF and moving and material.Jinf > material.J0 * (1 + 1e-9)):
         return None
     held = [p for p in (scene.velocity, scene.penetration, scene.load) if p is not None]
-    if scene.time.mode != "steady" and not all(isinstance(p, motion.Constant) for p in held):
+    if scene.time.mode is not TimeMode.STEADY and not all(isinstance(p, motion.Constant) for p in held):
         return None
-    what = "sliding friction" if scene.time.mode == "steady" and any(scene.grid.periodic) else "mu_r"
+    what = "sliding friction" if scene.time.mode is TimeMode.STEADY and scene.grid.topology.whole else "mu_r"
     return (f"{scene.source}: {what} = {mu_r:.4g} < 0 from a dissipative material at a steady state: the "
             "material can only resist a steady motion, so this value is wrong (a time step or grid too "
             "coarse for the contact: petroll check SCENE, docs/accuracy.md)")

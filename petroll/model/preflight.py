@@ -48,7 +48,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from petroll.errors import SceneError
-from petroll.model.clock import Path, path
+from petroll.model.clock import Path, TimeMode, path
 from petroll.model.limits import PetrollWarning, largest_penetration
 from petroll.model.rough_contact import GOOD_CUTOFF_CELLS, RoughContact, rough_contact
 from petroll.model.surface_check import check_surface
@@ -114,12 +114,7 @@ def _axis_points(scene, lowest, axis: int, offsets: np.ndarray) -> np.ndarray:
 def wrapped_position(scene) -> tuple[float, float]:
     """[body] position (m) moved by whole periods into the grid along its periodic axes (the same body to
     the solver: its offsets wrap around them)."""
-    g, (sx, sy) = scene.grid, scene.position
-    if g.periodic[0]:
-        sx = g.x0 + (sx - g.x0) % (g.x1 - g.x0)
-    if g.periodic[1] and not g.line:
-        sy = g.y0 + (sy - g.y0) % (g.y1 - g.y0)
-    return float(sx), float(sy)
+    return scene.grid.topology.wrapped(*scene.position)
 
 
 def lowest_point(scene) -> tuple[float, float]:
@@ -260,7 +255,8 @@ indefinitely (docs/accuracy.md)."""
 def steady_rolling(scene) -> tuple[int, float] | None:
     """(axis, speed): a steady rolling scene's ([time] mode = "steady" on a grid not periodic along both
     axes, under load control) direction of motion (0: X, 1: Y) and speed (m/s); None for any other."""
-    if scene.time.mode != "steady" or scene.load is None or all(scene.grid.periodic) or scene.grid.line:
+    g = scene.grid
+    if scene.time.mode is not TimeMode.STEADY or scene.load is None or g.topology.whole or g.line:
         return None
     velocity = np.asarray(scene.velocity(0.0), dtype=float)
     return int(np.argmax(np.abs(velocity))), float(np.hypot(*velocity))
@@ -363,9 +359,7 @@ def _edge_cells_reached(scene, depth: float, sx: float, sy: float) -> bool:
     the solver's condition."""
     g = scene.grid
     x, y = g.offsets(g.x, g.y, sx, sy)  # along a periodic axis: to the nearest image
-    points = [] if g.periodic[0] else [(x[[0, -1]][:, None], y[None, :])]
-    if not g.line and not g.periodic[1]:
-        points.append((x[:, None], y[[0, -1]][None, :]))
+    points = g.topology.edge_points(x, y)
     with np.errstate(all="ignore"):
         return any(bool(np.any(np.asarray(scene.body.height(px, py), dtype=float) < depth)) for px, py in points)
 
@@ -379,13 +373,13 @@ def path_leaves(scene, size: ContactSize, walked: Path, glassy: bool = True) -> 
     edge cells' centres, as the solver does (a layer's box widened for its bulge is taken as it is). A
     periodic axis has no edge: a body wraps around it; on a grid periodic along every axis, None."""
     g = scene.grid
-    if all(g.periodic[:1] if g.line else g.periodic):
+    if not g.topology.edge_axes:
         return None
     depth, exact = interference_depth(scene, size, glassy)
     bx0, bx1, by0, by1 = interference_box(scene, size, walked, glassy)
-    axes = [] if g.periodic[0] else [("x", walked.sx + bx0, walked.sx + bx1, g.x0, g.x1, g.dx)]
-    if not g.line and not g.periodic[1]:
-        axes.append(("y", walked.sy + by0, walked.sy + by1, g.y0, g.y1, g.dy))
+    along = {0: ("x", walked.sx + bx0, walked.sx + bx1, g.x0, g.x1, g.dx),
+             1: ("y", walked.sy + by0, walked.sy + by1, g.y0, g.y1, g.dy)}
+    axes = [along[axis] for axis in g.topology.edge_axes]
     near = np.zeros(len(walked.t), dtype=bool)
     for _, lo, hi, start, end, cell in axes:
         near |= (lo <= start + 1.5 * cell) | (hi >= end - 1.5 * cell)

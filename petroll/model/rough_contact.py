@@ -90,7 +90,7 @@ def periodic_surface(scene) -> PeriodicSurface | None:
     """The rough surface that is the body of a 3-D grid periodic along X and Y, else None (line contact's
     profiles keep the smooth-body estimates: Persson's area is that of an isotropic surface)."""
     g = scene.grid
-    return scene.body if all(g.periodic) and not g.line and isinstance(scene.body, PeriodicSurface) else None
+    return scene.body if g.topology.statistics and isinstance(scene.body, PeriodicSurface) else None
 
 
 @functools.lru_cache(maxsize=2)

@@ -25,6 +25,7 @@ from petroll.model import motion
 from petroll.model.autogrid import REQUEST_KEYS, GridChoice, automatic, choose, provisional
 from petroll.model.bodies import Body, HeightMap, HeightProfile, make_body
 from petroll.model.bodies.rough import samples_surface
+from petroll.model.clock import TimeMode
 from petroll.model.friction import Friction, friction_of, saved_fields
 from petroll.model.grid import Grid, line_grid
 from petroll.model.limits import MAGNITUDES, PetrollWarning, scale_message
@@ -52,7 +53,7 @@ class Time:
     distance: float | None
     steady: float | None
     max_steps: int
-    mode: str = "transient"  # "steady": the steady state solved directly (one step)
+    mode: TimeMode = TimeMode.TRANSIENT  # STEADY: the steady state solved directly (one step)
     allow_coarse: bool = False  # [time] allow_coarse: run below petroll.model.preflight.LEAST_STEPS
 
 
@@ -176,12 +177,12 @@ def parse_scene(raw: dict, source: str = "<python>", base_dir: str | pathlib.Pat
     body = periodic_body(make_body(raw.get("body", {}), base_dir, source, line=line, grid=grid), grid)
     m = values["motion"]
     if line:
-        _check_line_motion(m, raw.get("motion", {}), source, grid.periodic[0])
+        _check_line_motion(m, raw.get("motion", {}), source, grid.topology.whole)
     if (m["penetration"] is None) == (m["load"] is None):
         given = {k: v for k, v in raw.get("motion", {}).items() if k in ("penetration", "load")}
         raise SceneError(source, "[motion] penetration / load", given or MISSING,
                          "exactly one of penetration (m) or load (N) must be given")
-    time = Time(**values["time"])
+    time = Time(**{**values["time"], "mode": TimeMode(values["time"]["mode"])})
     _check_time(time, raw.get("time", {}), source)
     integrator = values["solver"]["integrator"]
     if integrator is None:
@@ -202,7 +203,7 @@ def parse_scene(raw: dict, source: str = "<python>", base_dir: str | pathlib.Pat
                   shift_factor=shift_factor,
                   layer=_material_layer(values["material"], raw.get("material", {}), source),
                   allow_coarse=g["allow_coarse"])
-    if time.mode == "steady":
+    if time.mode is TimeMode.STEADY:
         _check_steady(scene)
     else:
         _check_steps(scene)
@@ -264,10 +265,10 @@ def _velocity_along_x(raw: dict) -> dict:
     return out
 
 
-def _check_line_motion(m: dict, table: dict, source: str, periodic: bool) -> None:
-    """Line contact: load control only (penetration too on a periodic grid, whose displacements are taken
-    from the deformed surface's mean plane), motion along X only."""
-    if m["penetration"] is not None and not periodic:
+def _check_line_motion(m: dict, table: dict, source: str, repeats: bool) -> None:
+    """Line contact: load control only (penetration too on a grid that ``repeats``, whose displacements are
+    taken from the deformed surface's mean plane), motion along X only."""
+    if m["penetration"] is not None and not repeats:
         raise SceneError(source, "[motion] penetration", table["penetration"], "not allowed in line contact "
                          "([grid] without ny and y): in plane strain the displacement of a half-space is "
                          "logarithmic and has no zero far away, so a penetration is defined only relative "
@@ -438,7 +439,7 @@ STEADY_TIME_KEYS = ("mode", "steps_per_cell", "dt", "allow_coarse")
 def _check_time(time: Time, table: dict, source: str) -> None:
     if not table:
         return
-    if time.mode == "steady":
+    if time.mode is TimeMode.STEADY:
         for key in table:
             if key not in STEADY_TIME_KEYS:
                 raise SceneError(source, f"[time] {key}", table[key], 'not with mode = "steady" (one step, the '
@@ -496,19 +497,9 @@ def _check_steady(scene: Scene) -> None:
     direction along its periodic axes), a constant penetration or load and a Prony (SLS, elastic)
     material; anything else refused naming its key."""
     raw, source = scene.raw.get("motion", {}), scene.source
-    velocity, periodic = scene.velocity, scene.grid.periodic
+    velocity = scene.velocity
     value = np.asarray(getattr(velocity, "value", (0.0, 0.0)), dtype=float)
-    if all(periodic) or scene.grid.line and periodic[0]:
-        allowed = 'with [time] mode = "steady" it must be a constant non-zero [vx, vy] (m/s)'
-        wrong = not np.any(value)
-    elif any(periodic):
-        axis = 0 if periodic[0] else 1
-        allowed = (f'with [time] mode = "steady" on a grid periodic along {"xy"[axis]} only it must be a '
-                   f'constant non-zero {("[vx, 0]", "[0, vy]")[axis]} (m/s)')
-        wrong = value[axis] == 0 or value[1 - axis] != 0
-    else:
-        allowed = 'with [time] mode = "steady" it must be a constant non-zero [vx, 0] or [0, vy] (m/s)'
-        wrong = np.count_nonzero(value) != 1
+    allowed, wrong = scene.grid.topology.steady_velocity(value)
     if not isinstance(velocity, motion.Constant):
         raise SceneError(source, "[motion] velocity", raw.get("velocity"), f"varies in time; {allowed}")
     if wrong:
@@ -528,7 +519,7 @@ def periodic_body(body: Body, grid: Grid) -> Body:
     at the grid's spacing, becomes the periodic surface through its samples (petroll.model.bodies.rough): with
     the body at [body] position [0, 0], sample (i, j) on the centre of cell (i, j). Any other body as it is
     (its offsets wrap around the periodic axes: Grid.offsets)."""
-    if not any(grid.periodic):
+    if not grid.topology.whole:
         return body
     if isinstance(body, HeightProfile):
         surface = samples_surface(np.repeat(body.heights[:, None], 4, axis=1), (body.cell, grid.dy), grid)
@@ -546,10 +537,7 @@ def _check_contact_inside(scene: Scene) -> None:
         return  # load control: checked at each solve, once the penetration is known
     g, (sx, sy) = scene.grid, scene.position
     delta = float(scene.penetration(0.0))
-    edges = [(g.x[[0, -1]][:, None], g.y[None, :])] if not g.periodic[0] else []
-    if not g.periodic[1] and not g.line:
-        edges.append((g.x[:, None], g.y[[0, -1]][None, :]))
-    for x, y in edges:
+    for x, y in g.topology.edge_points(g.x, g.y):
         if np.any(delta - scene.body.height(*g.offsets(x, y, sx, sy)) > 0):
             raise SceneError(scene.source, "[grid] x / y", [[g.x0, g.x1], [g.y0, g.y1]],
                              "must contain the contact region: the body interferes with the surface up to "

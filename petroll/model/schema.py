@@ -353,7 +353,8 @@ MODEL_KEYS: dict[str, tuple[set[str], set[str]]] = {
 def _cells_per_half_width(value: Any) -> float:
     from petroll.model.preflight import GOOD_CELLS, MOST_CELLS
 
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not GOOD_CELLS <= value <= MOST_CELLS / 4:
+    number = not isinstance(value, bool) and isinstance(value, (int, float))
+    if not number or not GOOD_CELLS <= value <= MOST_CELLS / 4:
         raise Invalid(f"must be a number from {GOOD_CELLS} (below, a run warns) to {MOST_CELLS // 4}")
     return float(value)
 

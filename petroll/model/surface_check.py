@@ -25,7 +25,7 @@ def surface_gaps(scene, walked: Path) -> tuple[int, int, float, float] | None:
     g, body = scene.grid, scene.body
     while isinstance(body, RoughBody):
         body = body.body
-    if not any(g.periodic) or isinstance(body, PeriodicSurface):
+    if not g.topology.whole or isinstance(body, PeriodicSurface):
         return None
     count = len(walked.t)
     steps = np.unique(np.linspace(0, count - 1, min(count, max(1, SURFACE_POINTS // (g.nx * g.ny))))

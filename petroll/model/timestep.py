@@ -21,7 +21,7 @@ import numpy as np
 
 from petroll.errors import SceneError
 from petroll.model.bodies.rough import PeriodicSurface, RoughBody
-from petroll.model.clock import Path, moves
+from petroll.model.clock import Path, TimeMode, moves
 
 GOOD_STEPS = 8
 """Steps per contact half-width along the motion below which a run warns (measured, docs/accuracy.md: about
@@ -106,7 +106,7 @@ def time_resolution(scene, size, walked: Path) -> TimeResolution | None:
     tm = scene.time
     if tm.dt is not None:
         key, value = "[time] dt", tm.dt
-        unit = float(np.hypot(*scene.velocity(0.0))) if tm.mode == "steady" else float(scene.velocity.peak())
+        unit = float(np.hypot(*scene.velocity(0.0))) if tm.mode is TimeMode.STEADY else float(scene.velocity.peak())
     else:
         key, value, unit = "[time] steps_per_cell", tm.steps_per_cell or 1.0, g.cell
     longest = float(np.max(np.hypot(d[:, 0], d[:, 1])))
@@ -131,7 +131,7 @@ def check_time(scene, found: TimeResolution | None) -> str | None:
                          f"is long ({longest:.3g} m): no run can use such a step; {found.at_most(longest)} keeps "
                          f"it within the grid, {found.giving(GOOD_STEPS)} gives {GOOD_STEPS} steps per contact "
                          "half-width (docs/accuracy.md)")
-    if scene.time.mode == "steady" and any(g.periodic) and found.length < FINEST_SLIDE * longest:
+    if scene.time.mode is TimeMode.STEADY and g.topology.whole and found.length < FINEST_SLIDE * longest:
         raise SceneError(scene.source, key, value, f"the steady sliding step moves the body {found.length:.3g} m, "
                          f"{found.length / longest:.2g} of the grid's longer side: below {FINEST_SLIDE:g} of it "
                          "the solve loses its digits to round-off; "

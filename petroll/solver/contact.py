@@ -25,16 +25,14 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.fft
 from mpi4py import MPI
 
 from petroll.errors import SolverError
 from petroll.model.grid import Grid
-from petroll.model.tao import DEFAULT_TAO_TYPE, TAO_TYPES
+from petroll.model.tao import DEFAULT_TAO_TYPE
 from petroll.solver.partition import RowPartition, move_rows
 from petroll.solver.influence import InfluenceOperator, influence_operator, spare_cores
-from petroll.solver.pk import PK_PYTHON_TYPE
-from petroll.solver.window_qp import WindowQP
+from petroll.solver.petsc import WindowQP, contact_options
 
 @dataclass
 class StepSolution:
@@ -67,20 +65,18 @@ class ContactSolver:
     def __init__(self, grid: Grid, comm: MPI.Comm, tao_type: str = DEFAULT_TAO_TYPE, tol: float = 1e-8,
                  prefix: str = "petroll_", max_iterations: int = 10000, precondition: bool = True,
                  layer=None, kernel=None):
-        from petsc4py import PETSc
-
         self.grid, self.comm, self.tol, self.prefix = grid, comm, tol, prefix
-        options = PETSc.Options(prefix)  # read once here and when a window shape's TAO is built
-        self.tao_type, self.max_iterations = self._resolve_type(tao_type, prefix, options), max_iterations
-        self.precondition = options.getBool("pc_circulant", precondition)
-        self.workers = options.getInt("fft_workers", spare_cores(comm))
+        # read once here and when a window shape's TAO is built
+        self.tao_type, self.precondition, self.workers = contact_options(prefix, tao_type, precondition,
+                                                                         spare_cores(comm))
+        self.max_iterations = max_iterations
         if self.workers < 1:
             raise SolverError(f"-{prefix}fft_workers {self.workers}: the FFT threads per rank must be >= 1")
         self.influence = (influence_operator(grid, comm, layer, self.workers) if kernel is None else
                           InfluenceOperator(kernel, comm, self.workers))
-        self.periodic = self.influence.periodic  # the QP is posed on the whole (periodic) grid
-        # upward displacement per unit pressure (a periodic kernel's QP has no ring to check)
-        self.lift = None if self.periodic else self.influence.lift_bound(grid.nx, grid.ny)
+        self.topology = grid.topology  # the window, its edges, the gap's unit (petroll.model.topology)
+        # upward displacement per unit pressure (a QP on the whole grid has no ring to check)
+        self.lift = None if self.topology.whole else self.influence.lift_bound(grid.nx, grid.ny)
         self.rows = RowPartition(grid.nx, comm.size)
         self.r0, self.r1 = self.rows.range(comm.rank)
         self.work = [0, 0]  # TAO iterations and operator applications of every QP solved so far
@@ -93,33 +89,17 @@ class ContactSolver:
     MARGIN = 4
     """Width in cells of the ring around a layer's QP window on which the gap is checked (_solve_qp)."""
 
-    GROW = 1
-    """Cells added at both ends of a line-contact layer's QP window: its contact often grows a cell beyond
-    the interference and the previous step's contact (the bulge ahead of a rolling body), which the ring
-    would find only after a solve, to be solved again (docs/layer.md#performance measures the saving; in
-    3-D the windows are not grown: there it saves nothing)."""
-
     kept = 6
     """Window shapes whose TAO, shell matrix and vectors are kept (the most recently used)."""
-
-    @staticmethod
-    def _resolve_type(tao_type: str, prefix: str, options) -> str:
-        """The scene's type unless -<prefix>tao_type overrides it. ``pk`` is spelt for TAO as its Python
-        type, -<prefix>tao_type python -<prefix>tao_python_type petroll.solver.pk.PolonskyKeer (the
-        ``petroll`` command translates -<prefix>tao_type pk on its command line: petroll.solver.pk.command_line)."""
-        chosen = options.getString("tao_type", tao_type)
-        if chosen == "python" and options.getString("tao_python_type", "") == PK_PYTHON_TYPE:
-            chosen = "pk"
-        elif chosen == "pk" and options.hasName("tao_type"):
-            raise SolverError(f"-{prefix}tao_type pk: TAO reads this option itself and knows pk only as "
-                              f"-{prefix}tao_type python -{prefix}tao_python_type {PK_PYTHON_TYPE}")
-        if chosen not in TAO_TYPES:
-            raise SolverError(f"-{prefix}tao_type {chosen}: unknown; allowed: {', '.join(TAO_TYPES)}")
-        return chosen
 
     @property
     def local_shape(self) -> tuple[int, int]:
         return (self.r1 - self.r0, self.grid.ny)
+
+    def own_rows(self, field) -> np.ndarray:
+        """This rank's grid rows of a ``field`` given on the whole grid (nx x ny values) or as these rows."""
+        rows = np.asarray(field, dtype=float).reshape(-1, self.grid.ny)
+        return rows[self.r0 : self.r1] if len(rows) == self.grid.nx else rows
 
     # -- displacement control ---------------------------------------------------------------------------
     def solve_penetration(self, height: np.ndarray, compliance: float, delta: float,
@@ -161,16 +141,14 @@ class ContactSolver:
             ceiling = self.comm.allreduce(float(height.sum())) / (self.grid.nx * self.grid.ny)
         if delta_guess is None or delta_guess <= base:
             delta_guess = base + hertz_penetration(self.grid, compliance, load, radius_hint)
-        delta_guess = min(delta_guess, 0.5 * (base + ceiling))
-        if not self.periodic:
-            delta_guess = self._off_the_edge(height, base, delta_guess)
+        delta_guess = self._off_the_edge(height, base, min(delta_guess, 0.5 * (base + ceiling)))
         if self.tao_type == "pk":
             if not reach > base:
                 raise BeyondReach(f"the load {load:g} N needs a penetration beyond {reach:g} m")
             if warm is None:
                 warm = self.hertz_pressure(height, compliance, load, radius_hint, min(delta_guess, reach))
             return self._load_in_pk(height, compliance, load, min(delta_guess, reach), warm, reach)
-        power = 1.0 if self.grid.line or self.periodic else 2 / 3
+        power = self.topology.load_power
         rtol = 10 * self.tol
         iterations = applications = 0
         lo = hi = None  # bracketing (delta, phi) pairs with phi < 0 and phi > 0
@@ -213,10 +191,10 @@ class ContactSolver:
         """The penetration guess ``delta`` (m), halved towards the lowest height ``base`` until the cells it
         interferes with stay off the grid's edge: a guess from the body's radius hint overshoots where the
         surface is not the sphere it hints at (a textured or rough map), and only the contact found must
-        fit on the grid. Not for a periodic grid, whose QP has no window and no edge to reach."""
+        fit on the grid (a QP on the whole grid has no edge to reach)."""
         for _ in range(60):
             box = self._box(delta - height > 0)
-            if box is None or not self._at_edge(box):
+            if box is None or not self.topology.at_edge(box):
                 break
             delta = base + 0.5 * (delta - base)
         return delta
@@ -225,9 +203,10 @@ class ContactSolver:
                         delta: float) -> np.ndarray:
         """Hertz's pressure (Pa) for ``load`` on a sphere (line contact: a cylinder, N/m) of ``radius`` (m)
         centred on the centroid of the interference delta - height > 0 (m): a cold start for load control
-        (this rank's rows; symmetric where the body is). On a periodic grid: :meth:`summits_pressure`."""
+        (this rank's rows; symmetric where the body is). On a QP over the whole grid (a repeating one):
+        :meth:`summits_pressure`."""
         g = self.grid
-        if self.periodic:
+        if self.topology.whole:
             return self.summits_pressure(height, load)
         w = np.maximum(delta - height, 0.0)
         sums = np.array([w.sum(), (w.sum(axis=1) * g.x[self.r0 : self.r1]).sum(), (w.sum(axis=0) * g.y).sum()])
@@ -290,7 +269,7 @@ class ContactSolver:
             # a window too small concentrates the pressure: the penetration found overshoots; halve the
             # step while its interference would reach the grid's edge
             for _ in range(30):
-                if not self._at_edge(self._box(found - height > 0)):
+                if not self.topology.at_edge(self._box(found - height > 0)):
                     break
                 found = 0.5 * (delta + found)
             delta, warm = found, pressure
@@ -312,7 +291,7 @@ class ContactSolver:
         beyond a clear ring touching would need the bulge to rise faster than the body's profile away from
         the contact; the thin incompressible layer's contact, 41 % wider than the interference region, is
         found this way: tests/test_layer.py.)"""
-        if self.periodic:  # the whole grid: a cell without surface (petroll check refuses them) has no gap
+        if self.topology.whole:  # a cell without surface (petroll check refuses them) has no gap
             if not self.comm.allreduce(bool(np.isfinite(interference).all()), op=MPI.LAND):
                 raise SolverError("the body has no surface (Z = +inf) over some cells of the periodic grid: give "
                                   "it a surface over the whole grid, or set [grid] periodic = false")
@@ -391,10 +370,8 @@ class ContactSolver:
                       candidates: np.ndarray, load: float | None):
         grid, comm = self.grid, self.comm
         pressure = np.zeros(self.local_shape)
-        if self.periodic:
-            window = (0, grid.nx, 0, grid.ny)
-        else:
-            window = self._window(candidates, 0 if self.influence.positive or not grid.line else self.GROW)
+        window = self.topology.window(None if candidates is None else self._box(candidates),
+                                      not self.influence.positive)
         if window is None:
             return pressure, 0, 0, 0.0, (0, 0, 0, 0), 0.0
         i0, i1, j0, j1 = window
@@ -409,10 +386,9 @@ class ContactSolver:
         if warm is not None:
             start = move_rows(warm[:, j0:j1], grid_ranges, window_ranges, comm).ravel() / to_pressure
         total = None if load is None else load / (grid.cell_area * to_pressure)
-        qp.tao.setTolerances(gatol=self.tol, grtol=0.0, gttol=0.0)  # self.tol may change between solves
         # a cell without surface (Z = +inf, a hole in a height map) inside the window: a gap it cannot close
         gaps = np.minimum(-target.ravel() / w_ref, self.NO_SURFACE_GAP)
-        x, gap, multiplier, its, applications = qp.solve(gaps, start, total)
+        x, gap, multiplier, its, applications = qp.solve(gaps, start, total, self.tol)
         natural = np.minimum(x, gap)
         residual = comm.allreduce(float(np.abs(natural).max(initial=0.0)), op=MPI.MAX)
         p_window = np.maximum(x, 0.0).reshape(-1, j1 - j0) * to_pressure
@@ -426,15 +402,11 @@ class ContactSolver:
         return pressure, its, applications, residual, window, multiplier * w_ref
 
     def _scale(self, target: np.ndarray) -> float:
-        """w_ref (m), the QP's unit of gap: the largest interference (``target``, this rank's window rows),
-        on a periodic grid (where contact can be made at negative interference) its range (or |its
-        largest value| for a flat one; 1 for none)."""
+        """w_ref (m), the QP's unit of gap, from the interference ``target`` (this rank's window rows):
+        petroll.model.topology.Topology.gap_unit."""
         extremes = np.array([target.max(initial=-np.inf), -target.min(initial=np.inf)])
         self.comm.Allreduce(MPI.IN_PLACE, extremes, op=MPI.MAX)
-        if not self.periodic:
-            return max(float(extremes[0]), 0.0)
-        spread = float(extremes[0] + extremes[1])
-        return spread if spread > 0 else abs(float(extremes[0])) or 1.0
+        return self.topology.gap_unit(float(extremes[0]), -float(extremes[1]))
 
     def convolve_box(self, field: np.ndarray, box: tuple[int, int, int, int]) -> np.ndarray:
         """A ``field`` with the Love coefficients (A field, m per unit of field), sources and results both
@@ -469,28 +441,11 @@ class ContactSolver:
         return qp
 
     def _check_inside(self, pressure: np.ndarray) -> None:
-        """SolverError if the contact (p > 0) reaches an end row or column of the grid along a
-        non-periodic axis, where the QP is posed on the whole grid's length: line contact, and grids
-        periodic along one axis only (nothing to check where the QP has a window, or every axis repeats).
-
-        In plane strain the rigid interference delta - Z - u exceeds J A p > 0 wherever A p is, and A p
-        (logarithmic) spreads over the whole grid, so the interference region is wider than the contact
-        (by about sqrt(ln(2 L/a) + 1/2) for Hertz, L the datum): the contact itself is what must fit."""
-        g = self.grid
-        if g.line and not g.periodic[0]:
-            ends = [i - self.r0 for i in (0, g.nx - 1) if self.r0 <= i < self.r1]
-            touching = self.comm.allreduce(bool(np.any(pressure[ends] > 0)), op=MPI.LOR)
-            if touching:
-                raise SolverError(f"[grid]: the contact reaches an end of the grid (X = {g.x0:g} or "
-                                  f"{g.x1:g}); enlarge [grid] x or reduce the load")
-        if g.line or not self.periodic or all(g.periodic):
-            return
-        ends = [i - self.r0 for i in (0, g.nx - 1) if self.r0 <= i < self.r1]
-        edges = pressure[ends] if g.periodic[1] else pressure[:, [0, g.ny - 1]]
-        if self.comm.allreduce(bool(np.any(edges > 0)), op=MPI.LOR):
-            axis, (a, b) = ("x", (g.x0, g.x1)) if g.periodic[1] else ("y", (g.y0, g.y1))
-            raise SolverError(f"[grid]: the contact reaches the grid's edge along {axis} ({a:g} or {b:g}), "
-                              f"which does not repeat; enlarge [grid] {axis} or reduce the load")
+        """SolverError if the contact (p > 0) loads a cell of an edge it must stay off after the solve,
+        where the QP's window could not keep it off (line contact's end strips, the edges of a grid that
+        repeats along one axis only: petroll.model.topology.Topology.touches_edge)."""
+        if self.comm.allreduce(self.topology.touches_edge(pressure, self.r0), op=MPI.LOR):
+            raise SolverError(self.topology.edge_message())
 
     def _box(self, candidates: np.ndarray) -> tuple[int, int, int, int] | None:
         """Bounding box [i0, i1) x [j0, j1) of the candidate cells over all ranks; None when there are none."""
@@ -505,30 +460,6 @@ class ContactSolver:
             return None
         return int(lo[0]), int(hi[0]) + 1, int(lo[1]), int(hi[1]) + 1
 
-    def _at_edge(self, box: tuple[int, int, int, int]) -> bool:
-        """Whether a box touches the grid's edge (never for line contact, whose window may span the grid:
-        only the solved contact must stay inside, :meth:`_check_inside`)."""
-        g = self.grid
-        return not g.line and (box[0] == 0 or box[2] == 0 or box[1] == g.nx or box[3] == g.ny)
-
-    def _window(self, candidates: np.ndarray, grow: int = 0) -> tuple[int, int, int, int] | None:
-        """The candidate cells' bounding box (:meth:`_box`) grown by ``grow`` cells on every side (within the
-        grid), then to fast FFT lengths (:func:`_fast_range`); None when there are no candidates;
-        SolverError when the box reaches the grid's edge."""
-        box = self._box(candidates)
-        if box is None:
-            return None
-        i0, i1, j0, j1 = box
-        g = self.grid
-        if self._at_edge(box):
-            raise SolverError(
-                f"[grid]: the contact region (cells where the body interferes with the surface, X in "
-                f"[{g.x0 + i0 * g.dx:g}, {g.x0 + i1 * g.dx:g}], Y in [{g.y0 + j0 * g.dy:g}, "
-                f"{g.y0 + j1 * g.dy:g}]) reaches the grid edge; enlarge [grid] x and y or reduce the "
-                f"penetration or load")
-        i0, i1, j0, j1 = max(i0 - grow, 0), min(i1 + grow, g.nx), max(j0 - grow, 0), min(j1 + grow, g.ny)
-        return (*_fast_range(i0, i1, g.nx, real=False), *_fast_range(j0, j1, g.ny, real=True))
-
 
 def hertz_penetration(grid: Grid, compliance: float, load: float, radius: float) -> float:
     """Hertz's penetration (m) of a sphere of ``radius`` (m) under ``load`` (N), or on a line-contact grid of
@@ -539,18 +470,6 @@ def hertz_penetration(grid: Grid, compliance: float, load: float, radius: float)
         a = math.sqrt(4 * load * radius * compliance / math.pi)
         return 2 * compliance * load / math.pi * (math.log(2 * grid.datum / a) + 0.5)
     return (3 * compliance * load / (4 * math.sqrt(radius))) ** (2 / 3)
-
-
-def _fast_range(i0: int, i1: int, n: int, real: bool) -> tuple[int, int]:
-    """[i0, i1) grown about its centre, within [0, n), to a length scipy.fft transforms fast (``real``: a
-    real transform's), where one fits: the window's preconditioner transforms it unpadded. The QP stays
-    exact on a larger box (its extra cells have no interference, so no pressure)."""
-    m = i1 - i0
-    length = scipy.fft.next_fast_len(m, real=real)
-    if length > n:
-        return i0, i1
-    a = min(max(0, i0 - (length - m) // 2), n - length)
-    return a, a + length
 
 
 def _clip(rows: tuple[int, int], i0: int, i1: int) -> tuple[int, int]:

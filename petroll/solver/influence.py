@@ -59,7 +59,7 @@ class Convolution:
     (with ``inverse``): C is instead the circulant of the kernel wrapped on an lx x ly torus, x is
     zero-padded onto it and C^-1 x cut back to the block: R C^-1 R^T, symmetric positive definite too
     (``coefficients`` must then cover the torus). C^-1 is the preconditioner of the contact QP's conjugate
-    gradients (petroll/solver/precondition.py): it undoes A's 1/|k| smoothing, whose spread of scales
+    gradients (petroll.solver.petsc.CirculantInverse): it undoes A's 1/|k| smoothing, whose spread of scales
     makes plain conjugate gradients need more iterations as the grid is refined.
 
     ``coefficients=None`` builds no kernel: the instance then gives the padded transforms only
@@ -258,7 +258,7 @@ class InfluenceOperator:
     rows directly (Love's), is computed for the rows each rank needs, so that no rank holds a table of a
     whole large grid. :func:`influence_operator` picks a grid's.
 
-    A periodic kernel (petroll.solver.kernels.periodic; ``periodic`` True) is applied on its whole grid
+    A periodic kernel (petroll.solver.kernels.periodic; ``whole`` True) is applied on its whole grid
     only (its windows are the grid: ``window(kernel.nx, kernel.ny)``), unpadded along its periodic axes,
     and has no row-sum bounds.
     """
@@ -270,10 +270,10 @@ class InfluenceOperator:
         self.kernel, self.comm, self.workers = kernel, comm, workers
         self.dx, self.dy = kernel.dx, kernel.dy
         self.positive = kernel.positive  # every coefficient > 0 (a layer's are not: its surface bulges)
-        self.periodic = any(getattr(kernel, "fourier", (False, False)))
+        self.whole = any(getattr(kernel, "fourier", (False, False)))
         # a periodic kernel without a k = 0 response: displacements are taken from their mean plane
         self.mean_free = all(getattr(kernel, "fourier", (False, False))) and float(kernel.values(0, 0)) == 0
-        self._table = None if self.periodic else kernel.table(1, 1)
+        self._table = None if self.whole else kernel.table(1, 1)
         self._windows: dict[tuple[int, int], Convolution] = {}
 
     def coefficients(self, nx: int, ny: int) -> np.ndarray:
@@ -283,7 +283,7 @@ class InfluenceOperator:
     @property
     def diagonal(self) -> float:
         """A_ii, the displacement at a loaded cell's own centre per unit pressure (unit compliance)."""
-        if self.periodic:
+        if self.whole:
             return self.window(self.kernel.nx, self.kernel.ny).diagonal
         return float(self._table[0, 0])
 
@@ -296,7 +296,7 @@ class InfluenceOperator:
         on the torus of :meth:`pc_torus`."""
         key = (nx, ny, inverse)
         conv = self._windows.pop(key, None)
-        if conv is None and self.periodic:
+        if conv is None and self.whole:
             if (nx, ny) != (self.kernel.nx, self.kernel.ny):
                 raise ValueError(f"a periodic kernel applies to its whole grid ({self.kernel.nx} x "
                                  f"{self.kernel.ny} cells), not to a {nx} x {ny} block")
@@ -360,55 +360,3 @@ def influence_operator(grid: Grid, comm: MPI.Comm = MPI.COMM_SELF, layer: Layer 
     """The influence operator of ``grid`` on a half-space or on ``layer`` (the kernel of
     :func:`petroll.solver.kernels.grid_kernel`), ``workers`` FFT threads per rank."""
     return InfluenceOperator(grid_kernel(grid, layer), comm, workers)
-
-
-class ShellInfluence:
-    """Context of a PETSc Python (shell) matrix y = scale A x over a distributed window of cells.
-
-    Vectors hold the window's local rows flattened (index ix * ny + iy). The matrix is symmetric positive
-    definite; ``applications`` counts the mults (the operator applications of a solve). With ``inverse``
-    (the window's inverse circulant, :class:`Convolution` with inverse=True), ``precondition`` applies an
-    approximate inverse of the matrix (the PC of petroll/solver/precondition.py). Principal submatrices
-    (``MatCreateSubMatrix``, as TAO's active-set types take) are
-    :class:`petroll.solver.precondition.RestrictedShell` views of it.
-    """
-
-    def __init__(self, conv: Convolution, scale: float = 1.0, inverse: Convolution | None = None):
-        self.conv, self.scale, self.inverse, self.applications = conv, scale, inverse, 0
-
-    def precondition(self, x: np.ndarray) -> np.ndarray:
-        """(scale C)^-1 x for a vector's local array ``x`` (flattened rows); x unchanged without inverse."""
-        if self.inverse is None:
-            return x
-        return self.inverse(x.reshape(-1, self.conv.ny)).ravel() / self.scale
-
-    def mult(self, mat, x, y) -> None:
-        local = x.getArray(readonly=True).reshape(-1, self.conv.ny)
-        with y as out:  # written in place: no temporary copies of the window
-            np.multiply(self.conv(local), self.scale, out=out.reshape(-1, self.conv.ny))
-        self.applications += 1
-
-    def multTranspose(self, mat, x, y) -> None:
-        self.mult(mat, x, y)
-
-    def getDiagonal(self, mat, d) -> None:
-        d.set(self.conv.diagonal * self.scale)
-
-    def createSubMatrix(self, mat, isrow, iscol, submat):
-        from petroll.solver.precondition import restricted_shell
-
-        return restricted_shell(mat, isrow, iscol, submat)
-
-
-def shell_matrix(conv: Convolution, scale: float = 1.0, inverse: Convolution | None = None):
-    """A PETSc shell matrix applying ``scale * A`` with the FFT convolution ``conv`` (on conv's comm);
-    ``inverse``: the preconditioner's inverse circulant (see :class:`ShellInfluence`)."""
-    from petsc4py import PETSc
-
-    n_local = (conv.r1 - conv.r0) * conv.ny
-    n = conv.nx * conv.ny
-    context = ShellInfluence(conv, scale, inverse)
-    mat = PETSc.Mat().createPython([(n_local, n), (n_local, n)], context, comm=conv.comm)
-    mat.setOption(PETSc.Mat.Option.SYMMETRIC, True)
-    mat.setUp()
-    return mat

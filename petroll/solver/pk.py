@@ -15,7 +15,7 @@ It ends with TAO's gradient vector holding the gradient at the solution (see Cos
 Preconditioned by the PC of the TAO's KSP (KSP type ``preonly``: one PC application per iteration,
 restricted to the free variables; PC type ``none`` by default, options prefix the TAO's). petroll's
 contact solver sets it to the inverse circulant of the window's kernel
-(:class:`petroll.solver.precondition.CirculantInverse`), so the iteration count hardly grows with the grid
+(:class:`petroll.solver.petsc.CirculantInverse`), so the iteration count hardly grows with the grid
 (Hertz at 154^2 cells, cold: 30 against 72 applications without it; docs/benchmarks.md).
 
 Cost: one Hessian application per iteration plus one objective-gradient evaluation; once the free set

@@ -23,9 +23,8 @@ from petroll.solver.friction_loop import FrictionLoop
 from petroll.solver.history import make_history
 from petroll.records import RoughOutputs, StepRecord
 from petroll.solver.rough import radial_spectrum, spectrum_edges
-from petroll.solver.sliding import SteadySliding
-from petroll.solver.steady import SteadySolve, steady_step
-from petroll.model.clock import step_length
+from petroll.solver.steady_state import steady_state
+from petroll.model.clock import TimeMode, step_length
 from petroll.model.scene import Scene
 from petroll.solver.wake import Wake
 from petroll.solver.warm import WarmStart
@@ -53,7 +52,7 @@ class Simulation:
         self.wake = Wake(self.solver, scene.solver.history_cutoff)
         self.t, self.dt_next = 0.0, None
         self.steady_start = None  # a first guess for solve_steady: (whole-grid pressure in Pa, penetration in m)
-        self.fixed_point_iterations = 0  # the last solve_steady's QPs (each with its extended-grid convolution)
+        self.fixed_point_iterations = 0  # the last solve_steady's fixed-point iterations
         self.window = None  # the newest step's QP window, cells [i0, i1) x [j0, j1)
         self.friction = FrictionLoop(scene, comm) if scene.friction is not None else None  # [friction]
         self._newest = None  # the newest step's (profile, v, J_eff, delta): what surface() needs (a steady
@@ -72,9 +71,8 @@ class Simulation:
         [time] max_steps raises SceneError. A scene with [time] mode = "steady" yields its one step,
         the steady state solved directly (:meth:`solve_steady`).
         """
-        if self.scene.time.mode == "steady":
-            periodic = any(self.scene.grid.periodic)
-            record = (self.solve_sliding if periodic else self.solve_steady)(tol=self.scene.solver.tol)
+        if self.scene.time.mode is TimeMode.STEADY:
+            record = self.solve_steady(tol=self.scene.solver.tol)
             self.t, self.dt_next = 0.0, None
             yield record
             return
@@ -113,7 +111,7 @@ class Simulation:
         every rank after each step (e.g. to stop on a signal by raising). Collective."""
         if self.records:
             raise RuntimeError("last_step runs a fresh simulation: this one has solved or restored steps")
-        if self.scene.time.mode == "steady":
+        if self.scene.time.mode is TimeMode.STEADY:
             record = list(self.steps())[-1]
             if after_step is not None:
                 after_step()
@@ -186,62 +184,27 @@ class Simulation:
 
     def solve_steady(self, tol: float = 1e-10, max_iterations: int = 500,
                      start: tuple[np.ndarray, float] | None = None, steady: float | None = None) -> StepRecord:
-        """The constant-velocity steady state solved directly in the body frame
-        (:class:`petroll.solver.steady.SteadySolve`, which says what ``tol`` and ``steady`` stop),
-        recorded as step 0 at t = 0 with the body at [body] position. Velocity, penetration or load are
-        taken at t = 0 and must be constant (the scene checks this for [time] mode = "steady"); the motion
-        must be along X or Y. The memory is the scene's integrator at its time step: dt from [time] dt or
+        """The constant-velocity steady state solved directly (the grid's steady solve,
+        petroll.solver.steady_state: rolling, or sliding on a grid that repeats; each says what ``tol``
+        and ``steady`` stop), recorded as step 0 at t = 0 with the body at [body] position. Velocity,
+        penetration or load are taken at t = 0 and must be constant (the scene checks this for [time]
+        mode = "steady"). The memory is the scene's integrator at its time step: dt from [time] dt or
         steps_per_cell (default 1 step per cell), so that with one step per cell crossed this is exactly
         the state the transient run converges to. ``start``: a first guess (the grid's pressure, Pa, and
         its penetration, m), e.g. a neighbouring steady state (continuation; default
         ``self.steady_start``). The fixed point's iterations are kept in ``self.fixed_point_iterations``.
-        Collective; every rank holds only its rows and lines."""
+        Collective; every rank holds only its rows (and lines)."""
         began = clock.perf_counter()
-        solve = SteadySolve(self.scene, self.solver, tol, steady)
-        work = list(self.solver.work)
+        solve = steady_state(self.scene, self.solver, tol, steady)
         solution, w = solve.solve(start if start is not None else self.steady_start, max_iterations)
         self.fixed_point_iterations = solve.iterations
-        solution.iterations = self.solver.work[0] - work[0]
-        solution.applications = self.solver.work[1] - work[1]
         self.direction = solve.direction
         self.pressure, self.window = solution.pressure, solution.window
         self._newest = (solve.profile, w, None, solution.delta)
         sx, sy = self.scene.position
-        velocity = solve.speed * solve.direction
-        record = self._diagnose(0, 0.0, sx, sy, solution, velocity, 0.0, clock.perf_counter() - began)
+        record = self._diagnose(0, 0.0, sx, sy, solution, solve.velocity, 0.0, clock.perf_counter() - began)
         if self.friction is not None:  # steady rolling with friction on the steady pressure
             self.friction.steady(record, self.pressure, solve.direction, solve.speed)
-        self.records.append(record)
-        return record
-
-    def solve_sliding(self, tol: float = 1e-10, max_iterations: int = 500,
-                      start: tuple[np.ndarray, float] | None = None) -> StepRecord:
-        """The constant-velocity steady state on a periodic grid solved directly (petroll.solver.sliding),
-        recorded as step 0 at t = 0 with the body at [body] position (velocity, load or penetration taken
-        at t = 0, constant: the scene checks this for [time] mode = "steady"). The memory is the scene's
-        integrator at its time step: dt from [time] dt or steps_per_cell (default 1 step per cell), so that
-        with one step per cell crossed along X or Y this is the state the transient run converges to.
-        ``tol``: the fixed point's largest change of the pressure between iterations, relative to its
-        peak, at which it stops. ``start``: a first guess (the whole grid's pressure, Pa, and its
-        penetration, m; default ``self.steady_start``). Its iterations are kept in
-        ``self.fixed_point_iterations``. Collective."""
-        scene, g = self.scene, self.scene.grid
-        began = clock.perf_counter()
-        velocity, dt = steady_step(scene)
-        speed = float(np.hypot(*velocity))
-        sliding = SteadySliding(scene, self.comm, self.solver.influence.kernel, velocity, dt)
-        sx, sy = scene.position
-        profile = scene.body.height(*g.offsets(self.x, self.y, sx, sy))
-        start = start if start is not None else self.steady_start
-        if start is not None:
-            start = (np.asarray(start[0], dtype=float).reshape(g.nx, g.ny)[self.solver.r0 : self.solver.r1],
-                     start[1])
-        solution, w = sliding.solve(profile, tol, max_iterations, start)
-        self.fixed_point_iterations = sliding.iterations
-        self.direction = velocity / speed
-        self.pressure = solution.pressure
-        self._newest = (profile, w, None, solution.delta)
-        record = self._diagnose(0, 0.0, sx, sy, solution, velocity, 0.0, clock.perf_counter() - began)
         self.records.append(record)
         return record
 

@@ -24,7 +24,7 @@ exact inverse of M as its preconditioner, load control inside it). Since S / m =
 the M norm (a projection onto the constraints and a linear map of norm max |sin phi_k|). It is not
 iterated to convergence: a first QP (to 0.1) gives a contact set, from which a primal-dual active set
 method finds the complementarity solution directly (:meth:`SteadySliding._active_set`: each contact set's
-equations K_CC p_C = delta - Z_C, with the force's row under load control, solved by GMRES preconditioned
+equations K_CC p_C = delta - Z_C, with the force's row under load control, solved by GMRES (PETSc's KSP, petroll.solver.petsc) preconditioned
 by R K^-1 R^T; the set then loses its cells of negative pressure and gains those of negative gap, until it
 holds). A step of the fixed point, its QP solved to 1 % of the tolerance, confirms the answer: the solve
 ends when that step changes the pressure by less than the tolerance (else the active set method starts
@@ -44,6 +44,8 @@ from petroll.solver.contact import ContactSolver
 from petroll.solver.history import transfer
 from petroll.solver.influence import Convolution
 from petroll.solver.kernels.periodic import Spectral
+from petroll.solver.petsc import gmres
+from petroll.solver.steady import steady_step
 
 FORMS = ("operator", "modulus", "lag", "newton")
 """The kernels of the steady sliding solve, each A_k times a factor of H (class SlidingKernel)."""
@@ -94,12 +96,13 @@ class SlidingKernel(Spectral):
 
 
 class ContactSystem:
-    """Context of a PETSc Python Mat and of its Python PC: the steady contact's linear equations on a
-    contact set C, K_CC p_C - delta 1 = -Z_C (the gap closed on C), the unknowns the pressures on C
-    (this rank's cells of C in order), bordered under load control by the force's row sum p_C = the held
-    pressures' sum (Pa). The last unknown (rank 0's) is then delta / c (Pa), c the operator's diagonal
-    (m/Pa), and the force's row is scaled by c / |C|. The PC applies R P R^T on C, P = ``inverse`` an
-    approximate inverse of K (m -> Pa), and 1 / c to the force's row."""
+    """The steady contact's linear equations on a contact set C, K_CC p_C - delta 1 = -Z_C (the gap closed
+    on C), the unknowns the pressures on C (this rank's cells of C in order), bordered under load control
+    by the force's row sum p_C = the held pressures' sum (Pa). The last unknown (rank 0's) is then
+    delta / c (Pa), c the operator's diagonal (m/Pa), and the force's row is scaled by c / |C|.
+    :meth:`mult` applies the equations' matrix, :meth:`apply` its preconditioner: R P R^T on C, P =
+    ``inverse`` an approximate inverse of K (m -> Pa), and 1 / c to the force's row. Both map this rank's
+    unknowns (numpy arrays) collectively over ``comm``; GMRES runs on them in petroll.solver.petsc."""
 
     def __init__(self, operator, inverse, shape: tuple[int, int], comm, border: bool):
         self.operator, self.inverse, self.shape, self.comm = operator, inverse, shape, comm
@@ -122,39 +125,51 @@ class ContactSystem:
         out.ravel()[self.cells] = values[: len(self.cells)]
         return out
 
-    def mult(self, mat, x, y) -> None:
-        a, n = x.array_r, len(self.cells)
+    def mult(self, a: np.ndarray) -> np.ndarray:
+        n = len(self.cells)
         self.applications += 1
-        out = y.array
+        out = np.empty(len(a))
         out[:n] = self.operator(self.field(a)).ravel()[self.cells]
         if self.border:
             delta, total = self.comm.allreduce(np.array([a[n] if len(a) > n else 0.0, a[:n].sum()]))
             out[:n] -= self.c * delta
             if len(out) > n:
                 out[n] = self.weight * total
+        return out
 
-    def apply(self, pc, x, y) -> None:
-        a, n = x.array_r, len(self.cells)
-        out = y.array
+    def apply(self, a: np.ndarray) -> np.ndarray:
+        n = len(self.cells)
+        out = np.empty(len(a))
         out[:n] = self.inverse(self.field(a)).ravel()[self.cells]
         if len(out) > n:
             out[n] = a[n] / self.c
+        return out
 
 
 class SteadySliding:
-    """The steady sliding state of one scene on ``comm``: ``solve(profile, ...)`` (collective).
+    """The steady sliding state of ``scene`` at its constant velocity (m/s, taken at t = 0) with the
+    integrator's step dt (petroll.solver.steady.steady_step): :meth:`solve` (collective over the comm of
+    ``solver``, the scene's contact solver, whose operator's kernel is the grid's periodic kernel A_k).
+    ``tol``: the fixed point's largest change of the pressure between iterations, relative to its peak,
+    at which it stops (``steady``: unused; the fixed point ends at ``tol``). A steady solve of
+    petroll.solver.steady_state (``velocity``, ``direction``, ``speed``, ``profile``, ``iterations``).
 
-    ``kernel``: the grid's periodic kernel (A_k); ``velocity`` (m/s) constant; ``dt`` the integrator's
-    step (s); ``tol`` the solver's contact tolerance for the QPs. The QPs are solved by a ContactSolver on
-    the modulus kernel M (compliance 1: the kernel holds the material's); the active set method's
-    equations by GMRES (PETSc KSP) on a :class:`ContactSystem`."""
+    The QPs are solved by a ContactSolver of its own on the modulus kernel M (compliance 1: the kernel holds
+    the material's; the scene's [solver] tol); the active set method's equations by GMRES (PETSc KSP,
+    petroll.solver.petsc.gmres) on a :class:`ContactSystem`."""
 
     SWEEPS = 30
     """Contact sets one active set solve (:meth:`_active_set`) tries before the fixed point's QP resumes."""
 
-    def __init__(self, scene, comm, kernel: Spectral, velocity, dt: float):
-        self.scene, self.comm = scene, comm
+    def __init__(self, scene, solver: ContactSolver, tol: float, steady: float | None = None):
+        self.scene, self.comm, self.tol = scene, solver.comm, tol
+        comm, kernel = solver.comm, solver.influence.kernel
         g, material, integrator = scene.grid, scene.material, scene.solver.integrator
+        velocity, dt = steady_step(scene)
+        self.speed = float(np.hypot(*velocity))
+        self.velocity, self.direction = velocity, velocity / self.speed
+        sx, sy = scene.position
+        self.profile = scene.body.height(*g.offsets(g.x[solver.r0 : solver.r1, None], g.y[None, :], sx, sy))
 
         def make(form):
             return SlidingKernel(kernel, material, integrator, velocity, dt, form)
@@ -166,7 +181,6 @@ class SteadySliding:
         newton = Convolution(make("newton"), g.nx, g.ny, comm, workers=self.qp.workers)
         self.system = ContactSystem(self.operator, self._inverse(newton), self.qp.local_shape, comm,
                                     scene.penetration is None)
-        self.target, self.first = (0.0, 0.0), 0.0
         self.iterations = 0  # fixed-point steps (QPs) of the last solve
 
     def _inverse(self, newton: Convolution):
@@ -180,63 +194,27 @@ class SteadySliding:
             return fused
         return lambda x: newton(m_inverse(x))
 
-    def _krylov(self, sizes: tuple[int, int]):
-        """GMRES (restarted every 30 iterations, right-preconditioned: its residual is the equations') on
-        :attr:`system` of ``sizes`` unknowns (this rank's, all), stopped by :meth:`_converged`, and its
-        vectors (x, b)."""
-        from petsc4py import PETSc
-
-        mat = PETSc.Mat().createPython([sizes, sizes], self.system, comm=self.comm)
-        mat.setUp()
-        ksp = PETSc.KSP().create(comm=self.comm)
-        ksp.setOperators(mat)
-        ksp.setType("gmres")
-        ksp.setGMRESRestart(30)
-        ksp.setPCSide(PETSc.PC.Side.RIGHT)
-        ksp.getPC().setType("python")
-        ksp.getPC().setPythonContext(self.system)
-        ksp.setInitialGuessNonzero(True)
-        ksp.setTolerances(max_it=1000)
-        ksp.setConvergenceTest(self._converged)
-        return ksp, mat.createVecs()
-
-    def _converged(self, ksp, its, rnorm):
-        """GMRES's stop: the residual (m) below max(target[0] times the first, target[1])."""
-        from petsc4py import PETSc
-
-        if its == 0:
-            self.first = rnorm
-        if rnorm <= max(self.target[0] * self.first, self.target[1]):
-            return PETSc.KSP.ConvergedReason.CONVERGED_ATOL
-        if its >= ksp.getTolerances()[3]:
-            return PETSc.KSP.ConvergedReason.DIVERGED_ITS
-        return PETSc.KSP.ConvergedReason.ITERATING
-
     def _closed(self, profile, pressure, delta, total, contact, target):
         """The pressure (Pa) and penetration (m) that close the gap on ``contact`` (under load control the
-        pressures summing to ``total``, Pa), by GMRES from ``pressure`` and ``delta`` to ``target``
-        (:meth:`_converged`; ``target`` gives it from the right-hand side's norm, m)."""
+        pressures summing to ``total``, Pa), by GMRES (restarted every 30 iterations, right-preconditioned:
+        its residual is the equations') from ``pressure`` and ``delta``, stopped once the residual (m) is at
+        most max(r times the first, a), (r, a) = ``target`` of the right-hand side's norm (m)."""
         system, penetration = self.system, self.scene.penetration
-        ksp, (x, b) = self._krylov(system.set_contact(contact))
-        try:
-            n = len(system.cells)
-            fixed = float(penetration(0.0)) if penetration is not None else 0.0
-            x.array[:n] = pressure.ravel()[system.cells]
-            b.array[:n] = fixed - profile.ravel()[system.cells]
-            if len(x.array) > n:
-                x.array[n], b.array[n] = delta / system.c, system.weight * total
-            norm = b.norm()
-            self.target = target(norm)
-            ksp.solve(b, x)
-            if ksp.getConvergedReason() < 0:
-                raise SolverError(f"GMRES on the steady sliding contact's equations did not converge (reason "
-                                  f"{ksp.getConvergedReason()} after {ksp.getIterationNumber()} iterations)")
-            if penetration is None:
-                fixed = self.comm.bcast(x.array_r[n] * system.c if len(x.array_r) > n else None, root=0)
-            return system.field(x.array_r), fixed
-        finally:
-            for obj in (ksp, x, b):
-                obj.destroy()
+        sizes = system.set_contact(contact)
+        n = len(system.cells)
+        fixed = float(penetration(0.0)) if penetration is not None else 0.0
+        x, b = np.empty(sizes[0]), np.empty(sizes[0])
+        x[:n] = pressure.ravel()[system.cells]
+        b[:n] = fixed - profile.ravel()[system.cells]
+        if len(x) > n:
+            x[n], b[n] = delta / system.c, system.weight * total
+        x, reason, its = gmres(system.mult, system.apply, sizes, self.comm, x, b, target)
+        if reason < 0:
+            raise SolverError(f"GMRES on the steady sliding contact's equations did not converge (reason "
+                              f"{reason} after {its} iterations)")
+        if penetration is None:
+            fixed = self.comm.bcast(x[n] * system.c if len(x) > n else None, root=0)
+        return system.field(x), fixed
 
     def _active_set(self, profile, pressure, delta, total, gap_tol, tol):
         """The contact pressure (Pa) and penetration (m) by a primal-dual active set method from the
@@ -257,16 +235,15 @@ class SteadySliding:
             tight, contact = changed == 0, new
         return np.where(contact, np.maximum(x, 0.0), 0.0), delta
 
-    def solve(self, profile: np.ndarray, tol: float, max_iterations: int = 100,
-              start: tuple[np.ndarray, float | None] | None = None):
-        """The steady pressure (Pa, this rank's rows) for the body's heights ``profile`` (m, this rank's
-        rows), under the scene's constant load or penetration: a StepSolution of the last QP, whose
-        pressure is the fixed point's to ``tol`` (its largest change over a fixed-point step, relative to
-        its peak), and the surface displacement w = K p (m). ``start``: a first guess (this rank's rows of
-        a pressure, Pa, and its penetration, m, or None), e.g. a neighbouring speed's steady state. Its
+    def solve(self, start: tuple[np.ndarray, float | None] | None = None, max_iterations: int = 500):
+        """The steady pressure (Pa, this rank's rows) for the body's heights :attr:`profile`, under the
+        scene's constant load or penetration: a StepSolution of the last QP, whose pressure is the fixed
+        point's to ``tol`` (its largest change over a fixed-point step, relative to its peak), and the
+        surface displacement w = K p (m). ``start``: a first guess (a pressure, Pa, on the whole grid or
+        this rank's rows, and its penetration, m, or None), e.g. a neighbouring speed's steady state. Its
         ``applications`` count the QPs' and the active set solves' operator applications."""
-        scene, solver, comm = self.scene, self.qp, self.comm
-        x = np.zeros(solver.local_shape) if start is None else np.array(start[0], dtype=float)
+        scene, solver, comm, profile, tol = self.scene, self.qp, self.comm, self.profile, self.tol
+        x = np.zeros(solver.local_shape) if start is None else solver.own_rows(start[0]).copy()
         delta = None if start is None else start[1]
         work, applications = list(solver.work), self.system.applications
         solution, scale, change = None, 1.0, math.inf

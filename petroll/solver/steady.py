@@ -54,8 +54,10 @@ def steady_step(scene) -> tuple[np.ndarray, float]:
 
 
 class SteadySolve:
-    """The steady state of ``scene`` at its constant velocity, by the fixed point of the module docstring,
-    with the contact ``solver`` (its grid rows, TAO objects and operator); collective over its comm.
+    """The steady rolling state of ``scene`` at its constant velocity, by the fixed point of the module
+    docstring, with the contact ``solver`` (its grid rows, TAO objects and operator); collective over its
+    comm. A steady solve of petroll.solver.steady_state (``velocity``, ``direction``, ``speed``,
+    ``profile``, ``iterations``, :meth:`solve`).
 
     ``tol``: relative change of the memory field (scaled by Jc p_max) at which the fixed point stops; the
     QPs are solved to 1e-4 of the memory's last change until then (at most 1e-3, at least [solver] tol),
@@ -78,6 +80,7 @@ class SteadySolve:
             raise SceneError(scene.source, "[motion] velocity", list(velocity),
                              "the steady solve needs a non-zero velocity along X or Y")
         self.direction = velocity / speed
+        self.velocity = speed * self.direction
         sign = 1 if velocity[axis] > 0 else -1
         cell = g.dx if axis == 0 else g.dy
         self.x, self.y = g.x[solver.r0 : solver.r1, None], g.y[None, :]
@@ -132,8 +135,10 @@ class SteadySolve:
         displacement w = A W(p) (m, this rank's rows). ``start``: a first guess (the grid's pressure, Pa,
         whole or this rank's rows, and its penetration, m); else, under penetration control in 3-D,
         Hertz's pressure for Jc as the first QP's warm start. SolverError after ``max_iterations``
-        iterations; the solver's tolerance is left as it was in every case."""
+        iterations; the solver's tolerance is left as it was in every case. The solution's iterations and
+        applications are those of every QP solved."""
         solver, lines = self.solver, self.lines
+        work = list(solver.work)
         x, warm, delta = self._first_guess(start)
         mixer = Anderson(self.comm)
         memory = self.lagged(x)
@@ -158,6 +163,7 @@ class SteadySolve:
                 raise SolverError(f"the steady solve did not converge within {max_iterations} iterations")
         finally:
             solver.tol = tolerance
+        solution.iterations, solution.applications = solver.work[0] - work[0], solver.work[1] - work[1]
         return solution, self.displacement(self.memory.extended(p), p)
 
     def _first_guess(self, start):
@@ -165,9 +171,7 @@ class SteadySolve:
         solver, scene, comm = self.solver, self.scene, self.comm
         g = scene.grid
         if start is not None:
-            pressure = np.asarray(start[0], dtype=float)
-            rows = pressure.reshape(-1, g.ny)
-            rows = rows[solver.r0 : solver.r1] if len(rows) == g.nx else rows
+            rows = solver.own_rows(start[0])
             return self.lines.from_grid(rows), rows, start[1]
         zero = self.lines.from_grid(np.zeros(solver.local_shape))
         if scene.penetration is None or g.line:

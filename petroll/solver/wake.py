@@ -38,7 +38,7 @@ class Wake:
     def __init__(self, solver, cutoff: float):
         self.solver, self.cutoff = solver, cutoff
         g = solver.grid
-        self.whole = solver.influence.periodic  # a periodic kernel's u is computed on the whole grid
+        self.whole = solver.influence.whole  # a periodic kernel's u is computed on the whole grid
         self.row_sum = None if self.whole else solver.influence.row_sum_bound(g.nx, g.ny)
         self.lift = None if self.whole else solver.influence.lift_bound(g.nx, g.ny)
         self.boxes = 0

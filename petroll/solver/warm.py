@@ -85,11 +85,9 @@ class WarmStart:
         """``pressure`` moved by ``cells``, around along a periodic grid's repeating axes."""
         if cells == (0, 0):
             return pressure
-        periodic = self.grid.periodic
-        if any(periodic):  # wrap along the periodic axes first, then shift along the others
-            pressure = roll_field(pressure, cells[0] * periodic[0], cells[1] * periodic[1], self.rows,
-                                  self.comm)
-            cells = (cells[0] * (not periodic[0]), cells[1] * (not periodic[1]))
-            if cells == (0, 0):
-                return pressure
+        roll, cells = self.grid.topology.split_move(cells)
+        if roll != (0, 0):  # wrap along the repeating axes first, then shift along the others
+            pressure = roll_field(pressure, *roll, self.rows, self.comm)
+        if cells == (0, 0):
+            return pressure
         return shift_field(pressure, cells[0], cells[1], self.rows, self.comm)

@@ -43,6 +43,7 @@ import numpy as np
 from mpi4py import MPI
 
 from petroll.errors import PetrollError
+from petroll.model.clock import TimeMode
 from petroll.model.preflight import Preflight, check
 from petroll.model.scene import Scene
 from petroll.records import StepRecord
@@ -77,7 +78,7 @@ def known_order(scene: Scene) -> dict[str, float]:
     solve without ``dt``) and the material has a memory (J0 < Jinf); else the space's, 2 (a fixed ``dt``:
     its time error is the same on every grid, and not estimated; an elastic material: no time error)."""
     t = scene.time
-    follows = t.steps_per_cell is not None or (t.mode == "steady" and t.dt is None)
+    follows = t.steps_per_cell is not None or (t.mode is TimeMode.STEADY and t.dt is None)
     memory = scene.material.J0 < scene.material.Jinf
     orders = KNOWN_ORDER[scene.solver.integrator]
     return {name: min(SPACE_ORDER, order) if follows and memory else SPACE_ORDER
@@ -192,12 +193,12 @@ def coarser(scene: Scene, factor: int, end: float | None, shift: float = 0.0) ->
         x = [g.x0, g.x0 + nx * factor * g.dx]
     else:
         nx, x = _aligned(g.x0, g.x1, g.dx, g.nx, factor, sx, shift)
-    steady = scene.time.mode == "steady"
+    steady = scene.time.mode is TimeMode.STEADY
     changes = {"grid.nx": nx, "grid.x": x, "solver.tol": coarse_tol(scene.solver.tol, steady)}
     if not g.line:
         ny, y = _aligned(g.y0, g.y1, g.dy, g.ny, factor, sy, shift)
         changes.update({"grid.ny": ny, "grid.y": y})
-    if end is not None and scene.time.mode != "steady":
+    if end is not None and scene.time.mode is not TimeMode.STEADY:
         changes.update({"time.steady": None, "time.distance": None, "time.end": end})
     return scene.replace(changes)
 
@@ -218,7 +219,7 @@ def end_time(scene: Scene, record: StepRecord) -> float | None:
     """The time (s) the coarser grids run to: that of ``record``, where the scene keeps a clock (its steps
     follow the cell or ``dt``) and has taken a step; None for a scene of one step or a steady solve."""
     clocked = scene.time.dt is not None or scene.time.steps_per_cell is not None
-    timed = scene.time.mode != "steady" and clocked
+    timed = scene.time.mode is not TimeMode.STEADY and clocked
     return record.t if timed and record.t > 0 else None
 
 

@@ -61,6 +61,7 @@ from petroll.model.materials import Prony, Tabulated, loss_peak_time
 from petroll.io.hdf5 import atomic_hdf5
 from petroll.io.results import Results, atomic_write, results_identity
 from petroll.io.rundir import clean_temporaries
+from petroll.model.clock import TimeMode
 from petroll.model.limits import warnings_once
 from petroll.model.schema import DEFAULT_STEADY, SCHEMA
 from petroll.model.scene import Scene
@@ -378,7 +379,7 @@ def sweep(scene: Scene, vary: Vary | str, out: str | pathlib.Path | None = None,
             except RunInterrupted as exc:
                 raise SweepInterrupted(exc.signum, index, total, label) from None
             computed.append(index)
-        direct = point.time.mode == "steady"
+        direct = point.time.mode is TimeMode.STEADY
         following = scenes[index + 1].grid if index + 1 < total else None
         same_grid = following is not None and (following.nx, following.ny) == (point.grid.nx, point.grid.ny)
         start = (results.pressure[-1], float(results.series["delta"][-1])) if direct and same_grid else None
@@ -397,8 +398,7 @@ def sweep(scene: Scene, vary: Vary | str, out: str | pathlib.Path | None = None,
             rough = (f"friction mu {row['mu_r']:.4e}, A/A0 {row['area_fraction']:.4g}"
                      if math.isfinite(row["area_fraction"]) else f"mu_r {row['mu_r']:.4e}")
             log(f"point {index + 1}/{total} {label}: {done}; {rough}, force "
-                f"{row['force']:.5g} N, {int(row['steps'])} steps, "
-                f"{state}"
+                f"{row['force']:.5g} N, {int(row['steps'])} steps, {state}"
                 + (f", V tau/a {row['v_tau_a']:.3g}" if math.isfinite(row["v_tau_a"]) else "")
                 + (f", grid {point.grid.nx} x {point.grid.ny} (sized)" if point.sizing is not None else ""))
     columns = {name: np.array([row[name] for row in rows], dtype=float) for name in COLUMNS if name in rows[0]}
@@ -467,10 +467,10 @@ def table_row(scene: Scene, results: Results, value: float, estimate_error: bool
     tau = loss_peak_time(material) if viscous else math.nan
     sphere = isinstance(scene.body, Sphere)
     g, line = scene.grid, scene.grid.line  # plane strain: force per length, area a width, delta to the datum
-    cell = all(g.periodic) and not line  # a periodic cell: its area fraction, no Hertz radius
+    cell = g.topology.statistics  # a periodic cell: its area fraction, no Hertz radius
     row["area_fraction"] = st.area / ((g.x1 - g.x0) * (g.y1 - g.y0)) if cell else math.nan
     delta0 = float(s["delta"][0])
-    direct = scene.time.mode == "steady"  # no first (instantaneous) step: Hertz with J0 at its load
+    direct = scene.time.mode is TimeMode.STEADY  # no first (instantaneous) step: Hertz with J0 at its load
     if direct and line and isinstance(scene.body, CylinderSection) and isinstance(material, Prony):
         a = math.sqrt(4 * st.force * scene.body.radius * material.J0 / math.pi)
     elif direct and sphere and scene.load is not None and isinstance(material, Prony):

@@ -278,7 +278,7 @@ def samples_surface(heights: np.ndarray, cell: tuple[float, float], grid: Grid) 
     """On a periodic ``grid``, the periodic surface of samples that are its cells (as many as its nx x ny,
     or nx for a line grid's profile, at its spacing, all finite): sample (i, j) on the centre of cell
     (i, j) while the body is at [body] position [0, 0]. None for samples that are not."""
-    if not any(grid.periodic) or heights.ndim != 2:
+    if not grid.topology.whole or heights.ndim != 2:
         return None
     if (heights.shape[0] != grid.nx or (not grid.line and heights.shape[1] != grid.ny)
             or not np.allclose(cell, (grid.dx, grid.dy), rtol=1e-9, atol=0.0)

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 from petroll.model.grid import Grid
 from petroll.model.materials import Layer
+from petroll.model.topology import Line, Periodic, PeriodicAlong
 from petroll.solver.kernels.base import Kernel
 from petroll.solver.kernels.layer import LayerRectangles, LayerStrips
 from petroll.solver.kernels.love import Rectangles, Strips
@@ -28,20 +29,19 @@ from petroll.solver.kernels.periodic import HalfSpace, HalfSpaceAlong, LayerSpec
 
 
 def grid_kernel(grid: Grid, layer: Layer | None = None) -> Kernel:
-    """The kernel of ``grid`` on a half-space (``layer`` None) or on ``layer``: rectangles, or strips with
-    the grid's datum on a line-contact grid; on a periodic grid, the periodic kernels (a layer: periodic
-    along every axis only, ValueError otherwise)."""
-    if grid.line and grid.periodic[0] or all(grid.periodic):
-        if layer is None:
-            return HalfSpace(grid.dx, grid.dy, grid.nx, grid.ny)
-        return LayerSpectral(grid.dx, grid.dy, grid.nx, grid.ny, layer)
-    if any(grid.periodic):
+    """The kernel of ``grid`` on a half-space (``layer`` None) or on ``layer``, by its topology
+    (petroll.model.topology): rectangles, or strips with the grid's datum in line contact; on a grid that
+    repeats, the periodic kernels (a layer: repeating along every axis only, ValueError otherwise)."""
+    g, top = grid, grid.topology
+    if isinstance(top, PeriodicAlong):
         if layer is not None:
             raise ValueError("a layer on a grid periodic along one axis only")
-        axis = 0 if grid.periodic[0] else 1
-        datum = grid.y1 - grid.y0 if axis == 0 else grid.x1 - grid.x0
-        return HalfSpaceAlong(grid.dx, grid.dy, grid.nx, grid.ny, axis, datum)
-    if grid.line:
-        return Strips(grid.dx, grid.dy, grid.datum) if layer is None else LayerStrips(grid.dx, grid.dy,
-                                                                                      grid.datum, layer)
-    return Rectangles(grid.dx, grid.dy) if layer is None else LayerRectangles(grid.dx, grid.dy, layer)
+        datum = g.y1 - g.y0 if top.axis == 0 else g.x1 - g.x0
+        return HalfSpaceAlong(g.dx, g.dy, g.nx, g.ny, top.axis, datum)
+    if isinstance(top, Periodic):
+        if layer is None:
+            return HalfSpace(g.dx, g.dy, g.nx, g.ny)
+        return LayerSpectral(g.dx, g.dy, g.nx, g.ny, layer)
+    if isinstance(top, Line):
+        return Strips(g.dx, g.dy, g.datum) if layer is None else LayerStrips(g.dx, g.dy, g.datum, layer)
+    return Rectangles(g.dx, g.dy) if layer is None else LayerRectangles(g.dx, g.dy, layer)

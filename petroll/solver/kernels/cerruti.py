@@ -189,7 +189,7 @@ class Coupling:
 def tangential_kernel(grid, nu: float) -> Tangential:
     """The tangential kernel of a (non-periodic) ``grid`` for Poisson's ratio nu: Cerruti's rectangles, or
     the strips with the grid's datum on a line-contact grid."""
-    if any(grid.periodic):
+    if grid.topology.whole:
         raise ValueError("friction on a periodic grid is not implemented")
     if grid.line:
         return TangentialStrips(grid.dx, grid.dy, nu, grid.datum)
