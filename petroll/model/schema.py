@@ -434,8 +434,9 @@ SCHEMA: dict[str, dict[str, Key]] = {
                         default=[0.0, 0.0], unit="m"),
         "material": Key("string or inline table", "the body is elastic: " + BODY_MATERIAL_FORM + "; the "
                         "bodies' compliances add (absent: a rigid body); with [friction] the pair must be "
-                        "quasi-identical, (1 - 2 nu)/G equal (a rigid body: [material] nu = 0.5); needs "
-                        "[material] model = \"elastic\" (docs/friction.md)", _body_material, default=None,
+                        "quasi-identical, (1 - 2 nu)/G equal (a rigid body: [material] nu = 0.5); on a viscoelastic "
+                        "half-space (sls, prony) only \"same\" (its creep function doubled); no layer or "
+                        "tabulated material (docs/friction.md)", _body_material, default=None,
                         fields=(("E", "Pa"),)),
     },
     "motion": {
