@@ -21,6 +21,7 @@ RAW = {
 }
 
 
+@pytest.mark.slow
 def test_a_scene_built_in_python_runs_exactly_as_its_toml_through_the_command_line(comm, api_and_cli):
     api, cli, out = api_and_cli(RAW)
     if comm.rank == 0:
@@ -38,6 +39,7 @@ def test_a_scene_built_in_python_runs_exactly_as_its_toml_through_the_command_li
     assert api.steady == cli.steady
 
 
+@pytest.mark.slow
 def test_steady_values_agree_with_the_series_and_survive_reopening(comm, shared_dir):
     results = petroll.run(petroll.parse_scene(RAW), comm, out=shared_dir / "run")
     s, st = results.series, results.steady

@@ -100,6 +100,7 @@ def assert_one_line(message: str, source: str) -> None:
 
 
 # -- scenes as dicts (the Python API) --------------------------------------------------------------------
+@pytest.mark.slow
 @FUZZ
 @given(st.lists(mutation, min_size=1, max_size=3))
 def test_malformed_scene_dicts_are_refused_with_one_line(changes):
@@ -119,6 +120,7 @@ def test_malformed_scene_dicts_are_refused_with_one_line(changes):
     tomllib.loads(dumps(scene.raw))  # and what results.h5 stores of it is valid TOML
 
 
+@pytest.mark.slow
 @FUZZ
 @given(st.lists(st.tuples(st.sampled_from([("grid", "nx"), ("grid", "ny"), ("grid", "x"), ("grid", "y"),
                                            ("material", "E0"), ("material", "Einf"), ("body", "radius"),
@@ -195,6 +197,7 @@ def _toml(raw: dict) -> str:
         return repr(raw)
 
 
+@pytest.mark.slow
 @pytest.mark.serial
 @settings(max_examples=150, deadline=None, derandomize=True,
           suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
@@ -225,6 +228,7 @@ tokens = st.one_of(
 )
 
 
+@pytest.mark.slow
 @pytest.mark.serial
 @settings(max_examples=150, deadline=None, derandomize=True,
           suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
@@ -249,6 +253,7 @@ def test_malformed_command_lines_fail_with_one_line(tmp_path, cli_main, monkeypa
 
 
 # -- the real command, and MPI (subprocesses) -----------------------------------------------------------
+@pytest.mark.slow
 @pytest.mark.serial
 def test_extreme_scene_through_the_real_command(tmp_path, cli):
     """Moduli 1e12 Pa, a 1 um sphere, 1e-3 s steps: runs; a scene past the limits: one line, exit 2."""
@@ -267,6 +272,7 @@ def test_extreme_scene_through_the_real_command(tmp_path, cli):
                    "deep.toml: [motion] penetration = 1e-06: too large")
 
 
+@pytest.mark.slow
 @pytest.mark.serial
 def test_an_error_raised_on_every_rank_is_printed_once_and_exits_cleanly(tmp_path, cli):
     raw = mutate(BASE, [("set", ("grid", "nx"), 0)])
@@ -281,6 +287,7 @@ def test_an_error_raised_on_every_rank_is_printed_once_and_exits_cleanly(tmp_pat
     assert (out / "results.h5").read_bytes() == b"an earlier result"
 
 
+@pytest.mark.slow
 @pytest.mark.serial
 @pytest.mark.parametrize("hook, code, text", [
     ("1", 2, "petroll: error: test failure on rank 1 (PETROLL_TEST_FAIL_RANK) (on rank 1 of 2 only; "
@@ -385,6 +392,7 @@ def test_every_count_a_user_types_is_bounded_before_work_starts(tmp_path, cli_ma
     assert not any((tmp_path / "out").rglob("results.h5"))
 
 
+@pytest.mark.slow
 def test_max_steps_depths_and_times_are_bounded(shared_dir, comm, cli_main, monkeypatch):
     raw = mutate(BASE, [("set", ("time", "max_steps"), 10**6 + 1)])
     if comm.rank == 0:
@@ -406,6 +414,7 @@ def test_max_steps_depths_and_times_are_bounded(shared_dir, comm, cli_main, monk
     refused(cli_main, ["plot", "run", "--times", times], "--times: picks", "at most 16")
 
 
+@pytest.mark.slow
 @pytest.mark.serial
 @pytest.mark.parametrize("argv", [["keys"], ["check", "runs/sphere.toml"]], ids=["keys", "check"])
 def test_a_reader_that_stops_reading_ends_the_command_quietly(argv, cli):

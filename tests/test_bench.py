@@ -21,6 +21,7 @@ def _order(coarse: dict, fine: dict, quantity: str = "force") -> float:
         fine["steps_per_cell"] / coarse["steps_per_cell"])
 
 
+@pytest.mark.slow
 def test_precision_orders_of_the_integrators_and_the_summary(tmp_path):
     runs, summary = precision(tmp_path, steps_per_cell=(0.25, 4, 8), reference=32, grids=(0.5, 1),
                               grid_scale=0.5, distance=2e-3, short=0)
@@ -65,6 +66,7 @@ def test_mpi_forces_agree_between_rank_counts(tmp_path):
     assert (tmp_path / "mpi.csv").exists() and (tmp_path / "mpi.png").exists()
 
 
+@pytest.mark.slow
 def test_warm_start_bench_same_answer_fewer_applications(tmp_path):
     from petroll.bench.solvers import warm_starts
 
@@ -77,6 +79,7 @@ def test_warm_start_bench_same_answer_fewer_applications(tmp_path):
     assert (tmp_path / "warm.csv").exists() and (tmp_path / "warm.png").stat().st_size > 0
 
 
+@pytest.mark.slow
 def test_skips_bench_each_saving_keeps_the_answer(tmp_path):
     from petroll.bench.rolling import skips
 
@@ -93,6 +96,7 @@ def test_skips_bench_each_saving_keeps_the_answer(tmp_path):
     assert (tmp_path / "skips.csv").exists()
 
 
+@pytest.mark.slow
 def test_tao_types_on_the_rolling_scene_agree(tmp_path):
     from petroll.bench.solvers import tao_types_rolling
 
@@ -105,6 +109,7 @@ def test_tao_types_on_the_rolling_scene_agree(tmp_path):
     assert (tmp_path / "tao_rolling.csv").exists()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("steady", [False, True])
 def test_memory_bench_reports_every_ranks_peak_and_the_same_force_on_1_and_2_ranks(tmp_path, steady):
     """petroll bench memory on a 256^2 grid, rolled or its steady state solved directly: a peak above the

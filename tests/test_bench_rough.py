@@ -24,6 +24,7 @@ def test_the_periodic_application_is_timed_beside_the_padded_one(tmp_path):
         assert float(row["ratio"]) == pytest.approx(float(row["periodic_ms"]) / float(row["padded_ms"]), rel=2e-3)
 
 
+@pytest.mark.slow
 def test_the_rough_sliding_solve_and_the_master_curve_agree_where_they_meet(tmp_path):
     """The master curve's point at the peak speed is the direct solve's (same scene, same steady state),
     and friction vanishes towards both ends of the curve (a relaxed and a glassy elastic contact)."""

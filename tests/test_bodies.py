@@ -413,6 +413,7 @@ def test_mesh_sphere_cap_matches_sphere(tmp_path, ext):
     check_cap(body, longest=longest)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("chunk", [2_000_000, 5_000])
 def test_mesh_reference_point_is_lowest_vertex_and_lowest_surface_wins(tmp_path, monkeypatch, chunk):
     monkeypatch.setattr(bodies.mesh, "_RASTER_CHUNK", chunk)  # small chunks: the minimum spans several

@@ -131,6 +131,7 @@ CASES = {
 }
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("case", [pytest.param(c, marks=pytest.mark.ranks4) if c == "prony-constant-load" else c
                                   for c in CASES])
 def test_interrupted_and_restarted_run_is_bitwise_the_uninterrupted_run(case, comm, shared_dir):
@@ -182,6 +183,7 @@ def test_a_checkpoint_without_the_kept_first_guesses_restarts_to_the_same_answer
     assert_close(run(scene, comm, shared_dir / "older", restart=check), reference, rtol=1e-10)
 
 
+@pytest.mark.slow
 @pytest.mark.parallel
 @pytest.mark.parametrize("material", ["sls", "prony"])
 def test_restart_on_another_rank_count_agrees_to_1e_10(material, comm, shared_dir):
@@ -266,6 +268,7 @@ def test_checkpoint_layout_and_sizes_do_not_grow_with_the_steps_for_prony(comm, 
             assert size < raw_bytes + 40_000, (path.name, size, raw_bytes)
 
 
+@pytest.mark.slow
 def test_keep_removes_older_checkpoints_and_those_of_the_run_replaced(comm, shared_dir):
     """Of the run's own checkpoints the newest ``keep`` stay; those an earlier run left in the directory (a
     later step) go once the new results.h5 is in place (they continued the results.h5 it replaced); one
@@ -411,6 +414,7 @@ def test_every_kind_of_bad_checkpoint_is_refused_with_one_line_and_nothing_writt
     assert read_checkpoint(good, comm).step == 8  # the good one is still good
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("change, key", [
     ({"grid": {"nx": 26}}, "[grid] nx"),
     ({"material": {"Einf": 3e6}}, "[material] Einf"),
@@ -473,6 +477,7 @@ def test_restart_may_extend_the_run_and_change_outputs(comm, shared_dir, capsys)
 
 
 # -- write failures ---------------------------------------------------------------------------------------
+@pytest.mark.slow
 def test_disk_full_during_a_checkpoint_is_a_clear_error_and_the_last_one_stays_usable(comm, shared_dir,
                                                                                       monkeypatch):
     scene = make_scene(raw_scene())
@@ -532,6 +537,7 @@ def long_raw() -> dict:
     return raw
 
 
+@pytest.mark.slow
 @pytest.mark.serial
 def test_sigterm_during_a_cli_run_leaves_a_checkpoint_that_restart_finishes_identically(tmp_path, cli):
     write_toml(tmp_path / "long.toml", long_raw())
@@ -576,6 +582,7 @@ run(load_scene(sys.argv[1]), out="killed")
 """
 
 
+@pytest.mark.slow
 @pytest.mark.serial
 def test_sigkill_during_a_checkpoint_write_leaves_the_previous_checkpoint_and_results_usable(tmp_path, cli):
     raw = long_raw()
@@ -607,31 +614,8 @@ def test_sigkill_during_a_checkpoint_write_leaves_the_previous_checkpoint_and_re
     assert_identical(Results.open(tmp_path / "killed" / "results.h5"), reference)
 
 
-@pytest.mark.serial
-def test_sigkill_at_random_moments_never_leaves_a_bad_checkpoint_or_results_file(tmp_path, cli):
-    raw = long_raw()
-    raw["output"].update(checkpoint_every=1, keep=3)
-    write_toml(tmp_path / "long.toml", raw)
-    rng = np.random.default_rng(7)
-    kills = 0
-    for attempt in range(4):
-        out = tmp_path / f"run{attempt}"
-        proc = cli.start("run", "long.toml", "--out", out.name, "--quiet", cwd=tmp_path,
-                                 stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-        wait_for(out / "checkpoints" / "step-00000002.h5", proc)
-        time.sleep(rng.uniform(0.0, 0.3))
-        proc.kill()
-        proc.wait()
-        kills += proc.returncode == -signal.SIGKILL
-        found = list_checkpoints(out / "checkpoints")
-        assert found
-        for path in found:
-            read_checkpoint(path, MPI.COMM_SELF)
-        Results.open(out / "results.h5")
-    assert kills >= 3
-
-
 # -- without parallel HDF5 --------------------------------------------------------------------------------
+@pytest.mark.slow
 def test_without_parallel_hdf5_rank_0_writes_the_same_files_and_restarts_bitwise(comm, shared_dir,
                                                                                    monkeypatch):
     """The path taken when h5py has no MPI (PyPI's h5py): rank 0 alone opens the files and moves the other

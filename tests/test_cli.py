@@ -7,6 +7,7 @@ import pytest
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 
 
+@pytest.mark.slow
 @pytest.mark.serial
 def test_prefixed_tao_options_override_the_scene_and_failures_are_one_clear_line(tmp_path, cli):
     scene = str(ROOT / "runs" / "hertz.toml")
@@ -22,6 +23,7 @@ def test_prefixed_tao_options_override_the_scene_and_failures_are_one_clear_line
     assert not (tmp_path / "bad" / "results.h5").exists()
 
 
+@pytest.mark.slow
 @pytest.mark.serial
 def test_unprefixed_tao_options_do_not_leak_into_petroll(tmp_path, cli):
     scene = str(ROOT / "runs" / "hertz.toml")
@@ -31,6 +33,7 @@ def test_unprefixed_tao_options_do_not_leak_into_petroll(tmp_path, cli):
     assert "Python: petroll.solver.pk.PolonskyKeer" in done.stdout  # the default, untouched by -tao_type
 
 
+@pytest.mark.slow
 @pytest.mark.serial
 def test_pk_on_the_command_line_and_its_view(tmp_path, cli):
     """-petroll_tao_type pk reaches TAO as pk's Python type; its view shows its own settings, the
@@ -59,6 +62,7 @@ def test_ranks_are_refused_beside_benchmarks_other_than_mpi_memory_and_sliding(c
                        "sliding only\n")
 
 
+@pytest.mark.slow
 @pytest.mark.serial
 def test_fft_workers_on_the_command_line(tmp_path, cli):
     """-petroll_fft_workers 2 runs (same answer as the default) and exits promptly (its kept TAO objects

@@ -31,20 +31,24 @@ def test_version_is_the_installed_distributions(cli_main, comm):
     assert out == f"petroll {importlib.metadata.version('petroll')}\n"
 
 
-@pytest.mark.parametrize("fmt", ["png", "pdf", "svg"])
-def test_plot_takes_a_run_directory_its_results_file_a_sweep_and_a_stress_file(run_dir, cli_main, comm, fmt,
+def test_plot_takes_a_run_directory_its_results_file_a_sweep_and_a_stress_file(run_dir, cli_main, comm,
                                                                              shared_dir):
+    """Every kind of input drawn as PNG, then one input (the results file) as PDF and as SVG: the format
+    is matplotlib's choice at saving, the same for every figure."""
     from petroll.studies.sweep import sweep
 
     scene = petroll.load_scene(ROOT / "runs" / "master-curve.toml")
     sweep(scene, "motion.velocity=0.01,0.1", shared_dir / "sweep", comm, plot=False)
     petroll.stress(run_dir, depths=[0.0, 1e-4], comm=comm)
-    cases = [([str(run_dir)], ["pressure", "patches", "series", "surface"], run_dir / "plots"),
+    cases = [([str(run_dir)], ["pressure", "patches", "series", "surface"], run_dir / "plots", "png"),
              ([str(run_dir / "results.h5"), "--out", str(shared_dir / "figs")], ["pressure"],
-              shared_dir / "figs"),
-             ([str(shared_dir / "sweep")], ["sweep"], shared_dir / "sweep"),
-             ([str(run_dir / "stress.h5"), "--out", str(shared_dir / "s")], ["stress"], shared_dir / "s")]
-    for argv, names, where in cases:
+              shared_dir / "figs", "png"),
+             ([str(shared_dir / "sweep")], ["sweep"], shared_dir / "sweep", "png"),
+             ([str(run_dir / "stress.h5"), "--out", str(shared_dir / "s")], ["stress"], shared_dir / "s",
+              "png"),
+             *(([str(run_dir / "results.h5"), "--out", str(shared_dir / fmt)], ["pressure"], shared_dir / fmt,
+                fmt) for fmt in ("pdf", "svg"))]
+    for argv, names, where, fmt in cases:
         code, out, err = cli_main(["plot", *argv, "--format", fmt])
         assert code == 0, err
         if comm.rank == 0:
@@ -69,6 +73,7 @@ def test_plot_and_info_refuse_what_is_not_petroll_output_in_one_line(cli_main, c
             assert err.startswith("petroll: error: ") and says in err and err.count("\n") == 1, err
 
 
+@pytest.mark.slow
 def test_info_says_what_the_run_directory_holds(run_dir, cli_main, comm):
     code, out, _ = cli_main(["info", str(run_dir)])
     assert code == 0
@@ -98,6 +103,7 @@ def _read_csv(path: pathlib.Path) -> tuple[list[str], np.ndarray]:
     return rows[0], np.array(rows[1:], dtype=float)
 
 
+@pytest.mark.slow
 def test_export_writes_the_series_and_a_saved_field_as_csv(run_dir, cli_main, comm, shared_dir):
     code, out, _ = cli_main(["export", str(run_dir), "--csv"])
     assert code == 0
@@ -126,6 +132,7 @@ def test_export_writes_the_series_and_a_saved_field_as_csv(run_dir, cli_main, co
     assert np.array_equal(table[:, 2], gap.ravel())
 
 
+@pytest.mark.slow
 def test_restart_summary_names_the_step_it_resumed_from(run_dir, cli_main, comm):
     code, out, _ = cli_main(["restart", str(run_dir / "checkpoints" / "step-00000050.h5"), "--quiet"])
     assert code == 0

@@ -114,6 +114,7 @@ def projected_gauss_seidel(matrix, rhs, sweeps=20000):
     return p
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("nx,ny,window", [(14, 12, (10, 9)), (19, 14, (14, 12))])
 def test_window_qp_equals_the_whole_grid_dense_solution(comm, nx, ny, window):
     """Posing the QP on the interference window only is exact: compare with the whole-grid dense problem.
@@ -132,6 +133,7 @@ def test_window_qp_equals_the_whole_grid_dense_solution(comm, nx, ny, window):
     assert np.abs(ours - reference[solver.r0 : solver.r1]).max(initial=0) <= 1e-6 * reference.max()
 
 
+@pytest.mark.parallel
 def test_rank_count_does_not_change_the_answer(comm):
     """The same load-controlled step on all ranks and on one rank (COMM_SELF) agrees to 1e-10 (solved to
     1e-13: iterates differ by round-off between rank counts, so only converged answers can agree)."""

@@ -56,6 +56,7 @@ def sphere_map(h: float, n: int, shift: float = 0.0) -> np.ndarray:
     return Sphere(RADIUS).height(k[:, None], k[None, :])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("ratio", [0.5, 1.0, 2.0])
 @pytest.mark.parametrize("offset", [0.0, 0.001, 0.25, 0.5])
 def test_static_heightmap_sphere_is_the_sphere_wherever_its_samples_fall(comm, shared_dir, offset, ratio):
@@ -94,6 +95,7 @@ def cell_centre_position(name: str) -> tuple[float, float]:
     return (float(grid.x[26]), float(grid.y[26]))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("ratio", [0.5, 1.0, 2.0])
 def test_rolling_heightmap_sphere_is_the_sphere(comm, shared_dir, ratio):
     """runs/sphere.toml (one cell per step) with the sphere at a cell centre, as a height map whose
@@ -106,6 +108,7 @@ def test_rolling_heightmap_sphere_is_the_sphere(comm, shared_dir, ratio):
     assert_rolls_alike(records(raw, comm, shared_dir), analytic("sphere.toml", position, comm.size))
 
 
+@pytest.mark.slow
 def test_rolling_mesh_sphere_is_the_sphere(comm, shared_dir):
     """runs/sphere.toml with the sphere as a binary STL (92k triangles, edges up to 27 um: the facets lie at
     most 1e-8 m above the sphere, against the 2e-5 m penetration) read through meshio, rasterised at the
@@ -122,6 +125,7 @@ def test_rolling_mesh_sphere_is_the_sphere(comm, shared_dir):
     assert_rolls_alike(records(raw, comm, shared_dir), analytic("sphere.toml", position, comm.size))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("ratio", [0.5, 1.0, 2.0])
 def test_rolling_profile_cylinder_is_the_cylinder(comm, shared_dir, ratio):
     """runs/roller-2d.toml (load control, one cell per step) with the roller as a 1-D profile of spacing
@@ -152,6 +156,7 @@ def textured_sphere(kind: str, n: int, h: float) -> np.ndarray:
     return (x**2 + y**2) / 200 + texture
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("tao_type", ["pk", "tron"])
 @pytest.mark.parametrize("kind", ["wavy", "rough"])
 def test_load_control_solves_what_penetration_control_solves(comm, shared_dir, kind, tao_type):

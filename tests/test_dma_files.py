@@ -37,6 +37,7 @@ def on_rank0(comm, action) -> None:
     comm.barrier()
 
 
+@pytest.mark.slow
 def test_a_pyvisco_export_is_read_and_the_fit_recovers_the_true_material(comm, shared_dir, capsys):
     """The polymer's sweeps as pyvisco's user format (byte-order mark, f,E_stor,E_loss,T,Set, units row
     Hz,MPa,MPa,C,-, moduli in MPa, degrees Celsius), 1 % noise. Shifted by the true law, the fit is the
@@ -197,6 +198,7 @@ def test_moduli_left_in_mpa_are_refused_naming_mpa(comm, shared_dir, capsys):
     assert "--units storage=MPa,loss=MPa" in err and not (tmp_path / "m.toml").exists()
 
 
+@pytest.mark.slow
 def test_the_fit_warns_in_one_line_each_and_the_block_keeps_the_warnings(comm, shared_dir, capsys):
     """One term per decade forced on the polymer: E'' ripples between neighbouring data points where the
     data are monotone (0.4 %; the default 2 per decade: none); a degenerate WLF law (C1 = 1.2e8, C2 =

@@ -42,6 +42,7 @@ def between_points(fit, material, frequency) -> tuple[float, float]:
     return wiggles[0], wiggles[1]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("material", [POLYMER, RUBBER], ids=["polymer", "rubber"])
 def test_a_noisy_master_curve_takes_about_two_terms_per_decade_and_follows_the_truth_not_the_noise(material):
     """1 % noise: the default fit keeps at most ~2 Maxwell terms per decade of data (measured 42 over
@@ -83,6 +84,7 @@ def test_exact_data_take_the_terms_they_need():
     assert storage.max() < 1e-3 and loss[inside].max() < 2.5e-3 and loss.max() < 1e-2
 
 
+@pytest.mark.slow
 def test_a_master_curve_as_users_have_it_is_taken_and_its_plateau_gives_einf(comm, shared_dir, capsys):
     """Unsorted rows merged from sweeps, near-duplicate and duplicate frequencies, a plateau over the
     lowest decades and an instrument's phase offset of 3 mrad (a loss floor on the plateau): the fit takes
@@ -127,6 +129,7 @@ def test_plateau_is_flat_within_the_scatter_and_nothing_else():
     assert prony_fit.plateau(f, exact)[0] == pytest.approx(6.0)
 
 
+@pytest.mark.slow
 def test_einf_given_or_from_the_data_and_a_fluid_refused_saying_what_to_do(comm, shared_dir, capsys):
     frequency, storage, loss = reduced_sweeps(RUBBER)
     given = dma.fit_prony(frequency, storage, loss, einf=2.5e6)
@@ -164,6 +167,7 @@ def test_terms_still_forces_the_count():
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("table, shift, material, T", [
     ("polymer-dma.csv", "auto:268.15", POLYMER, 253.15),
     ("rubber-dma.csv", "wlf:8.86,101.6,293.15", RUBBER, 273.15),

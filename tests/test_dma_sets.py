@@ -75,6 +75,7 @@ def test_tables_that_are_not_sets_of_isotherms_are_refused_with_one_line(tmp_pat
         dma.read_dma(tmp_path / "bad.csv", RUBBER.law, tolerance=0)
 
 
+@pytest.mark.slow
 def test_the_figure_names_the_sets_by_a_colour_bar_not_a_legend_of_every_row(tmp_path):
     from petroll.plot.fit import fit_figure
 

@@ -55,6 +55,7 @@ def test_noise_free_sweeps_give_the_factors_to_the_method_resolution(tmp_path):
         assert np.abs(found.log10_aT - material.log10_aT(found.temperatures)).max() < bound
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("material, T_ref", [(POLYMER, 268.15), (RUBBER, 293.15)], ids=["polymer", "rubber"])
 def test_the_standard_errors_cover_the_true_errors_and_warn_at_10_percent_noise(tmp_path, material, T_ref):
     """The stated standard error of every set's log10 a_T against its true error, over 5 noise seeds at
@@ -141,6 +142,7 @@ def test_a_scene_with_a_table_law_refuses_what_it_cannot_use(shift, key, allowed
     assert info.value.key == key and allowed in str(info.value) and "\n" not in str(info.value)
 
 
+@pytest.mark.slow
 def test_auto_shift_writes_a_table_law_a_scene_takes_and_both_figures(comm, shared_dir, capsys):
     tmp_path = shared_dir
     if comm.rank == 0:

@@ -17,8 +17,15 @@ just above a fence; readers do not see it:
   (``--force-offscreen-rendering``; scripts/setup-tests.sh installs it).
 - ``<!-- docs-test: skip REASON -->``: not run, for a reason a reader can check (it needs Slurm, it is the
   test suite itself). Other languages (``toml``, ``text``, no language) are not run.
+- ``<!-- docs-test: elsewhere -->`` above a shell block that repeats commands of other pages (README's
+  overviews): each of its commands that a block of another document runs is not run here, the others
+  are (with the replacements of a ``long`` list after the word, if any); at least one must be elsewhere.
 
-Each document is one test, serial (it starts processes); the whole takes a few minutes.
+A ``.venv/bin/python -m pytest`` line runs with ``--collect-only``: the suite runs those tests itself.
+Each command (a shell line starting ``.venv/bin/``, ``mpirun`` or ``make``, compared as written: comments
+and spacing aside) runs once per document: a block repeating one that an earlier block ran (the text
+showing a command again where it discusses it) runs without it. Each document is one test, serial (it
+starts processes); the whole takes a few minutes.
 """
 
 from __future__ import annotations
@@ -27,6 +34,7 @@ import dataclasses
 import os
 import pathlib
 import re
+import shlex
 import shutil
 import signal
 import subprocess
@@ -44,7 +52,7 @@ IGNORED = shutil.ignore_patterns(".git", ".venv", ".venv-peers", "results", "__p
                                  ".pytest_cache", ".hypothesis", "build")
 ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
            OMPI_MCA_rmaps_base_oversubscribe="1", OMPI_MCA_btl_vader_single_copy_mechanism="none",
-           OMPI_MCA_mpi_yield_when_idle="1", PYTHONDONTWRITEBYTECODE="1", MPLBACKEND="Agg")
+           OMPI_MCA_mpi_yield_when_idle="1", MPLBACKEND="Agg")
 
 
 @dataclasses.dataclass
@@ -62,19 +70,57 @@ class Block:
         word = self.marker.split()[0] if self.marker.strip() else ""
         if word in ("skip", "output", "long"):
             return word
+        if word == "elsewhere":
+            assert self.lang in SHELL, f"line {self.line}: an elsewhere marker above a {self.lang} block"
+            return "long"
         if word == "pvpython":
             assert self.lang == "python", f"line {self.line}: a pvpython marker above a {self.lang} block"
             return "run"
         assert not word, f"line {self.line}: unknown docs-test marker {self.marker!r}"
         return "run" if self.lang in SHELL | {"python"} else "text"
 
-    def source(self) -> str:
-        """The text to run: the block, with a long block's replacements made."""
-        text = self.body
+    @property
+    def elsewhere(self) -> bool:
+        return self.marker.startswith("elsewhere")
+
+    def lines(self) -> list[tuple[str, str]]:
+        """Each line of the block as written and as run: with a long block's replacements made and, in a
+        shell block, a ``.venv/bin/python -m pytest`` line (the suite's own tests, which it runs itself)
+        collecting its tests, not running them (``--collect-only``)."""
+        pairs = [(line, line) for line in self.body.splitlines(keepends=True)]
         for old, new in REPLACE.findall(self.marker):
-            assert old in text, f"line {self.line}: the long marker's {old!r} is not in the block"
-            text = text.replace(old, new)
-        return text
+            assert old in self.body and "\n" not in old, (
+                f"line {self.line}: the long marker's {old!r} is not in a line of the block")
+            pairs = [(written, run.replace(old, new)) for written, run in pairs]
+        if self.lang in SHELL:
+            pairs = [(written, re.sub(r"^(\s*\.venv/bin/python -m pytest)(?![^\n#]*--collect-only)",
+                                      r"\1 --collect-only", run)) for written, run in pairs]
+        return pairs
+
+    def source(self, leave: frozenset = frozenset()) -> str:
+        """The text to run: the lines as run, but those whose command (as written or as run, see
+        ``command``) is in ``leave``."""
+        return "".join(run for written, run in self.lines() if not {command(written), command(run)} & leave)
+
+    def commands(self) -> set[str]:
+        """The commands of a shell block that runs, as written and as run (see ``command``); none in a
+        block with a here-document or a continued line (its lines are not each a command)."""
+        if self.lang not in SHELL or self.kind not in ("run", "long") or any(
+                mark in self.body for mark in ("<<", "\\\n")):
+            return set()
+        return {command(line) for pair in self.lines() for line in pair} - {None}
+
+
+def command(line: str) -> str | None:
+    """The command a shell line runs, compared as written (its words: comments and spacing aside), when it
+    is one run once per document: it starts with ``.venv/bin/``, ``mpirun`` or ``make``; else None."""
+    try:
+        words = shlex.split(line, comments=True)
+    except ValueError:
+        return None
+    if words and (words[0].startswith(".venv/bin/") or words[0] in ("mpirun", "make")):
+        return " ".join(words)
+    return None
 
 
 def blocks(doc: pathlib.Path) -> list[Block]:
@@ -95,8 +141,7 @@ def _copy(tmp_path: pathlib.Path) -> pathlib.Path:
     return copy
 
 
-def _run(block: Block, cwd: pathlib.Path, timeout: float) -> subprocess.CompletedProcess:
-    source = block.source()
+def _run(block: Block, source: str, cwd: pathlib.Path, timeout: float) -> subprocess.CompletedProcess:
     if block.lang == "python":
         script = cwd.parent / "blocks" / f"line-{block.line}.py"  # not beside the copy: it would be imported
         script.parent.mkdir(exist_ok=True)
@@ -127,11 +172,20 @@ def _matches(expected: str, output: str) -> bool:
     return True
 
 
+def run_elsewhere(doc: pathlib.Path) -> frozenset:
+    """The commands that blocks of documents other than ``doc`` run (elsewhere blocks not counted)."""
+    return frozenset().union(*(block.commands() for other in DOCS if other != doc for block in blocks(other)
+                               if not block.elsewhere))
+
+
+@pytest.mark.slow
 @pytest.mark.serial
 @pytest.mark.parametrize("doc", [d for d in DOCS if runnable(d)], ids=lambda d: str(d.relative_to(ROOT)))
 def test_every_block_runs_as_written(doc, tmp_path):
     copy = _copy(tmp_path)
     previous = None
+    ran = frozenset()  # the commands this document's blocks ran
+    elsewhere = run_elsewhere(doc)
     for block in blocks(doc):
         where = f"{doc.relative_to(ROOT)}:{block.line}"
         if block.kind == "skip":
@@ -141,9 +195,17 @@ def test_every_block_runs_as_written(doc, tmp_path):
             assert _matches(block.body, previous.stdout), (
                 f"{where}: the block above printed\n{previous.stdout}\nnot\n{block.body}")
         elif block.kind in ("run", "long"):
-            previous = _run(block, copy, timeout=300)
+            leave = ran | (elsewhere if block.elsewhere else frozenset())
+            if block.elsewhere:
+                assert block.commands() & elsewhere, f"{where}: no command of this block runs elsewhere"
+            source = block.source(leave)
+            ran |= block.commands()
+            if not [line for line in source.splitlines() if line.strip() and not line.lstrip().startswith("#")]:
+                previous = None  # each of its commands ran before: nothing to run, no output to check
+                continue
+            previous = _run(block, source, copy, timeout=300)
             assert previous.returncode == 0, (
-                f"{where} failed (exit {previous.returncode}):\n{block.source()}\n"
+                f"{where} failed (exit {previous.returncode}):\n{source}\n"
                 f"stdout:\n{previous.stdout[-3000:]}\nstderr:\n{previous.stderr[-3000:]}")
 
 

@@ -94,6 +94,7 @@ def roller():
     return load_scene(shipped_scene("roller-2d.toml"))
 
 
+@pytest.mark.slow
 def test_a_run_with_its_estimate_writes_the_group_and_the_summary_lines(comm, shared_dir, cli_main):
     """runs/roller-2d.toml with --estimate-error: results.h5's group error_estimate holds, per quantity, the
     fine value (the series' last), the coarser grids' values (the same scenes run on their own: 92 and 46
@@ -158,6 +159,7 @@ def test_the_known_order_follows_the_integrator(comm, shared_dir):
     assert known_order(paper.replace(elastic)) == second
 
 
+@pytest.mark.slow
 def test_for_the_paper_integrator_the_estimate_is_within_3_of_the_true_error(comm):
     """runs/roller-2d.toml with the first-order "paper" integrator (that of tabulated materials) against a
     reference 8x finer (1472 strips, 8x the steps): the penetration's and mu_r's estimates within a factor
@@ -218,6 +220,7 @@ def test_a_two_grid_estimate_says_its_asymptotic_range_was_not_checked(comm, sha
                 '"relaxation": order 2, 1 for what counts cells, unless observed):\n') in info
 
 
+@pytest.mark.slow
 def test_a_restart_with_the_estimate_gives_the_uninterrupted_runs(comm, shared_dir, cli_main):
     """``petroll restart --estimate-error`` from a checkpoint halfway through runs/roller-2d.toml writes the
     error_estimate group of the same run made in one go with its estimate."""
@@ -235,6 +238,7 @@ def test_a_restart_with_the_estimate_gives_the_uninterrupted_runs(comm, shared_d
             assert again[name][key] == pytest.approx(whole[name][key], rel=1e-9, abs=1e-15), (name, key)
 
 
+@pytest.mark.slow
 def test_where_the_4x_grid_resolves_the_contact_its_order_is_observed(comm, shared_dir):
     """runs/roller-2d.toml at 2x its strips (17.5 cells per half-width; the 4x grid 4.4): the penetration's,
     mu_r's and the peak pressure's orders are observed, log2(d2 / d1) from the coarser grids' values,
@@ -271,6 +275,7 @@ def test_the_coarser_3d_grids_keep_the_body_at_the_same_place_in_its_cell():
             assert math.isclose(a, b, abs_tol=1e-9) or abs(abs(a - b) - 1) < 1e-9
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name, velocity", [("sphere.toml", None), ("roller-2d.toml", None),
                                             ("master-curve.toml", 10.0)])
 def test_the_coarser_grids_tolerance_moves_them_little_against_their_differences(comm, monkeypatch, name,
@@ -301,6 +306,7 @@ def test_the_coarser_grids_tolerance_moves_them_little_against_their_differences
         assert abs(a.error - b.error) <= 0.02 * d1 and abs(a.extrapolated - b.extrapolated) <= 0.02 * d1, q
 
 
+@pytest.mark.slow
 def test_a_sweep_with_its_estimate_has_the_error_columns(comm, shared_dir):
     """petroll sweep --estimate-error on runs/master-curve.toml (steady solves): each point's mu_r_error is
     its results.h5's estimate; a sweep without has no such column."""
@@ -335,6 +341,7 @@ def assert_verified(checks, not_asymptotic=()):
         assert by[name].bounds, by[name]
 
 
+@pytest.mark.slow
 def test_on_the_roller_the_estimate_is_within_3_of_the_true_error(comm):
     """runs/roller-2d.toml against a reference 4x finer (736 strips, 4x the steps)."""
     checks, found = verify(roller(), comm)
@@ -342,6 +349,7 @@ def test_on_the_roller_the_estimate_is_within_3_of_the_true_error(comm):
     assert_verified(checks)
 
 
+@pytest.mark.slow
 def test_on_a_profile_roller_the_estimate_is_within_3_of_the_true_error(comm, shared_dir):
     """runs/roller-2d.toml with the roller as a 1-D profile (a height map) sampled on the cell centres."""
     checks, found = verify(profile_roller(shared_dir, comm), comm)
@@ -349,6 +357,7 @@ def test_on_a_profile_roller_the_estimate_is_within_3_of_the_true_error(comm, sh
     assert_verified(checks)
 
 
+@pytest.mark.slow
 def test_on_a_layer_the_estimate_says_where_its_grids_are_not_asymptotic(comm):
     """runs/conveyor-idler.toml (a 6 mm layer on a rigid base, 10.8 cells per contact half-width): mu_r is
     estimated within 3; the penetration and the peak pressure are reported as not in the asymptotic range
@@ -364,6 +373,7 @@ def test_on_a_layer_the_estimate_says_where_its_grids_are_not_asymptotic(comm):
         assert not by[name].true / 3 <= two <= 3 * by[name].true
 
 
+@pytest.mark.slow
 def test_on_the_sphere_the_estimate_is_within_3_of_the_true_error(comm):
     """runs/sphere.toml (3-D; two 2x alignments) against a reference 4x finer (640 x 216 cells)."""
     checks, found = verify(load_scene(shipped_scene("sphere.toml")), comm)
@@ -382,6 +392,7 @@ def test_the_cost_bench_times_the_run_and_its_estimate_as_results_h5_records_the
     assert found["ratio"] == pytest.approx(found["estimate_s"] / found["fine_s"], rel=1e-12)
 
 
+@pytest.mark.slow
 def test_the_run_s_wall_time_leaves_its_estimate_out(comm, shared_dir, monkeypatch):
     """results.h5's run_wall_s is the run's alone: an estimate made to last 1 s longer (a pause before the
     real one) leaves it at least 1 s below the whole call's wall time."""

@@ -17,6 +17,7 @@ def sphere(**changes):
                                                             **changes})
 
 
+@pytest.mark.slow
 def test_a_contact_reaching_the_edge_mid_run_keeps_every_step_solved(comm, shared_dir, cli_main, monkeypatch):
     """runs/sphere.toml rolled 10 mm on its 6 mm grid, the check before step 1 bypassed (as where its
     estimate misses): the solver stops at the edge; results.h5 holds all 119 steps (a run without [output]

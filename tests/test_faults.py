@@ -82,6 +82,7 @@ def on_rank0(comm, value):
 
 
 # -- results.h5 -------------------------------------------------------------------------------------------
+@pytest.mark.slow
 @pytest.mark.ranks4
 def test_a_write_failing_anywhere_in_an_append_leaves_results_h5_byte_for_byte_as_it_was(comm, shared_dir,
                                                                                           monkeypatch):
@@ -186,6 +187,7 @@ def field_rows(path: pathlib.Path, name: str) -> np.ndarray:
     return r.field(name)
 
 
+@pytest.mark.slow
 def test_a_full_disk_stops_the_run_in_one_line_and_the_restart_continues_it_bitwise(comm, shared_dir,
                                                                                     monkeypatch, capsys):
     """The disk fills at step 6 (every step saves three fields; a checkpoint every 4 steps): exit status 2
@@ -240,6 +242,7 @@ def mount_tmpfs(where: pathlib.Path, size: int) -> None:
         pytest.skip(f"cannot mount a tmpfs here (needs root): {done.stderr.strip()}")
 
 
+@pytest.mark.slow
 @pytest.mark.serial
 def test_a_really_full_file_system_serially_and_under_mpirun(tmp_path, cli):
     """A tmpfs too small for the run's files: the command exits 2 with one line from petroll (no hang:
@@ -316,6 +319,7 @@ def test_a_directory_in_use_is_refused_naming_its_holder_and_a_stale_lock_is_tak
     assert results.complete and not (out / LOCK_NAME).exists()
 
 
+@pytest.mark.slow
 def test_on_every_rank_run_returns_or_refuses_only_once_the_directory_is_free(comm, shared_dir, monkeypatch):
     """Rank 0 releases the lock slowly: no rank returns from a run, or from its refusal of another scene's
     results, while petroll.lock is still there (a script's next step on that directory sees it free)."""
@@ -334,6 +338,7 @@ def test_on_every_rank_run_returns_or_refuses_only_once_the_directory_is_free(co
     assert free_after_run and not (out / LOCK_NAME).exists()
 
 
+@pytest.mark.slow
 @pytest.mark.serial
 def test_a_second_run_or_restart_on_a_directory_in_use_is_refused_and_the_first_is_untouched(tmp_path, cli):
     from test_checkpoint import long_raw, wait_for
@@ -358,6 +363,7 @@ def test_a_second_run_or_restart_on_a_directory_in_use_is_refused_and_the_first_
     assert_identical(Results.open(tmp_path / "shared" / "results.h5"), reference)
 
 
+@pytest.mark.slow
 def test_the_results_of_another_scene_are_replaced_only_when_told(comm, shared_dir, capsys):
     """A second scene into a directory holding another scene's results: refused in one line, nothing
     changed; with --overwrite it runs and the earlier run's checkpoints go. The same scene again runs."""
@@ -386,6 +392,7 @@ def test_the_results_of_another_scene_are_replaced_only_when_told(comm, shared_d
         assert read_checkpoint(path, comm).run_id == Results.open(out / "results.h5").run_id
 
 
+@pytest.mark.slow
 def test_the_same_scene_text_over_a_changed_height_map_is_another_scene(comm, shared_dir, capsys):
     """The scene names a height map file; the file is edited (the sphere's radius 10 -> 12 mm) and the same
     scene text run again into the same directory: refused in one line, the earlier results untouched
@@ -432,6 +439,7 @@ def forget_run_ids(path: pathlib.Path) -> None:
     unseal(path)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("change, expected", [
     ({"grid": {"nx": 28}}, "[grid] nx = 25, the file's 28"),
     ({"material": {"E0": 12e6}}, "[material] E0 = 10000000.0, the file's 12000000.0"),
@@ -480,6 +488,7 @@ def strip_run_id(path: pathlib.Path) -> None:
     unseal(path)
 
 
+@pytest.mark.slow
 def test_a_foreign_checkpoint_among_a_runs_checkpoints_is_refused_and_the_run_restarts_from_its_own(
         comm, shared_dir, capsys):
     run(make_scene(raw_scene(SLS)), comm, shared_dir / "reference")
@@ -508,6 +517,7 @@ def test_a_foreign_checkpoint_among_a_runs_checkpoints_is_refused_and_the_run_re
     assert not foreign.exists()  # no longer of any use: its results.h5 is not here
 
 
+@pytest.mark.slow
 def test_a_restart_into_another_runs_directory_is_refused_unless_told(comm, shared_dir, capsys):
     """`petroll restart B/checkpoints/step-N.h5 --out A` with A holding another run's complete results:
     refused, A untouched; with --overwrite A holds B's run, continued to its end, and A's old checkpoints
@@ -564,6 +574,7 @@ def _dead_pid() -> int:
 
 
 # -- exit codes under mpirun ------------------------------------------------------------------------------
+@pytest.mark.slow
 @pytest.mark.serial
 def test_sigterm_and_sigint_to_petroll_launch_mpirun_end_the_run_with_a_checkpoint_and_143_or_130(tmp_path,
                                                                                                   cli):
@@ -591,7 +602,32 @@ def test_sigterm_and_sigint_to_petroll_launch_mpirun_end_the_run_with_a_checkpoi
     assert_close(Results.open(tmp_path / out / "results.h5"), reference, rtol=1e-8)
 
 
+@pytest.mark.serial
+def test_launch_passes_a_signal_to_a_command_without_ranks_and_exits_with_its_status(tmp_path, cli, cli_main):
+    """``petroll launch`` of a command that is no MPI launch line (no child carries a rank): SIGTERM and
+    SIGINT reach the command itself, which they end, and launch exits with 128 + the signal's number; no
+    command at all is refused in one line, exit 2. The command sets both signals' default action, as
+    petroll's ranks set their handlers (a job started in the background inherits SIGINT ignored)."""
+    command = ("import pathlib, signal, sys, time; signal.signal(signal.SIGINT, signal.SIG_DFL); "
+               "signal.signal(signal.SIGTERM, signal.SIG_DFL); pathlib.Path(sys.argv[1]).touch(); time.sleep(60)")
+    for signum in (signal.SIGTERM, signal.SIGINT):
+        started = tmp_path / f"started-{signum.name}"
+        proc = cli.start("launch", sys.executable, "-c", command, started, cwd=tmp_path,
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        limit = time.monotonic() + 60
+        while not started.exists():
+            assert proc.poll() is None and time.monotonic() < limit, proc.communicate()
+            time.sleep(0.01)
+        time.sleep(1.0)  # launch sets its handlers just after starting the command
+        proc.send_signal(signum)
+        _, err = proc.communicate(timeout=60)
+        assert proc.returncode == 128 + signum, err
+    code, _, err = cli_main(["launch"])
+    assert code == 2 and err.count("\n") == 1 and err.startswith("petroll: error: petroll launch needs a command")
+
+
 # -- kills at random instants -----------------------------------------------------------------------------
+@pytest.mark.slow
 @pytest.mark.serial
 def test_runs_killed_at_random_instants_leave_results_and_checkpoints_whole(tmp_path):
     """200 runs (every step saving three fields and writing a checkpoint) SIGKILLed at instants drawn
@@ -743,6 +779,7 @@ def test_a_results_xdmf_that_cannot_be_written_is_named(comm, shared_dir):
 
 
 # -- issue 35: petroll stress on a full disk ----------------------------------------------------------------
+@pytest.mark.slow
 def test_stress_on_a_full_disk_is_one_line_and_keeps_the_earlier_stress_file(comm, shared_dir, capsys,
                                                                              monkeypatch):
     """stress.h5 written through a journal Session: a disk write refused with ENOSPC (Full, from the first
@@ -768,6 +805,7 @@ def test_stress_on_a_full_disk_is_one_line_and_keeps_the_earlier_stress_file(com
         assert not list((shared_dir / "run").glob(".*.tmp*"))
 
 
+@pytest.mark.slow
 @pytest.mark.serial
 def test_stress_on_a_really_full_file_system(tmp_path, cli):
     """The issue's trial (5 of 5 crashed: 'Disable slist on flush dest failure', then SIGSEGV): a tmpfs
@@ -796,6 +834,7 @@ def test_stress_on_a_really_full_file_system(tmp_path, cli):
         subprocess.run(["umount", "-l", str(disk)], capture_output=True)
 
 
+@pytest.mark.slow
 @pytest.mark.serial
 def test_the_temporaries_of_killed_stress_plot_sweep_and_fit_writers_are_removed(tmp_path, cli_main, monkeypatch):
     """``.stress.h5.tmpPID``, ``.NAME.png.tmpPID`` and the like that a kill left were never removed (issue

@@ -195,6 +195,7 @@ def test_cattaneo_shift_from_a_scene_within_2_percent(comm, shared_dir):
 
 # -- checkpoints and ranks ---------------------------------------------------------------------------------
 
+@pytest.mark.slow
 def test_an_interrupted_friction_run_restarts_bitwise(comm, shared_dir):
     """Transient rolling under force control (order 2: the last two tractions are the state) stopped after
     step 6 and restarted from its checkpoint: every series and field of the uninterrupted run, bit for
@@ -229,6 +230,7 @@ def assert_restarts_bitwise(scene, step: int, comm, shared_dir):
     return reference
 
 
+@pytest.mark.parallel
 def test_a_friction_run_on_two_ranks_is_the_one_rank_run(comm, tmp_path, shared_dir):
     """The rows split over ``comm`` against every rank's own COMM_SELF run: transient rolling at a creepage
     with spin, and the steady state at a force."""
@@ -258,6 +260,7 @@ def test_a_scene_file_with_friction_runs_from_the_command_line(shared_dir, comm,
     assert code == 0, err
 
 
+@pytest.mark.slow
 @pytest.mark.serial  # figures: one process
 def test_petroll_plot_draws_the_tractions_and_the_stick_slip_map(tmp_path):
     """traction.png beside the other figures; its stick/slip map is 0 outside the contact, stick where the
@@ -276,6 +279,7 @@ def test_petroll_plot_draws_the_tractions_and_the_stick_slip_map(tmp_path):
         assert (tmp_path / name / "plots" / "traction.png").stat().st_size > 10000
 
 
+@pytest.mark.slow
 def test_the_onset_of_rolling_from_a_cattaneo_shift_reaches_the_steady_scene(comm, shared_dir):
     """Force control, Q = mu P/2: step 0 shifts the body (Cattaneo), then it rolls one cell per step;
     after two contact lengths its creepage and tractions are the steady scene's (solved directly, the

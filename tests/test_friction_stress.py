@@ -26,6 +26,7 @@ def cerruti(x, y, z, nu):
     return np.array([sxx, syy, -3 * x * z * z / r**5, sxy, -3 * x * x * z / r**5, -3 * x * y * z / r**5]) / (2 * np.pi)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("offset", [(0, 0, 0.3), (1, 2, 0.5), (-2, 1, 1.3), (3, -1, 0.05), (0, 0, 2.0),
                                     (1, 0, 0.2)])
 @pytest.mark.parametrize("nu", [0.0, 0.3, 0.5])

@@ -358,6 +358,7 @@ def damaged_map(rng: random.Random, where: pathlib.Path) -> tuple[pathlib.Path, 
     return path, "", f"xyz {how}"
 
 
+@pytest.mark.slow
 def test_damaged_height_maps(tmp_path, capsys):
     """A 32 x 32 map of a sphere, damaged (NaN, infinite, huge, tiny, empty, wrong shape or type, cut,
     random bytes; text matrices and xyz lists with empty, ragged, non-numeric, duplicated or irregular
@@ -415,6 +416,7 @@ def damaged_table_csv(text: str, rng: random.Random) -> tuple[str | bytes, str]:
     return damaged_text(text, rng)
 
 
+@pytest.mark.slow
 def test_damaged_dma_tables(tmp_path, capsys):
     """The shipped DMA tables (runs/*.csv), damaged, fitted with ``petroll material fit`` under options drawn
     from the valid and the odd (shift laws, --terms, --per-decade, --einf, --nu, --tolerance)."""
@@ -488,6 +490,7 @@ def sweep_spec(rng: random.Random) -> str:
     return f"{key}={values}" if rng.random() < 0.95 else values
 
 
+@pytest.mark.slow
 def test_odd_sweep_specifications(tmp_path, capsys):
     """``petroll sweep`` of a 16 x 16 static scene over --vary texts drawn from the valid and the odd
     (unknown keys, keys of other types, empty, NaN, infinite, huge and tiny values, counts up to 10^5000,
@@ -588,6 +591,7 @@ def _damage(path: pathlib.Path, rng: random.Random) -> str:
         return "scene text damaged"
 
 
+@pytest.mark.slow
 def test_damaged_checkpoints(tmp_path, capsys, checkpointed):
     """A run's newest (or another) checkpoint damaged: ``petroll restart`` of its directory or the file,
     ``petroll info`` of the directory, and the run again over it (which removes the checkpoints it knows to
@@ -771,6 +775,7 @@ def earlier(tmp_path_factory, checkpointed):
     return scene, where
 
 
+@pytest.mark.slow
 def test_full_and_read_only_disks(tmp_path, capsys, monkeypatch, earlier):
     """Every verb that writes, on a disk left with a few bytes to a few MB free, or read-only, over what an
     earlier session wrote there (a run with checkpoints, figures, stresses, a sweep, a fitted material):

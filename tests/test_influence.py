@@ -102,17 +102,24 @@ def test_a_block_beyond_the_kept_table_computes_each_ranks_kernel_rows_from_love
     assert conv.diagonal == pytest.approx(love_coefficients(1, 1, dx, dy)[0, 0], rel=1e-15)
 
 
-@pytest.mark.ranks4
-def test_shell_matrix_mult_symmetry_and_rank_independence(comm):
-    nx, ny, dx, dy = 20, 11, 1e-4, 2e-4
+def _shell_product(comm, nx, ny, dx, dy, full_x):
+    """The shell matrix of 2.5 A on ``comm`` (a window nx x ny of dx x dy rectangles), its rows of
+    2.5 A full_x, and the objects to destroy."""
     op = InfluenceOperator(Rectangles(dx, dy), comm)
     conv = op.window(nx, ny)
     mat = shell_matrix(conv, 2.5)
     x, y = mat.createVecs()
-    rng = np.random.default_rng(7)
-    full_x, full_z = rng.random((nx, ny)), rng.random((nx, ny))
     x.setArray(full_x[conv.r0 : conv.r1].ravel())
     mat.mult(x, y)
+    return conv, mat, x, y
+
+
+@pytest.mark.ranks4
+def test_shell_matrix_mult_symmetry(comm):
+    nx, ny, dx, dy = 20, 11, 1e-4, 2e-4
+    rng = np.random.default_rng(7)
+    full_x, full_z = rng.random((nx, ny)), rng.random((nx, ny))
+    conv, mat, x, y = _shell_product(comm, nx, ny, dx, dy, full_x)
     ref = 2.5 * dense_reference(nx, ny, dx, dy, full_x)
     assert np.abs(y.array.reshape(-1, ny) - ref[conv.r0 : conv.r1]).max() <= 1e-12 * np.abs(ref).max()
     # symmetric: z.(A x) == x.(A z)
@@ -123,11 +130,21 @@ def test_shell_matrix_mult_symmetry_and_rank_independence(comm):
     diagonal = x.duplicate()
     mat.getDiagonal(diagonal)
     assert np.all(diagonal.array == pytest.approx(2.5 * love_coefficients(1, 1, dx, dy)[0, 0], rel=1e-14))
-    # the same product on one rank (COMM_SELF) agrees with the distributed one to round-off
-    serial = InfluenceOperator(Rectangles(dx, dy), MPI.COMM_SELF).window(nx, ny)(full_x) * 2.5
-    assert np.abs(y.array.reshape(-1, ny) - serial[conv.r0 : conv.r1]).max() <= 1e-13 * np.abs(serial).max()
     assert mat.getPythonContext().applications == 2
     for obj in (mat, x, y, z, az, diagonal):
+        obj.destroy()
+
+
+@pytest.mark.ranks4
+@pytest.mark.parallel
+def test_shell_matrix_mult_is_independent_of_the_rank_count(comm):
+    """The distributed product against the same product on one rank (COMM_SELF), to round-off."""
+    nx, ny, dx, dy = 20, 11, 1e-4, 2e-4
+    full_x = np.random.default_rng(7).random((nx, ny))
+    conv, mat, x, y = _shell_product(comm, nx, ny, dx, dy, full_x)
+    serial = InfluenceOperator(Rectangles(dx, dy), MPI.COMM_SELF).window(nx, ny)(full_x) * 2.5
+    assert np.abs(y.array.reshape(-1, ny) - serial[conv.r0 : conv.r1]).max() <= 1e-13 * np.abs(serial).max()
+    for obj in (mat, x, y):
         obj.destroy()
 
 
@@ -167,6 +184,7 @@ def test_transposes_give_every_rank_its_block_of_the_whole_field(comm, dtype, nx
     assert np.array_equal(columns_to_rows(columns, rows, cols, comm), field[r0:r1])
 
 
+@pytest.mark.parallel
 def test_an_application_under_mpi_holds_one_ranks_arrays_shared(comm, monkeypatch):
     """The arrays an application of A on a 256^2 window allocates at once (tracemalloc's peak, the kept work
     array included: made afresh), summed over the ranks, against the same application on one rank: the

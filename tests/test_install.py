@@ -18,6 +18,7 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 pytestmark = pytest.mark.serial
 
 
+@pytest.mark.slow
 def test_an_installed_petroll_runs_its_quick_benchmark_outside_the_source_tree(tmp_path, cli):
     source = tmp_path / "source"  # a copy, so that the build leaves nothing in the working tree
     skip = ("results", "build", "__pycache__")

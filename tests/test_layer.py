@@ -47,6 +47,7 @@ def test_response_is_the_navier_solution(nu, base):
     assert float(response(400.0, nu, base)) == pytest.approx(1.0, rel=1e-14)  # no overflow: the half-space
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("nu, base", [(0.3, "bonded"), (0.5, "bonded"), (0.3, "frictionless")])
 def test_coefficients_sum_to_the_uniform_load_compliance(nu, base):
     """sum_k A_ik over a grid much larger than h = the displacement under a uniform unit pressure,
@@ -71,6 +72,7 @@ def sphere(comm, layer=None, n=64, half=0.8e-3, nu=0.5, material=None, **extra):
     return sim, records, gather_field(sim.pressure, n, comm)
 
 
+@pytest.mark.slow
 def test_a_thick_layer_is_the_half_space(comm):
     _, [plain], p0 = sphere(comm)
     for base in ("bonded", "frictionless"):
@@ -159,6 +161,7 @@ def hankel_sphere(h: float, nu: float, base: str, r_max: float, n: int = 800):
     return mid[:m], p, float(p @ (np.pi * (edges[1 : m + 1] ** 2 - edges[:m] ** 2)))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("ratio, base", [(0.25, "bonded"), (1.0, "bonded"), (4.0, "bonded"),
                                          (1.0, "frictionless")])
 def test_sphere_on_a_layer_matches_the_hankel_transform_solution(comm, ratio, base):
@@ -206,6 +209,7 @@ def test_a_layer_needs_nu(tmp_path):
     assert parse_scene(raw, source="test", base_dir=tmp_path).layer == Layer(1e-3, "bonded", 0.5)
 
 
+@pytest.mark.slow
 def test_step_penetration_on_a_layer_follows_lee_radok(comm):
     """A standard linear solid layer (h = a, bonded, nu = 0.5) under a held penetration: the contact stays
     put and F(t) = F_el(J0) G(t)/G(0) (G the surface relaxation modulus, F_el from the Hankel solution with
@@ -320,6 +324,7 @@ def test_the_layer_benchmark_measures_every_case_against_its_half_space(comm, tm
         assert (tmp_path / "layer-bench.csv").read_text().count("\n") == 3
 
 
+@pytest.mark.slow
 def test_the_direct_steady_solve_on_a_layer_is_the_transient_rolled_to_steady_state(comm):
     """runs/sphere.toml (V tau/a = 2.2) on a bonded layer h = a: the direct body-frame steady solve (its
     wake on the layer's kernel) against the transient at 2 steps per cell rolled to steady state

@@ -175,6 +175,7 @@ def rolling_raw(out=None) -> dict:
                     solver={"tol": 1e-11}, output={"every": 4, "checkpoint_every": 5, "keep": 10})
 
 
+@pytest.mark.slow
 def test_results_are_per_unit_length_and_a_restart_is_bitwise(comm, shared_dir):
     scene = parse_scene(rolling_raw(), source="roll")
     reference = run(scene, comm, shared_dir / "reference")
@@ -202,6 +203,7 @@ def test_results_are_per_unit_length_and_a_restart_is_bitwise(comm, shared_dir):
         assert all(p.stat().st_size > 10000 for p in written)
 
 
+@pytest.mark.slow
 @pytest.mark.parallel
 def test_two_ranks_agree_with_one(comm, shared_dir):
     scene = parse_scene(rolling_raw(), source="roll")

@@ -58,6 +58,7 @@ def lee_radok(t: float) -> tuple[float, float]:
     return math.sqrt(k * creep(t)), centre
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("material, integrator, tol", [
     ("sls", "relaxation", 5e-3), ("sls", "exponential", 5e-3), ("sls", "paper", 0.08),
     ("tabulated", "paper", 0.08)])
@@ -179,6 +180,7 @@ def rolled():
     return out
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("v_tau_a", list(STEADY_CASES))
 def test_steady_rolling_agrees_with_the_direct_steady_solve(v_tau_a, rolled):
     """mu_r within 1.5 % (measured 0.16 % to 0.44 %; it peaks at 0.38 a/R near V tau/a = 1), the patch's
@@ -240,6 +242,7 @@ def test_wide_roller_mid_section_is_plane_strain(comm):
     assert np.array_equal(line > 0, middle > 0)
 
 
+@pytest.mark.slow
 def test_shipped_roller_scene_reaches_the_steady_solve(tmp_path):
     """runs/roller-2d.toml (V tau_creep/a = 0.51, tau_creep = tau_relax E0/Einf = 0.05 s) stops on its
     steady criterion with mu_r within 1 % of the direct steady solve (measured 0.11 %)."""

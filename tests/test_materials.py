@@ -43,6 +43,7 @@ def test_the_tabulated_complex_compliance_is_the_fourier_integral_of_its_table()
         np.testing.assert_allclose(table.complex_compliance(omega), J[0] + cos - 1j * sin, rtol=1e-10)
 
 
+@pytest.mark.slow
 def test_the_characteristic_time_is_the_peak_of_the_loss_compliance():
     """An SLS: its creep time (the loss compliance dJ w tau / (1 + w^2 tau^2) peaks at w = 1/tau); a
     three-term Prony series: the peak found by brute force on a grid of 2e5 frequencies; the SLS sampled as a

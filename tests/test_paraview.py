@@ -61,6 +61,7 @@ def _read_in_paraview(xdmf: pathlib.Path, tmp_path: pathlib.Path) -> tuple[dict,
     return json.loads(out.read_text()), done.stdout + done.stderr
 
 
+@pytest.mark.slow
 @pytest.mark.serial
 @pytest.mark.parametrize("line", [False, True], ids=["3-D", "line contact"])
 def test_both_paraview_readers_read_every_field_at_every_step_as_saved(tmp_path, line):

@@ -132,6 +132,7 @@ def westergaard(x, mean, wavelength=1.0, amplitude=0.01):
     return np.where(inside, 2 * mean * np.cos(np.pi * x / wavelength) / s2 * root, 0.0)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("line", [False, True])
 @pytest.mark.parametrize("fraction", [0.2, 0.5, 1.5])
 def test_westergaard_at_128_cells_per_wavelength(comm, shared_dir, line, fraction):
@@ -243,6 +244,7 @@ def test_a_sliding_body_wraps_around_the_cell(comm, shared_dir):
     assert record.step == 40
 
 
+@pytest.mark.parallel
 def test_a_rough_surface_sliding_by_fractions_of_a_cell_is_the_same_on_every_rank_count(comm, shared_dir):
     """A generated rough surface on an SLS sliding 0.4 cell per step along X across the cell's end, so
     that every rank's rows need the surface's samples from around the period: each step's pressure on

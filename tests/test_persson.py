@@ -70,6 +70,7 @@ def full_contact_mu_sigma(velocity):
                for a, b in zip(pieces[:-1], pieces[1:]))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("velocity", [1e-6, 1e-4, 1e-2, 1.0, 100.0])
 def test_full_contact_friction_of_a_standard_linear_solid(velocity):
     pressure = 1e10  # far above M0 h'_rms: P(q1) = 1 to round-off
@@ -92,6 +93,7 @@ def test_full_contact_friction_asymptotes():
                         dm * PSD.moment(1) / (2 * fast * THETA), rel_tol=1e-5)
 
 
+@pytest.mark.slow
 def test_partial_contact_friction_has_a_peak_and_grows_less_than_the_load():
     """Sanity of the partial-contact regime: mu(V) rises then falls, and a larger load gives more friction
     force but a smaller coefficient (the full-contact mu falls as 1/sigma0; here less than that)."""
@@ -131,6 +133,7 @@ def lattice_friction(heights, cell, material, velocity, pressure, axis):
 ROAD = {"hurst": 0.8, "rolloff": 1e-3, "cutoff": 62.5e-6, "rms_slope": 0.08}  # runs/rough-rubber.toml's
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", range(4))
 def test_full_contact_friction_of_a_measured_spectrum_is_the_surfaces(seed):
     """Persson's theory on TabulatedPSD.of a 128^2 surface (10 and 40 bins a decade) against the exact
@@ -151,6 +154,7 @@ def test_full_contact_friction_of_a_measured_spectrum_is_the_surfaces(seed):
             assert persson(table, rubber, pressure, velocity).mu == pytest.approx(exact, rel=0.01)
 
 
+@pytest.mark.slow
 def test_petroll_in_full_contact_slides_with_persson_friction(comm):
     """petroll's steady sliding of the rubber block of runs/rough-rubber.toml on its road at 128^2 (cut-off
     2 cells), pressed to 2 GPa so that every cell is in contact, at 0.1 and 1 m/s, along x and along y:

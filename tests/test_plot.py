@@ -34,6 +34,7 @@ def png_width(path: pathlib.Path) -> int:
     return int.from_bytes(path.read_bytes()[16:20], "big")  # IHDR width
 
 
+@pytest.mark.slow
 def test_plot_writes_pressure_patches_and_series_pngs(comm, shared_dir):
     results = run(rolling_scene(), comm, shared_dir / "run")
     assert list(results.field_steps) == [0, 5, 10, 15]
@@ -66,6 +67,7 @@ def test_cli_plot_without_results_exits_2_naming_the_file(comm, capsys, shared_d
         assert not missing.exists()  # no plots directory created
 
 
+@pytest.mark.slow
 def test_stress_sections_lie_on_the_contact_centre_line(comm, shared_dir):
     """The rolling sphere on 20 cells across (an even count: no row of cells on the centre line Y = 0): the
     section of stress.png is on the centre line, the mean of the two rows either side of it, which the
@@ -97,6 +99,7 @@ def test_stress_sections_lie_on_the_contact_centre_line(comm, shared_dir):
         assert plot_stress(out / "stress.h5").read_bytes()[:8] == PNG_MAGIC
 
 
+@pytest.mark.slow
 @pytest.mark.serial
 @pytest.mark.parametrize("mode", ["full", "read-only"])
 def test_on_a_full_or_read_only_disk_plot_says_so_in_one_line_and_keeps_the_earlier_figures(tmp_path, capsys,

@@ -154,6 +154,7 @@ def test_zero_or_negative_penetration_or_load_and_a_body_off_the_grid_are_refuse
     assert not (shared_dir / "never").exists()
 
 
+@pytest.mark.slow
 def test_a_path_that_leaves_the_grid_is_refused_up_front_where_the_run_would_fail(shared_dir, comm,
                                                                                     monkeypatch):
     """runs/sphere.toml rolled 10 mm on its 6 mm grid (issue 24): refused before step 1 naming [grid] x, the
@@ -199,6 +200,7 @@ def sphere_samples(n: int = 32, cell: float = 50e-6) -> np.ndarray:
     return (c[:, None] ** 2 + c[None, :] ** 2) / (2 * 0.01)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("periodic, body", [
     ('["y"]', CYLINDER.format(axis="y")), ("true", CYLINDER.format(axis="y")), ('["x"]', CYLINDER.format(axis="x")),
     ("true", 'shape = "heightmap"\nfile = "map.npy"\ncell = 50e-6'),

@@ -45,6 +45,7 @@ def grow(path, comm, steps: int, every: int, records=None, out=None) -> tuple[Re
     return out, records
 
 
+@pytest.mark.slow
 @pytest.mark.ranks4
 def test_appended_series_and_fields_read_back_and_earlier_chunks_are_never_rewritten(comm, shared_dir):
     path = shared_dir / "results.h5"
@@ -103,6 +104,7 @@ grow(sys.argv[1], MPI.COMM_WORLD, 10**6, 1)
 """
 
 
+@pytest.mark.slow
 @pytest.mark.serial
 def test_sigkill_at_random_moments_leaves_a_file_holding_exactly_the_steps_written(tmp_path):
     """A writer appending a field at every step is killed at random moments: the file opens, and holds

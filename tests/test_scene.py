@@ -243,6 +243,7 @@ CLI_CASES = [
 ]
 
 
+@pytest.mark.slow
 @pytest.mark.serial
 @pytest.mark.parametrize("mutate, key", [c[1:] for c in CLI_CASES], ids=[c[0] for c in CLI_CASES])
 def test_cli_bad_scene_one_line_exit_2_output_untouched(tmp_path, mutate, key, cli):
@@ -268,6 +269,7 @@ def test_cli_bad_scene_one_line_exit_2_output_untouched(tmp_path, mutate, key, c
     assert not (tmp_path / "results").exists()  # nor any default output directory
 
 
+@pytest.mark.slow
 @pytest.mark.serial
 @pytest.mark.parametrize("name, content, key", [
     ("missing.toml", None, "(file)"),
@@ -297,6 +299,7 @@ def test_cli_unknown_option_fails_without_traceback(tmp_path, cli):
 
 
 # -- 4. the happy path through the command line --------------------------------------------------------------
+@pytest.mark.slow
 @pytest.mark.serial
 def test_cli_run_default_scene_writes_results_matching_hertz(tmp_path, cli):
     out = tmp_path / "out"

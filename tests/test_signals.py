@@ -157,6 +157,7 @@ def never_complete_without_estimate(path: pathlib.Path) -> None:
 
 
 # -- a chosen moment: the error estimate ------------------------------------------------------------------
+@pytest.mark.slow
 @pytest.mark.parametrize("steady", [False, True], ids=["transient", "steady"])
 def test_a_run_killed_while_its_estimate_runs_is_not_complete_and_the_restart_makes_the_estimate(steady,
                                                                                                 tmp_path):
@@ -185,6 +186,7 @@ def test_a_run_killed_while_its_estimate_runs_is_not_complete_and_the_restart_ma
     assert_same_run(tmp_path / "out" / "results.h5", reference, estimate=True)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT], ids=["SIGTERM", "SIGINT"])
 def test_sigterm_or_sigint_during_the_estimate_stops_it_like_a_run_and_the_restart_finishes_it(signum,
                                                                                                 tmp_path):
@@ -210,6 +212,7 @@ def test_sigterm_or_sigint_during_the_estimate_stops_it_like_a_run_and_the_resta
     assert_same_run(tmp_path / "out" / "results.h5", Results.open(tmp_path / "reference" / "results.h5"), True)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("transient", [False, True], ids=["steady", "transient"])
 def test_a_sweep_killed_while_a_points_estimate_runs_resumes_and_makes_that_estimate(transient, tmp_path):
     """``petroll sweep --estimate-error`` SIGKILLed at the start of the second point's estimate, then the
@@ -271,6 +274,7 @@ def _resume(target: str, out: str, tmp_path: pathlib.Path) -> tuple[int, str]:
     return petroll([*argv, "--out", out], tmp_path)
 
 
+@pytest.mark.slow
 def test_random_signals_at_random_moments_lose_and_duplicate_nothing(tmp_path):
     """SIGTERM, SIGINT or SIGKILL at an instant drawn uniformly over an uninterrupted run, run with
     --estimate-error or sweep --estimate-error (its reference's wall time), then the resume a user would

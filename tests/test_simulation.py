@@ -79,6 +79,7 @@ def test_steps_stop_at_steady_state_and_refuse_more_than_max_steps(comm):
             pass
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("motion", [{"penetration": 2e-5, "velocity": [0.01, 0.0]},
                                     {"load": 0.04, "velocity": [0.008, 0.006]}])
 def test_the_last_step_alone_is_the_last_record_of_the_steps(comm, motion):

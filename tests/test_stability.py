@@ -16,6 +16,7 @@ from petroll.errors import SolverError
 FAST = [case for case in stability.cases() if case.fast]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("case", FAST, ids=[f"{c.axis}:{c.name}" for c in FAST])
 def test_fast_map_case_holds_its_properties(comm, case):
     row = stability.run_case(case, comm)
@@ -26,6 +27,7 @@ def test_fast_map_case_holds_its_properties(comm, case):
         assert math.isnan(row.smooth) or row.smooth <= 1
 
 
+@pytest.mark.slow
 def test_refinement_in_dt_and_dx_converges(comm):
     rows = stability.refinement(comm, fast=True)
     assert len(rows) == 3
@@ -139,6 +141,7 @@ def test_the_guard_refuses_steps_at_which_the_creep_form_schemes_ring_or_blow_up
     unguarded.compliance(0.05)  # the unit tests of the recursions use unguarded histories
 
 
+@pytest.mark.slow
 def test_the_guard_covers_tabulated_materials_too():
     """The hereditary sum (the only scheme for a tabulated J) is the paper's: the same limit, no other
     remedy than the time step."""

@@ -90,6 +90,7 @@ PRONY = {"model": "prony", "series": "kelvin", "Einf": 2e6, "nu": 0.5, "complian
          "times": [0.0005, 0.005, 0.05]}  # 3 terms over two decades around TAU
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("v_tau_a, rolled_a, sign, load, material, integrator", [
     (0.01, 8, 1, None, None, "relaxation"),
     (1.0, 16, 1, None, None, "relaxation"),
@@ -168,6 +169,7 @@ def test_a_steady_scene_runs_as_one_step_with_the_series_and_fields_of_a_run(com
     assert api.series["mu_r"][0] > 0.01
 
 
+@pytest.mark.parallel
 def test_a_steady_run_on_two_ranks_is_the_one_rank_run(comm, tmp_path, shared_dir):
     """The rows split over ``comm`` (2 ranks under mpirun) against every rank's own COMM_SELF run."""
     import numpy as np
@@ -417,6 +419,7 @@ def test_the_far_wake_interpolated_along_the_motion_is_its_direct_sum(axis, sign
 
 
 @pytest.mark.ranks4
+@pytest.mark.parallel
 def test_anderson_on_vectors_split_over_ranks_is_anderson_on_the_whole(comm):
     """The mixing of a linear fixed point x = B x + c split over ``comm`` (each rank its rows, some ranks
     none) against the same mixing of the whole vectors on one rank (COMM_SELF): the same iterates."""
@@ -442,6 +445,7 @@ def test_anderson_on_vectors_split_over_ranks_is_anderson_on_the_whole(comm):
 
 
 @pytest.mark.ranks4
+@pytest.mark.parallel
 @pytest.mark.parametrize("velocity, motion", [((1.0, 0.0), {"penetration": DELTA}),
                                               ((0.0, -1.0), {"load": 0.03}),
                                               ((-10.0, 0.0), {"penetration": DELTA})])

@@ -41,6 +41,7 @@ def hertz_axis(z, nu):
     return -(1 + nu) * (1 - z * np.arctan(1 / z)) + 0.5 / (1 + z * z), -1 / (1 + z * z)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("offset", [(0, 0, 0.3), (1, 2, 0.5), (-2, 1, 1.3), (3, -1, 0.05), (0, 0, 2.0)])
 def test_cell_coefficients_are_the_integral_of_the_point_load(offset):
     """The closed-form stresses below a loaded dx x dy cell equal the quadrature of Boussinesq's point load
@@ -86,6 +87,7 @@ def hertz_scene(nu: float = 0.3):
     }, source="test_stress")
 
 
+@pytest.mark.slow
 def test_hertz_stresses_on_the_axis_and_the_maximum_shear(comm, shared_dir):
     """a/dx = 16, nu = 0.3: on the axis sigma_r = sigma_theta and sigma_z within 0.2 % of p0 of the closed
     form from z = 0.1 a to 2 a; the maximum shear (Tresca) 0.3100 p0 at z = 0.481 a (the closed form's
@@ -195,6 +197,7 @@ def test_the_stress_file_is_the_same_on_two_ranks_and_one(comm, shared_dir):
                 assert np.max(np.abs(f[name][()] - g[name][()])) < 1e-12 * 1e6, name
 
 
+@pytest.mark.slow
 def test_command_writes_the_file_and_figure_and_refuses_bad_requests(comm, capsys, shared_dir):
     p = write_patch_results(shared_dir, 'model = "elastic"\nE = 1e7\nnu = 0.35')
     assert main(["stress", str(shared_dir), "--depth", "2e-4,0,1e-4"]) == 0

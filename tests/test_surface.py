@@ -4,6 +4,7 @@ run (where the preceding displacement of the history is part of w)."""
 
 import h5py
 import numpy as np
+import pytest
 
 from petroll.model.scene import parse_scene
 from petroll.solver.simulation import Simulation
@@ -85,6 +86,7 @@ def test_rolling_gap_holds_the_contact_conditions_with_the_history(comm):
     assert np.max(np.abs(own - w)[p > 0]) > 0.1 * scale
 
 
+@pytest.mark.slow
 def test_saved_displacement_and_gap_fields_in_results_xdmf_and_plot(comm, shared_dir):
     """[output] fields = ["displacement", "gap"]: results.h5 holds fields/displacement and fields/gap (m,
     the layout of fields/pressure, pressure saved too) equal to Hertz's closed form as in the test above

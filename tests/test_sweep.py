@@ -82,6 +82,7 @@ def _mtimes(directory: pathlib.Path) -> dict[str, int]:
     return {p.parent.name: p.stat().st_mtime_ns for p in sorted(directory.glob("points/*/results.h5"))}
 
 
+@pytest.mark.slow
 def test_a_small_sweep_writes_its_table_and_plot_and_resumes_without_recomputing(comm, shared_dir):
     scene = petroll.parse_scene(RAW_X)
     out = shared_dir / "sweep"
@@ -139,6 +140,7 @@ class StopAfter:
         return 15 if self.calls < 0 else 0
 
 
+@pytest.mark.slow
 def test_an_interrupted_sweep_resumes_its_point_from_the_checkpoint(comm, shared_dir):
     scene = petroll.parse_scene(RAW_X)
     spec = "motion.velocity=0.002,0.01"
@@ -160,6 +162,7 @@ def test_an_interrupted_sweep_resumes_its_point_from_the_checkpoint(comm, shared
     assert np.array_equal(resumed.columns["mu_r"], whole.columns["mu_r"])
 
 
+@pytest.mark.slow
 def test_a_constant_speed_sweep_solves_each_point_directly_from_its_neighbour(comm, shared_dir):
     """Each point of a sweep along X is the steady state solved directly ([time] mode = "steady", one
     step), started from the previous point's pressure: the same values as each point solved from scratch
@@ -217,6 +220,7 @@ def test_a_sweep_varies_a_key_inside_an_inline_table(comm, shared_dir):
         assert reason in str(info.value) and "\n" not in str(info.value)
 
 
+@pytest.mark.slow
 def test_the_sweep_command_runs_and_refuses_bad_specs_in_one_line(comm, capsys, cli_main, shared_dir):
     if comm.rank == 0:
         (shared_dir / "scene.toml").write_text(dumps(RAW_X), encoding="utf-8")

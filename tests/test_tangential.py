@@ -38,6 +38,7 @@ def test_at_nu_zero_each_component_is_loves_kernel():
     assert np.abs(t[2]).max() == 0
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("nu", [0.0, 0.3, 0.5])
 @pytest.mark.parametrize("ox, oy", [(2, 3), (1, 0), (0, -2), (-3, 1)])
 def test_rectangle_coefficients_against_quadrature_of_cerrutis_point_force(nu, ox, oy):
@@ -426,6 +427,7 @@ def test_steady_force_control_finds_the_creepage_of_creepage_control(comm):
     assert np.abs(found.solution.traction - given.solution.traction).max(initial=0.0) <= 1e-7 * 0.3
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("control", ["force", "creepage"])
 def test_the_onset_of_rolling_from_a_cattaneo_shift_reaches_the_steady_state(control):
     """A sphere shifted by Q = mu P/2 (Cattaneo), then rolled one cell a step along +x (BDF2 slip), at that
@@ -535,6 +537,7 @@ def test_the_friction_benchmark_and_the_solvers_comparison_run(comm, shared_dir)
     assert all(row["applications"] for row in table if row["solver"].startswith("DiskPCG ("))
 
 
+@pytest.mark.slow
 @pytest.mark.ranks4
 @pytest.mark.parametrize("nx, ny", [(9, 7), (16, 5), (1, 6), (12, 1)])
 def test_the_coupling_convolution_and_its_transpose_equal_the_dense_matrix(comm, nx, ny):

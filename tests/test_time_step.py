@@ -93,6 +93,7 @@ def test_petroll_check_prints_cells_per_step_and_the_verdict(cli_main, tmp_path)
     assert code == 0 and "107 cells per step at most" in out and "a run is refused: gives 0.11 steps" in out
 
 
+@pytest.mark.slow
 def test_steady_rolling_steps_are_warned_and_refused_where_mu_r_is_off(comm, shared_dir, cli_main):
     """Steady runs/sphere.toml: 0.1 step per cell (1.2 steps per half-width) is refused, naming
     steps_per_cell and the value giving 8 steps (0.671); there mu_r is 37 % off the fine step's (16 per
@@ -136,6 +137,7 @@ def test_a_transient_step_across_the_whole_track_is_refused_and_would_be_wrong(c
     assert jump.series["mu_r"][-1] < 0.01 * shipped
 
 
+@pytest.mark.slow
 def test_steady_sliding_steps_are_refused_or_warned_against_the_single_contacts(comm, shared_dir, cli_main):
     """A rough surface sliding on 32^2 cells: its single contacts are about a cell wide (rms slope / rms
     curvature), so 1 step per cell (0.98 steps per contact) is refused, mu_r 15 % off the fine step's (64 per
@@ -153,6 +155,7 @@ def test_steady_sliding_steps_are_refused_or_warned_against_the_single_contacts(
     assert abs(results.series["mu_r"][0] / fine - 1) < 0.006
 
 
+@pytest.mark.slow
 def test_steps_too_fine_or_longer_than_the_grid_are_refused_naming_the_bound(comm, cli_main, shared_dir):
     """steps_per_cell = 2^63 - 1 sliding (a step of 1e-21 of the grid; issue 35: mu_r 5.9e-5 for 0.025) is
     refused naming the finest it takes, which runs within 1e-6 of 1e5 steps per cell (converged to 1e-9);
@@ -178,6 +181,7 @@ def test_the_time_thresholds_are_the_space_ones():
 
 
 # -- negative friction --------------------------------------------------------------------------------------
+@pytest.mark.slow
 def test_negative_sliding_friction_of_a_dissipative_material_is_warned_and_kept_in_results_h5(comm, shared_dir):
     """The rough surface at 0.1 step per cell (allowed coarse): sliding friction -1.1e-3 where the fine step
     gives +1.8e-2: one warning line, also in results.h5's attribute warnings (Results.warnings), after the
@@ -219,6 +223,7 @@ def test_a_body_placed_outside_its_grid_is_refused_by_check_and_run(cli_main, sh
         check(scene.replace({"motion.penetration": None, "motion.load": 0.02}))  # load control: the same
 
 
+@pytest.mark.slow
 def test_a_body_far_along_a_periodic_axis_is_its_image_on_the_grid(comm):
     """On a periodic grid a position 250 periods away is the body at the origin: not refused, the same
     steady sliding state (the oracle: the body at [0, 0])."""

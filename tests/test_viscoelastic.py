@@ -65,6 +65,7 @@ def test_step_penetration_follows_lee_radok_with_the_default_integrator(comm, dt
     assert force[-1] < 0.25 * force[0]  # it did relax (to 0.2 + 0.8 e^-6 of the start)
 
 
+@pytest.mark.slow
 def test_step_penetration_follows_lee_radok_and_the_creep_integrators_converge(comm):
     """The creep-form integrators: F(t) within 1 % of Lee-Radok for the exponential one at dt <= 0.3 T; the
     paper's first-order scheme needs dt ~ T/30 for that. The time error alone is measured against the exact
@@ -139,6 +140,7 @@ def test_elastic_rolling_is_hertz_with_no_resistance(comm):
         assert abs(r.mu_r) <= 1e-7
 
 
+@pytest.mark.slow
 def test_slow_rolling_tends_to_the_relaxed_hertz_solution_shifted_forward(comm):
     """mu_r -> V tau (1 - J0/Jinf) / R at V tau / a = 0.01 (formulation §7), read when the body sits on a
     cell centre (2 cells rolled), after 12.5 creep times."""
@@ -155,6 +157,7 @@ def test_slow_rolling_tends_to_the_relaxed_hertz_solution_shifted_forward(comm):
     assert last.force == pytest.approx(4 * math.sqrt(R) * 2e-5**1.5 / (3 * JINF), rel=0.01)
 
 
+@pytest.mark.slow
 def test_sinusoidal_speed_with_zero_amplitude_is_the_constant_speed_run(comm):
     base = dict(time={"steps_per_cell": 2, "distance": 0.4e-3}, length=0.4e-3)
     constant = run_series(scene(motion={"velocity": [0.05, 0.0], "penetration": 2e-5}, **base), comm)
@@ -184,6 +187,7 @@ def test_rolling_along_y_is_the_transposed_rolling_along_x(comm):
         assert np.abs(px - py.T).max() <= 1e-6 * px.max()
 
 
+@pytest.mark.parallel
 def test_rolling_is_independent_of_the_rank_count(comm):
     """Iterates differ by round-off between rank counts, so the solves must be converged well below 1e-10."""
     kwargs = dict(motion={"velocity": [0.05, 0.0], "load": 0.1}, length=0.3e-3, n=40,
@@ -238,6 +242,7 @@ def test_maxwell_series_converts_exactly_to_its_creep_series(moduli, times):
         assert creep.dJ == pytest.approx(sls.dJ, rel=1e-12) and creep.tau == pytest.approx(sls.tau, rel=1e-12)
 
 
+@pytest.mark.slow
 def test_tabulated_creep_function_matches_its_prony_original(comm, shared_dir):
     """A CSV table of the SLS creep compliance D(t), run with the hereditary sum, reproduces the Prony
     recursion of the same scheme to the table's interpolation error."""
@@ -284,6 +289,7 @@ def test_tabulated_velocity_equals_the_constant_one(comm):
         assert b.force == pytest.approx(a.force, rel=1e-9)
 
 
+@pytest.mark.slow
 def test_the_transient_reaches_a_steady_state(comm, shared_dir):
     """With [time] steady the run stops early, at values a much longer run confirms to that tolerance."""
     from petroll.driver import run

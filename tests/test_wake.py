@@ -61,6 +61,7 @@ def test_row_sum_bound_is_the_largest_row_sum_of_the_dense_matrix():
     assert bound == pytest.approx(4 * t.sum() - 2 * t[0, :].sum() - 2 * t[:, 0].sum() + t[0, 0], rel=1e-13)
 
 
+@pytest.mark.slow
 def test_a_long_track_rolls_the_same_with_the_wake_cut_off(comm):
     """The default scene rolled 12 mm (a 400-cell track): history_cutoff 1e-9 and 0 (every source kept)
     against a run whose preceding displacement is the full-track convolution at every step."""

@@ -80,6 +80,7 @@ def test_a_move_by_part_of_a_cell_carries_the_newest_whole_cell_solution_or_roun
     assert np.array_equal(warm.guess(1.13, 0.0), p[2])
 
 
+@pytest.mark.slow
 def test_rolling_converges_to_the_same_answer_and_cheaper_in_steady_state(comm):
     """The guess changes the cost, not the answer: the default scene (square cells, one cell per step)
     against the same run started every step from the plain carried solution (extrapolation off)."""
