@@ -260,16 +260,21 @@ def test_a_scene_file_with_friction_runs_from_the_command_line(shared_dir, comm,
     assert code == 0, err
 
 
-@pytest.mark.slow
-@pytest.mark.serial  # figures: one process
-def test_petroll_plot_draws_the_tractions_and_the_stick_slip_map(tmp_path):
-    """traction.png beside the other figures; its stick/slip map is 0 outside the contact, stick where the
-    slip velocity is 0 and slip elsewhere (NaN: a step of no duration's slipping cells)."""
+def test_the_stick_slip_map_is_zero_outside_stick_where_no_slip_and_slip_elsewhere():
+    """traction.png's stick/slip map: 0 outside the contact, stick where the slip velocity is 0 and slip
+    elsewhere (NaN: a step of no duration's slipping cells)."""
     from petroll.plot.friction import SLIP, STICK, stick_slip
-    from petroll.plot.runs import plot_results
 
     p = np.array([0.0, 1.0, 2.0, 3.0])
     assert list(stick_slip(p, np.array([0.0, 0.0, 1e-3, np.nan]))) == [0, STICK, SLIP, SLIP]
+
+
+@pytest.mark.slow
+@pytest.mark.serial  # figures: one process
+def test_petroll_plot_draws_the_tractions_and_the_stick_slip_map(tmp_path):
+    """traction.png beside the other figures, in line contact and in 3-D."""
+    from petroll.plot.runs import plot_results
+
     sphere = rolling(creepage=[-1e-3, 2e-4])
     sphere["time"]["distance"] /= 4
     for name, raw in (("line", carter(0.4)), ("sphere", sphere)):
