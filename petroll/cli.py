@@ -352,6 +352,8 @@ def _main(args: argparse.Namespace, comm) -> int:
         scene, checkpoint, out = _restart_inputs(args, comm)
     else:
         scene, checkpoint, out = load_scene(args.scene), None, args.out
+        if scene.sizing is not None and comm.rank == 0:  # the grid petroll chose, before the run
+            print(f"petroll: {scene.source}: {scene.sizing.note}", flush=True)
     _test_failure(comm)
     stop = StopRequest()
     try:
@@ -465,11 +467,17 @@ def summary(scene, results, wall: float, resumed=None) -> str:
     force, area = ("N/m", "contact width {:.4g} m") if line else ("N", "contact area {:.4g} m^2")
     if resumed is not None:
         how = f"resumed after step {resumed.step} (t = {resumed.t:.4g} s; {resumed.path}), {how}"
-    patch = (f"patch from {s['trail'][-1]:.4g} to {s['lead'][-1]:.4g} m along the motion"
-             if s["area"][-1] > 0 else "no contact")
+    g = scene.grid
+    if g.topology.statistics:  # a periodic cell: sliding friction, area fraction, no single patch
+        resisting = f"friction mu {s['mu_r'][-1]:.4e}"
+        patch = f"area fraction A/A0 {s['area'][-1] / ((g.x1 - g.x0) * (g.y1 - g.y0)):.4g}"
+    else:
+        resisting = f"mu_r {s['mu_r'][-1]:.4e}"
+        patch = (f"patch from {s['trail'][-1]:.4g} to {s['lead'][-1]:.4g} m along the motion"
+                 if s["area"][-1] > 0 else "no contact")
     return (f"petroll: {scene.source}: {how} ({state}wall time {wall:.1f} s). Last step: force "
             f"{s['force'][-1]:.6g} {force} at penetration {s['delta'][-1]:.6g} m"
-            f"{' (to the datum)' if line else ''}, mu_r {s['mu_r'][-1]:.4e}, "
+            f"{' (to the datum)' if line else ''}, {resisting}, "
             f"{area.format(s['area'][-1])}, {patch}, max pressure "
             f"{s['p_max'][-1]:.6g} Pa; {int(s['applications'].sum())} operator applications in all. "
             f"Results: {results.path}")

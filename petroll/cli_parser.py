@@ -76,7 +76,8 @@ def _study_verbs(verbs) -> None:
                              "(docs/benchmarks.md)")
     bench.add_argument("which", choices=["tao", "warm", "skips", "peers", "precision", "growth", "mpi",
                                          "memory", "append", "layer", "steady", "steady-growth", "estimate",
-                                         "accuracy", "periodic", "sliding", "friction"],  # bench.verbs.VERBS
+                                         "accuracy", "periodic", "sliding", "friction", "cutoff",
+                                         "sized"],  # bench.verbs.VERBS
                        help="tao: every TAO type on the Hertz step; warm: operator applications per rolling "
                        "step for each first guess; skips: each saving on and off; peers: petroll against "
                        "Tamaas and ContactMechanics on the Hertz step and a wavy sphere, from the same start; "
@@ -95,7 +96,10 @@ def _study_verbs(verbs) -> None:
                        "against Tamaas; sliding: steady sliding against its closed forms, a 1024^2 rough "
                        "surface, a 512^2 friction master curve (docs/rough.md); friction: Coulomb "
                        "friction's tangential solves (shift, transient and steady rolling) against the normal "
-                       "solve, and a 30-point creep-force curve (docs/friction.md)")
+                       "solve, and a 30-point creep-force curve (docs/friction.md); cutoff: a rough "
+                       "surface's friction and area against cells per short cut-off wavelength (docs/rough.md); "
+                       "sized: grids petroll sizes against a hand-made fine grid on a fixed-load speed sweep "
+                       "(docs/accuracy.md)")
     bench.add_argument("--out", default="results/bench", help="directory for the CSV (and PNG) files")
     bench.add_argument("--ranks", type=_ranks, help="mpi, memory and sliding only: rank counts to run side by "
                        "side as mpirun children, e.g. 1,2 (default: mpi: the current communicator only; memory: "

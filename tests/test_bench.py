@@ -6,6 +6,7 @@ Serial only: the MPI benchmark starts its own mpirun children (ranks 1 and 2, co
 import csv
 import math
 
+import numpy as np
 import pytest
 
 from petroll.bench.mpi import mpi_scaling
@@ -247,3 +248,29 @@ def test_steady_compares_the_direct_solve_with_the_transient_run(tmp_path):
         assert float(row["time_ratio"]) > 0 and float(row["equivalents_ratio"]) > 0
     with open(tmp_path / "steady.csv") as fh:
         assert [float(r["v_tau_a"]) for r in csv.DictReader(fh)] == pytest.approx([0.01, 1.0], rel=1e-9)
+
+
+def test_a_surface_sampled_coarser_keeps_its_modes():
+    """petroll bench cutoff's coarser grids carry the same surface: a sum of modes below the coarse grid's
+    Nyquist frequency, sampled at 64^2, dropped to 16^2, equals its own samples at 16^2."""
+    from petroll.bench.sizing import truncated
+
+    def surface(n):  # sample j at x = j / n: the coarse samples are every fourth of the fine ones
+        x = np.arange(n) / n
+        return (np.cos(2 * np.pi * (3 * x[:, None] + 2 * x[None, :])) + 0.3 * np.sin(2 * np.pi * 5 * x[:, None])
+                + 0.1 * np.cos(2 * np.pi * 7 * x[None, :] - 0.4))
+
+    assert np.abs(truncated(surface(64), 16) - surface(16)).max() < 1e-12
+
+
+def test_the_resolution_benches_measure_against_their_reference(tmp_path):
+    """bench cutoff and bench sized at tiny sizes: the reference row is the reference, the coarser one the
+    same surface (penetration within 3 %), the sized grid within a few per cent of the fine one."""
+    from petroll.bench.sizing import cutoff, sized
+
+    rows = cutoff(tmp_path, cells=(2,), reference=4, side=0.5e-3)
+    assert [r["cells_per_cutoff"] for r in rows] == [4, 2] and rows[0]["mu_change"] == "+0.00%"
+    assert abs(float(rows[1]["penetration_change"].rstrip("%"))) < 3
+    (row,) = sized(tmp_path, speeds="0.01", fine=80)
+    assert all(abs(float(row[f"{q}_change"].rstrip("%"))) < 3 for q in ("mu_r", "delta", "area", "p_max")), row
+    assert (tmp_path / "cutoff.csv").is_file() and (tmp_path / "sized.csv").is_file()

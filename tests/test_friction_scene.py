@@ -74,8 +74,7 @@ REFUSED = [
     ({"body__material": {"E": 1e9}}, "[body] material", "inline table"),
     ({"body__material": {"E": 1e11, "nu": 0.3}}, "[body] material", "not quasi-identical"),
     ({"body__material": None}, "[body] material", "rigid body on a half-space of nu = 0.3"),
-    ({"material__model": "sls", "material__E": None, "material__E0": 2e11, "material__Einf": 1e11,
-      "material__tau_creep": 1.0}, "[friction]", "elastic half-space"),
+    ({"material__layer": {"thickness": 1e-3, "base": "bonded"}}, "[friction]", "layers are not modelled"),
     ({"friction__coefficient": None, "motion__creepage": [0.001, 0.0]}, "[friction] coefficient", "required"),
 ]
 
@@ -203,17 +202,23 @@ def test_an_interrupted_friction_run_restarts_bitwise(comm, shared_dir):
     bit."""
     raw = rolling(tangential_force=[-20.0, 5.0])
     raw["output"] = {"every": 4, "checkpoint_every": 3}
-    scene = scene_of(raw)
+    reference = assert_restarts_bitwise(scene_of(raw), 6, comm, shared_dir)
+    assert reference.series["traction_x"][-1] == pytest.approx(-20.0, rel=1e-9)
+
+
+def assert_restarts_bitwise(scene, step: int, comm, shared_dir):
+    """Run ``scene``, then again stopped after ``step`` and restarted from its checkpoint: every series
+    and field of the uninterrupted run, bit for bit (its results returned)."""
     reference = run(scene, comm, shared_dir / "reference")
     stop = StopRequest()
 
     def on_step(record):
-        if record.step == 6 and comm.rank == comm.size - 1:
+        if record.step == step and comm.rank == comm.size - 1:
             stop.request(signal.SIGTERM)
 
     with pytest.raises(RunInterrupted) as info:
         run(scene, comm, shared_dir / "stopped", stop=stop, on_step=on_step)
-    assert info.value.step == 6
+    assert info.value.step == step
     restarted = run(scene, comm, shared_dir / "stopped", restart=read_checkpoint(info.value.checkpoint, comm))
     assert set(restarted.series) == set(reference.series)
     for name in reference.series:
@@ -222,7 +227,7 @@ def test_an_interrupted_friction_run_restarts_bitwise(comm, shared_dir):
     assert np.array_equal(restarted.field_steps, reference.field_steps)
     for name in reference.fields:
         assert np.array_equal(restarted.field(name), reference.field(name), equal_nan=True), name
-    assert reference.series["traction_x"][-1] == pytest.approx(-20.0, rel=1e-9)
+    return reference
 
 
 @pytest.mark.parallel
@@ -255,15 +260,21 @@ def test_a_scene_file_with_friction_runs_from_the_command_line(shared_dir, comm,
     assert code == 0, err
 
 
-@pytest.mark.serial  # figures: one process
-def test_petroll_plot_draws_the_tractions_and_the_stick_slip_map(tmp_path):
-    """traction.png beside the other figures; its stick/slip map is 0 outside the contact, stick where the
-    slip velocity is 0 and slip elsewhere (NaN: a step of no duration's slipping cells)."""
+def test_the_stick_slip_map_is_zero_outside_stick_where_no_slip_and_slip_elsewhere():
+    """traction.png's stick/slip map: 0 outside the contact, stick where the slip velocity is 0 and slip
+    elsewhere (NaN: a step of no duration's slipping cells)."""
     from petroll.plot.friction import SLIP, STICK, stick_slip
-    from petroll.plot.runs import plot_results
 
     p = np.array([0.0, 1.0, 2.0, 3.0])
     assert list(stick_slip(p, np.array([0.0, 0.0, 1e-3, np.nan]))) == [0, STICK, SLIP, SLIP]
+
+
+@pytest.mark.slow
+@pytest.mark.serial  # figures: one process
+def test_petroll_plot_draws_the_tractions_and_the_stick_slip_map(tmp_path):
+    """traction.png beside the other figures, in line contact and in 3-D."""
+    from petroll.plot.runs import plot_results
+
     sphere = rolling(creepage=[-1e-3, 2e-4])
     sphere["time"]["distance"] /= 4
     for name, raw in (("line", carter(0.4)), ("sphere", sphere)):
@@ -308,7 +319,7 @@ def test_petroll_bench_friction_quick_writes_its_table(tmp_path, cli_main):
     assert code == 0, err
     rows = list(csv.DictReader(open(tmp_path / "friction.csv", encoding="utf-8")))
     assert [r["case"].split(",")[0] for r in rows][:3] == ["normal QP", "normal QP", "shift Q = mu P/2"]
-    assert len(rows) == 8 and rows[-1]["case"].startswith("creep curve, 3 points")
+    assert len(rows) == 9 and rows[-1]["case"].startswith("creep curve, 3 points")
     for row in rows[2:]:
         assert float(row["fft_pairs"]) == pytest.approx(2 * float(row["applications"]), rel=1e-12)
         assert float(row["applications"]) > 0

@@ -10,7 +10,8 @@ half-width, a margin of 4 cells), nu = 0.3, two bodies of one material (complian
 - shift: Cattaneo's shift by Q = mu P/2 in one step (force control), and the same load in 4 steps;
 - transient: rolling one cell a step at that force after the shift, over three contact lengths (per step:
   the first contact length, and the last, once steady);
-- steady: the steady state at that force solved directly (cold), and a 30-point creep-force curve (creepage
+- steady: the steady state at that force solved directly (cold; and on bodies of an SLS at V tau/a = 1,
+  the wake 2 radii behind), and a 30-point creep-force curve (creepage
   up to 3 times the linear theory's saturation, each point started from the last) at 16 cells per radius
   (32 x 32 cells in the contact).
 
@@ -126,11 +127,29 @@ def bench_friction(out: pathlib.Path | None = None, quick: bool = False, comm: M
     rows.append(dict(case="steady, force control, cold", applications=result.applications,
                      fft_pairs=2 * result.applications, seconds=seconds, iterations=result.iterations,
                      note=f"creepage {result.creepage[0]:.6g}"))
+    rows.append(steady_viscoelastic(n, comm, force))
     rows.append(creep_curve(n, comm, 3 if quick else 30))
     if out is not None and comm.rank == 0:
         out.mkdir(parents=True, exist_ok=True)
         write_table(rows, out / "friction.csv")
     return rows
+
+
+def steady_viscoelastic(n: int, comm: MPI.Comm, force: np.ndarray) -> dict:
+    """The steady state at ``force`` solved directly on bodies of an SLS (E0/Einf = 5, tau = 1, rolling at
+    V tau/a = 1: one cell per step is dt = 1/n), on the elastic case's grid with 2 radii of wake behind the
+    contact: the tangential operator with the integrator's response along the motion."""
+    from petroll.model.materials import sls
+    from petroll.solver.history import state_space
+
+    grid, solver, bound = hertz_case(n, comm, length=2.0)
+    factor = 1 / (1 - NU)
+    h0, s1, M, c = state_space(sls(5.0, 1.0, NU, 1.0), "relaxation", 1.0 / n)
+    steady = SteadyRolling(solver, 0, -1)  # moving towards -x: the track (+x) is the wake
+    result, seconds = _timed(lambda: steady.solve(bound(), force=force, memory=(factor * h0, s1, M, factor * c)))
+    return dict(case="steady, viscoelastic (SLS, V tau/a = 1), force control, cold",
+                applications=result.applications, fft_pairs=2 * result.applications, seconds=seconds,
+                iterations=result.iterations, note=f"creepage {result.creepage[0]:.6g}")
 
 
 def _transient(stepping: Stepping, bound, force, n: int, lengths: int) -> list[dict]:

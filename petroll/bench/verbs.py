@@ -15,7 +15,7 @@ from mpi4py import MPI
 from petroll.errors import PetrollError
 
 VERBS = ("tao", "warm", "skips", "peers", "precision", "growth", "mpi", "memory", "append", "layer", "steady",
-         "steady-growth", "estimate", "accuracy", "periodic", "sliding", "friction")
+         "steady-growth", "estimate", "accuracy", "periodic", "sliding", "friction", "cutoff", "sized")
 
 QUICK = {
     "tao": dict(repeats=1, cells_per_radius=(6,), load_cells=48, rolling_distance=0.1e-3),
@@ -37,6 +37,8 @@ QUICK = {
     "periodic": dict(sides=(32,), repeats=1, tamaas_sides=()),
     "sliding": dict(cells=32, curve_cells=32, points=2),
     "friction": dict(quick=True),
+    "cutoff": dict(cells=(2,), reference=4, side=0.5e-3),
+    "sized": dict(speeds="0.01,1", fine=80),
 }
 """Keyword arguments of each verb's function under ``--quick``."""
 
@@ -99,6 +101,10 @@ def _function(which: str):
         from petroll.bench.friction import bench_friction
 
         return lambda out, comm, **options: bench_friction(out, comm=comm, **options)
+    if which in ("cutoff", "sized"):
+        from petroll.bench import sizing
+
+        return {"cutoff": sizing.cutoff, "sized": sizing.sized}[which]
     if which == "layer":
         from petroll.bench.layer import bench as layer_bench
 

@@ -13,6 +13,13 @@ tangential problem of petroll.solver.tangential is solved after each step's norm
   body on a half-space of nu = 1/2): the normal-tangential coupling then vanishes. Other pairs are
   refused in one line: the coupling's outer iteration is not modelled.
 
+A viscoelastic half-space (an SLS or Prony material, no layer) and a body of its own material or a rigid
+one: with a constant Poisson's ratio the shear creep function is the normal one's shape, the tangential
+compliance c(t) = J(t)/(1 - nu) with J the bodies' summed surface creep compliance (a body of the same
+material doubles J(t)), so ``memory`` = 1/(1 - nu) and ``compliance`` the relaxed c (the tangential history
+runs through the scene's integrator: petroll.solver.friction.ShearMemory). Tabulated creep functions, a
+layer and an elastic body on a viscoelastic half-space are refused in one line.
+
 Modes, from the motion: a body at rest is a quasi-static shift under ``force`` (applied from zero to its
 value over the clock's steps, or in one step without [time]); a rolling body runs at the ``creepage`` (and
 ``spin``) or at the tangential ``force``, its creepage then found.
@@ -57,6 +64,7 @@ class Friction:
     force: tuple[float, float] | None = None
     body: str = "rigid"
     ramp: float | None = None  # a shift's force grows as t / ramp up to the [time] end (None: at once)
+    memory: float | None = None  # viscoelastic: c(t) = memory x J(t), J the scene's; None: elastic
 
     def force_at(self, t: float) -> np.ndarray | None:
         """The tangential force (N, a 2-vector) at time t (s): a shift's ramp, or the force; None: none."""
@@ -78,13 +86,20 @@ def friction_of(values: dict, raw: dict, material, line: bool, periodic: bool, s
                 raise SceneError(source, f"[motion] {key}", raw["motion"][key],
                                  "needs [friction] coefficient (friction is off without [friction])")
     m = values["material"]
-    if (table is not None or body is not None) and (m["model"] != "elastic" or m["layer"] is not None):
+    elastic = m["model"] == "elastic"
+    if (table is not None or body is not None) and (m["model"] == "tabulated" or m["layer"] is not None):
         key, value = ("[friction]", table) if table is not None else ("[body] material", body)
-        raise SceneError(source, key, value, 'needs an elastic half-space ([material] model = "elastic" '
-                         "without layer); viscoelastic friction is not modelled yet")
-    if body is not None:
-        material = materials.Prony(2 * material.Jinf if body == "same"
-                                   else material.Jinf + (1 - body[1] ** 2) / body[0])
+        raise SceneError(source, key, value, 'needs a half-space of an elastic, SLS or Prony material '
+                         "([material] model = \"elastic\", \"sls\" or \"prony\", without layer): "
+                         "tabulated creep functions and layers are not modelled with friction or a body")
+    if body is not None and not elastic and body != "same":
+        raise SceneError(source, "[body] material", raw["body"]["material"], "on a viscoelastic half-space: "
+                         "\"same\" (a body of its material) or none (a rigid body); an elastic body on it "
+                         "is not modelled")
+    if body == "same":
+        material = materials.Prony(2 * material.Jinf, tuple(2 * d for d in material.dJ), material.tau)
+    elif body is not None:
+        material = materials.Prony(material.Jinf + (1 - body[1] ** 2) / body[0])
     if table is None:
         return material, None
     if values["friction"]["coefficient"] is None:
@@ -93,9 +108,14 @@ def friction_of(values: dict, raw: dict, material, line: bool, periodic: bool, s
     if periodic:
         raise SceneError(source, "[friction]", table, "not on a periodic grid (rough contacts): friction "
                          "needs the contact to lie inside a non-periodic grid")
-    G = m["E"] / (2 * (1 + m["nu"]))
-    pair = _pair(G, m["nu"], body, raw.get("body", {}).get("material", MISSING), source)
-    return material, Friction(values["friction"]["coefficient"], *pair[:2], body=pair[2],
+    written = raw.get("body", {}).get("material", MISSING)
+    if elastic:
+        pair, memory = _pair(m["E"] / (2 * (1 + m["nu"])), m["nu"], body, written, source), None
+    else:
+        memory = 1 / (1 - m["nu"])
+        _pair(1.0, m["nu"], body, written, source)  # a rigid body needs nu = 1/2
+        pair = (memory * material.Jinf, m["nu"], "same" if body == "same" else "rigid")
+    return material, Friction(values["friction"]["coefficient"], *pair[:2], body=pair[2], memory=memory,
                               **_motion(motion_values, raw.get("motion", {}), values["time"], line,
                                        values["friction"]["coefficient"], source))
 

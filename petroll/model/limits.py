@@ -17,6 +17,7 @@ heights) must lie within ``MAGNITUDES``, whatever the units.
 
 from __future__ import annotations
 
+import contextlib
 import math
 import warnings
 
@@ -60,6 +61,25 @@ class PetrollWarning(UserWarning):
     """A scene that runs but lies where the formulation loses accuracy (the message says why)."""
 
 
+@contextlib.contextmanager
+def warnings_once():
+    """Within the block, a PetrollWarning whose text was shown already is not shown again: a sweep's points
+    that meet the same condition (a rough surface's resolution, a slope) warn once."""
+    seen: set[str] = set()
+    with warnings.catch_warnings():
+        shown = warnings.showwarning
+
+        def show(message, category, *args, **kwargs):
+            if issubclass(category, PetrollWarning):
+                if str(message) in seen:
+                    return
+                seen.add(str(message))
+            shown(message, category, *args, **kwargs)
+
+        warnings.showwarning = show
+        yield
+
+
 def contact_slope(scene, delta: float, points: int = 201) -> float:
     """The largest |grad Z| where the body, at its start position, lies within delta / 2 of its lowest
     point (the Hertz contact edge for a penetration delta).
@@ -84,11 +104,16 @@ def contact_slope(scene, delta: float, points: int = 201) -> float:
 
 def largest_penetration(scene) -> tuple[float, bool]:
     """(delta, exact): the largest penetration the scene prescribes, or under load control an estimate
-    (relaxed Hertz for the peak load and the body's equivalent radius). Line contact (load per length P):
-    a^2/R with a = sqrt(4 P R Jinf/pi) the relaxed Hertz half-width, the approach at which a parabola's
-    Z <= delta/2 spans the same width (the penetration itself depends on a datum there)."""
+    (relaxed Hertz for the peak load and the body's equivalent radius; a periodic grid's rough surface:
+    the rubbery estimate from its spectrum and the load, petroll.model.rough_contact). Line contact (load
+    per length P): a^2/R with a = sqrt(4 P R Jinf/pi) the relaxed Hertz half-width, the approach at which
+    a parabola's Z <= delta/2 spans the same width (the penetration itself depends on a datum there)."""
+    from petroll.model.rough_contact import rough_contact
+
     if scene.penetration is not None:
         return float(scene.penetration.largest()), True
+    if (rough := rough_contact(scene)) is not None:
+        return rough.penetration[1], False
     load = float(scene.load.largest())
     radius = float(scene.body.radius_hint)
     if not (load > 0 and radius > 0 and math.isfinite(radius)):

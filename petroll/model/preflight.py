@@ -10,7 +10,8 @@ line contact: the line-contact form a = sqrt(4 P R J / pi) with P the load per l
 The contact half-widths are those of the region where the body lies within delta_e / 2 of its lowest
 point, along X and Y (for a sphere exactly Hertz's radius: a^2 = R delta). Lengths in m.
 
-Resolution. Cells per contact half-width along X and Y, the smaller over the compliance range: below
+Resolution. Cells per contact half-width along X and Y, the smaller over the compliance range (a steady
+rolling state under load control: its contact at J(a/V), ContactSize.resolved): below
 ``GOOD_CELLS`` the run warns (one line naming the key and the value that gives ``GOOD_CELLS``), below
 ``LEAST_CELLS`` it is refused unless ``[grid] allow_coarse = true``, above ``MOST_CELLS`` (a contact
 smaller than half the grid) it is refused (docs/accuracy.md: errors against cells per half-width).
@@ -20,6 +21,12 @@ Time step. Steps per contact half-width along the motion, checked like the cells
 ``[time] allow_coarse = true``; steps longer than the grid, or too fine for a steady sliding solve, are
 refused). ``petroll check`` prints the cells per step and the steps per half-width.
 
+Rough surfaces. On a grid periodic along X and Y whose body is a rough surface (a generated one, or a height
+map of the grid's cells), no curvature sizes the contact: petroll.model.rough_contact estimates its area
+fraction and penetration from the surface's spectrum and the load (Persson), and the resolution is
+counted in cells per short cut-off wavelength (below its ``GOOD_CUTOFF_CELLS`` a run warns); the time step
+is weighed against the half-width of its single contacts.
+
 Path. The body's reference point over the whole run (petroll.model.clock.path) carries the box of the
 cells it can interfere with: where it lies within delta_e of its lowest point (rubbery delta_e under load
 control; line contact: the contact, within delta_e / 2). A run whose box would reach the grid's edge cells
@@ -27,7 +34,8 @@ at some step is refused, saying where it leaves the grid and the extent it needs
 the body wraps around: nothing to leave). A body that never presses (its largest penetration or load
 <= 0), has no surface over the grid, or lies outside the grid (nowhere over it within the largest
 penetration of its own lowest point, :func:`check_over_grid`) is refused, and so is, on a periodic grid,
-whose contact problem covers every cell, a body without surface over some cells (:func:`check_surface`).
+whose contact problem covers every cell, a body without surface over some cells
+(petroll.model.surface_check).
 """
 
 from __future__ import annotations
@@ -40,8 +48,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from petroll.errors import SceneError
-from petroll.model.clock import Path, path
+from petroll.model.clock import Path, TimeMode, path
 from petroll.model.limits import PetrollWarning, largest_penetration
+from petroll.model.rough_contact import GOOD_CUTOFF_CELLS, RoughContact, rough_contact
+from petroll.model.surface_check import check_surface
 from petroll.model.timestep import GOOD_STEPS, TimeResolution, check_time, time_resolution
 
 GOOD_CELLS = 8
@@ -53,9 +63,6 @@ MOST_CELLS = 1024
 falls as the square of the cell (2e-4 in force at 24 cells, docs/accuracy.md), about 1e-7 at 1024, below
 the solver's tolerance, while every step costs more with every cell (nx = 100000 typed for hertz.toml's
 64: 6.4 million cells, minutes per step)."""
-SURFACE_POINTS = 2**22
-"""Body heights evaluated at most by the check that a periodic grid's body has a surface over every cell
-(:func:`surface_gaps`): the grid at the start and at steps spread over the path."""
 BYTES_PER_CELL = 145
 """A rolling run's memory per grid cell, all ranks together (measured, `petroll bench memory`, an SLS)."""
 FIXED_MIB = 96
@@ -68,16 +75,28 @@ class ContactSize:
 
     ``radii``: the body's curvature radii at first contact along X and Y (m; inf along a flat axis);
     ``lowest``: its lowest point relative to its reference point (m); ``glassy`` / ``rubbery``: the
-    half-widths along X and Y with J0 / Jinf (the same under penetration control)."""
+    half-widths along X and Y with J0 / Jinf (the same under penetration control); a steady rolling scene
+    under load control (:func:`steady_rolling`): ``steady``, the half-widths with the compliance J(a / V)
+    the material has over the time it takes to cross the contact, and ``compliance``, that J and the one
+    that bounds its interference region (:func:`steady_compliance`)."""
 
     radii: tuple[float, float]
     lowest: tuple[float, float]
     glassy: tuple[float, float]
     rubbery: tuple[float, float]
 
+    steady: tuple[float, float] | None = None  # steady rolling under load: the half-widths at J(a / V)
+    compliance: tuple[float, float] | None = None  # and (J(a / V), J(STEADY_SETTLING a / V)), 1/Pa
+
     @property
     def smallest(self) -> tuple[float, float]:
         return (min(self.glassy[0], self.rubbery[0]), min(self.glassy[1], self.rubbery[1]))
+
+    @property
+    def resolved(self) -> tuple[float, float]:
+        """The half-widths the cells are counted on: the smallest over the compliance range, or a steady
+        rolling state's at its speed (the least contact a run makes)."""
+        return self.steady if self.steady is not None else self.smallest
 
     @property
     def largest(self) -> tuple[float, float]:
@@ -188,7 +207,8 @@ def _penetration(scene, radii, lowest, compliance: float, widths) -> float:
 def contact_size(scene) -> ContactSize:
     """The scene's :class:`ContactSize`: curvature radii and half-widths iterated three times from the
     body's radius hint (each pass measures the radii over the half-widths of the last; a roller's load per
-    length is taken over the last pass's length along its flat axis)."""
+    length is taken over the last pass's length along its flat axis); a steady rolling scene under load
+    control also at its speed (:func:`steady_compliance`)."""
     lowest = lowest_point(scene)
     g, material = scene.grid, scene.material
     hint = float(scene.body.radius_hint)
@@ -196,12 +216,8 @@ def contact_size(scene) -> ContactSize:
     if not (delta > 0 and math.isfinite(hint) and hint > 0):
         delta = max(g.dx, g.cell) ** 2 / max(hint, g.dx)  # a contact of about one cell
     start = math.sqrt(hint * delta) if math.isfinite(hint) else g.dx
-    answers = {}
-    for name, compliance in (("glassy", material.J0), ("rubbery", material.Jinf)):
-        if scene.penetration is not None and answers:  # penetration control: no compliance enters
-            answers[name] = answers["glassy"]
-            continue
-        widths = (start, math.nan if g.line else start)
+
+    def widths_for(compliance: float, widths: tuple[float, float]):
         for _ in range(3):
             reach = [w if math.isfinite(w) and w > 0 else g.dx for w in widths]
             radii = (curvature_radius(scene, lowest, 0, reach[0]),
@@ -211,18 +227,62 @@ def contact_size(scene) -> ContactSize:
             delta_e = _penetration(scene, radii, lowest, compliance, widths)
             widths = (half_width(scene, lowest, 0, delta_e / 2),
                       math.nan if g.line else half_width(scene, lowest, 1, delta_e / 2))
-        answers[name] = widths
-    return ContactSize(radii, lowest, answers["glassy"], answers["rubbery"])
+        return widths, radii
+
+    glassy, radii = widths_for(material.J0, (start, math.nan if g.line else start))
+    if scene.penetration is not None:  # penetration control: no compliance enters
+        return ContactSize(radii, lowest, glassy, glassy)
+    rubbery, radii = widths_for(material.Jinf, (start, math.nan if g.line else start))
+    size = ContactSize(radii, lowest, glassy, rubbery)
+    rolling = steady_rolling(scene)
+    if rolling is None:
+        return size
+    axis, speed = rolling
+    widths = rubbery
+    for _ in range(3):  # a = a(J(a / V)): from the rubbery contact, shrinking toward the crossing's
+        compliance = float(material(widths[axis] / speed))
+        widths, _ = widths_for(compliance, widths)
+    return dataclasses.replace(size, steady=widths, compliance=(compliance, steady_compliance(scene, widths)))
+
+
+STEADY_SETTLING = 10
+"""The contact of a steady rolling state under load control is taken to lie inside the interference
+region of J(STEADY_SETTLING a / V), a the half-width along the motion at J(a / V) (the time a point of the
+surface takes to cross it): the pressure behind the contact's centre has acted longer than a / V, not
+indefinitely (docs/accuracy.md)."""
+
+
+def steady_rolling(scene) -> tuple[int, float] | None:
+    """(axis, speed): a steady rolling scene's ([time] mode = "steady" on a grid not periodic along both
+    axes, under load control) direction of motion (0: X, 1: Y) and speed (m/s); None for any other."""
+    g = scene.grid
+    if scene.time.mode is not TimeMode.STEADY or scene.load is None or g.topology.whole or g.line:
+        return None
+    velocity = np.asarray(scene.velocity(0.0), dtype=float)
+    return int(np.argmax(np.abs(velocity))), float(np.hypot(*velocity))
+
+
+def steady_compliance(scene, widths: tuple[float, float]) -> float:
+    """The compliance (1/Pa) whose interference region holds a steady rolling contact of half-widths
+    ``widths`` (m) at J(a / V): J(STEADY_SETTLING a / V) (:data:`STEADY_SETTLING`)."""
+    axis, speed = steady_rolling(scene)
+    return float(scene.material(STEADY_SETTLING * widths[axis] / speed))
 
 
 def interference_depth(scene, size: ContactSize, glassy: bool = True) -> tuple[float, bool]:
     """(depth, exact): the body interferes with the surface where it lies less than ``depth`` (m) above its
     lowest point: the largest penetration (``exact``), or under load control the equivalent penetration
     with the glassy (``glassy``: the least the run will have at its largest load) or the rubbery
-    compliance; line contact: half of it, the contact (the solver checks the contact there)."""
+    compliance (a steady rolling state: the compliance that bounds it, ContactSize.compliance); line
+    contact: half of it, the contact (the solver checks the contact there)."""
     delta, exact = largest_penetration(scene)
     if not exact:
-        compliance, widths = (scene.material.J0, size.glassy) if glassy else (scene.material.Jinf, size.rubbery)
+        if glassy:
+            compliance, widths = scene.material.J0, size.glassy
+        elif size.compliance is not None:
+            compliance, widths = size.compliance[1], size.steady
+        else:
+            compliance, widths = scene.material.Jinf, size.rubbery
         delta = _penetration(scene, size.radii, size.lowest, compliance, widths)
     return (delta / 2 if scene.grid.line else delta), exact
 
@@ -343,8 +403,9 @@ def path_leaves(scene, size: ContactSize, walked: Path, glassy: bool = True) -> 
 
 @dataclass(frozen=True)
 class Preflight:
-    """What :func:`check` found: the contact size, cells per half-width (X, Y; the smaller over the
-    compliance range), the run's path and steps, and the predicted memory per rank (MiB)."""
+    """What :func:`check` found: the contact size, cells per half-width (X, Y; ContactSize.resolved; a
+    periodic rough surface: per short cut-off wavelength), the run's path and steps, and the predicted
+    memory per rank (MiB)."""
 
     scene: object
     contact: ContactSize
@@ -356,10 +417,14 @@ class Preflight:
     creeping: tuple[str, str] | None = None  # the same as the contact may grow (load: rubbery; layer: bulge)
     time: TimeResolution | None = None  # the time step against the contact (None: one step, or at rest)
     warned: str | None = None  # the warning check_run gave (one line), None: none
+    rough: RoughContact | None = None  # a periodic rough surface's estimates (cells: per cut-off wavelength)
 
     def verdict(self) -> str:
         """What a run makes of the resolution: fine, warned or refused."""
         fewest = min(self.cells)
+        if self.rough is not None:
+            return (f"at least {GOOD_CUTOFF_CELLS}, fine" if self.rough.cells >= GOOD_CUTOFF_CELLS else
+                    f"fewer than {GOOD_CUTOFF_CELLS}: a run warns") + " (docs/rough.md)"
         if self.too_fine():
             return f"more than {MOST_CELLS}: a run is refused (docs/accuracy.md)"
         if fewest >= GOOD_CELLS:
@@ -372,7 +437,9 @@ class Preflight:
     def too_fine(self) -> list[tuple[str, float]]:
         """The axes (name, cells per contact half-width) along which a contact smaller than the grid has
         more than MOST_CELLS cells per half-width (a run refuses them)."""
-        g, small = self.scene.grid, self.contact.smallest
+        g, small = self.scene.grid, self.contact.resolved
+        if self.rough is not None:
+            return []  # its cells count wavelengths: a contact of many spots spreads over the cell
         extents = {"x": g.x1 - g.x0, "y": g.y1 - g.y0}
         return [(axis, n) for axis, n, width in zip("xy", self.cells, small)
                 if n > MOST_CELLS and width < extents[axis] / 2]
@@ -402,12 +469,21 @@ class Preflight:
                  else f"more than [time] max_steps = {self.scene.time.max_steps}")
         if self.scene.time.steady is not None and self.path.steps:
             steps += " (fewer if [time] steady stops the run first)"
+        if self.rough is not None:
+            contact = self.rough.lines(max(g.dx, g.dy))
+        else:
+            contact = [f"body: curvature radii at first contact {radii} m ({'x' if g.line else 'x, y'}), lowest "
+                       f"point at ({c.lowest[0]:.4g}, {c.lowest[1]:.4g}) m from the reference point",
+                       f"contact half-widths ({control} control, largest {control}): {glassy} m glassy (J0), "
+                       f"{rubbery} m rubbery (Jinf)" + ("" if c.steady is None else
+                                                        f", {' x '.join(f'{w:.4g}' for w in c.steady)} m at the "
+                                                        f"steady speed (J(a/V) = {c.compliance[0]:.4g} 1/Pa)"),
+                       f"cells per contact half-width: {cells}: {self.verdict()}"]
+        sizing = getattr(self.scene, "sizing", None)  # a grid petroll sized: what it chose
         return [f"{self.scene.source}: checked, nothing run",
-                f"body: curvature radii at first contact {radii} m ({'x' if g.line else 'x, y'}), lowest point "
-                f"at ({c.lowest[0]:.4g}, {c.lowest[1]:.4g}) m from the reference point",
-                f"contact half-widths ({control} control, largest {control}): {glassy} m glassy (J0), "
-                f"{rubbery} m rubbery (Jinf)",
-                f"cells per contact half-width: {cells}: {self.verdict()}",
+                *([] if sizing is None else [sizing.note.replace("[grid] sized by petroll: ", "grid sized by "
+                                                                 "petroll (docs/accuracy.md): ")]),
+                *contact,
                 f"steps: {steps}",
                 *([] if self.time is None else [
                     f"time step: {self.time.cells:.3g} cells per step at most ({self.time.key} = "
@@ -421,78 +497,30 @@ class Preflight:
                 f" ({g.nx * g.ny} cells)"]
 
 
-def surface_gaps(scene, walked: Path) -> tuple[int, int, float, float] | None:
-    """On a periodic grid, whose contact problem covers every cell: (cells, step, x, y) at the first step
-    of ``walked`` where the body has no surface (Z = +inf) over some cells' centres (how many; the
-    centre (x, y) in m of the first); None where it has one over every cell (or the grid is not
-    periodic). Checked at the start and at steps spread evenly over the path, at most SURFACE_POINTS
-    heights in all. A periodic surface through samples (roughness) has a surface everywhere: what it
-    rides on is checked."""
-    from petroll.model.bodies.rough import PeriodicSurface, RoughBody
-
-    g, body = scene.grid, scene.body
-    while isinstance(body, RoughBody):
-        body = body.body
-    if not g.topology.whole or isinstance(body, PeriodicSurface):
-        return None
-    count = len(walked.t)
-    steps = np.unique(np.linspace(0, count - 1, min(count, max(1, SURFACE_POINTS // (g.nx * g.ny))))
-                      .round().astype(int))
-    rows = max(1, SURFACE_POINTS // g.ny)
-    y = g.y[None, :]
-    for k in steps:
-        total, first = 0, None
-        for i0 in range(0, g.nx, rows):  # by blocks of rows: at most SURFACE_POINTS heights at once
-            x = g.x[i0:i0 + rows, None]
-            with np.errstate(all="ignore"):
-                z = np.asarray(body.height(*g.offsets(x, y, walked.sx[k], walked.sy[k])), dtype=float)
-            gaps = ~np.isfinite(np.broadcast_to(z, (len(x), g.ny)))
-            if first is None and gaps.any():
-                i, j = np.argwhere(gaps)[0]
-                first = (float(g.x[i0 + i]), float(g.y[j]))
-            total += int(np.count_nonzero(gaps))
-        if total:
-            return total, int(k), *first
-    return None
-
-
-def check_surface(scene, walked: Path) -> None:
-    """SceneError on [grid] periodic where the body has no surface over some of a periodic grid's cells
-    (:func:`surface_gaps`): the contact problem covers the whole periodic cell, and a cell without surface
-    has no gap to put in it."""
-    found = surface_gaps(scene, walked)
-    if found is None:
-        return
-    cells, k, x, y = found
-    g = scene.grid
-    when = "at the start" if k == 0 else f"at step {k} (t = {walked.t[k]:.4g} s)"
-    where = f"x = {x:.4g} m" if g.line else f"(x, y) = ({x:.4g}, {y:.4g}) m"
-    raise SceneError(scene.source, "[grid] periodic", scene.raw.get("grid", {}).get("periodic"),
-                     f"the body has no surface (Z = +inf) over {cells} of the grid's {g.nx * g.ny} cells "
-                     f"{when}, e.g. at {where}, and a periodic grid's contact covers every cell: give the body a "
-                     "surface over the whole grid (a cylinder as long as the grid along its axis, a height "
-                     "map without +inf samples as large as the grid) or set [grid] periodic = false")
-
-
 def check(scene, ranks: int = 1) -> Preflight:
     """Estimate, without running: contact size, resolution, the path and steps, memory per rank on
     ``ranks`` ranks (``petroll check``). Raises SceneError only for a body that never touches
     (:func:`check_touching`, no surface over the grid, :func:`check_over_grid`) or, on a periodic grid,
-    has no surface over some cells (:func:`check_surface`); :func:`check_run` refuses the rest."""
+    has no surface over some cells (petroll.model.surface_check); :func:`check_run` refuses the rest."""
     g = scene.grid
     check_touching(scene)
     check_over_grid(scene, lowest_point(scene))
     walked = path(scene)
     check_surface(scene, walked)
-    size = contact_size(scene)
-    small = size.smallest
-    cells = (small[0] / g.dx,) if g.line else (small[0] / g.dx, small[1] / g.dy)
+    rough = rough_contact(scene)
+    if rough is not None:  # many small spots: their half-width, the cells per cut-off wavelength
+        size = ContactSize((math.inf, math.inf), lowest_point(scene), (rough.spot,) * 2, (rough.spot,) * 2)
+        cells = (rough.cutoff / g.dx, rough.cutoff / g.dy)
+    else:
+        size = contact_size(scene)
+        small = size.resolved
+        cells = (small[0] / g.dx,) if g.line else (small[0] / g.dx, small[1] / g.dy)
     memory = FIXED_MIB + BYTES_PER_CELL * g.nx * g.ny / ranks / 2**20
     leaves = path_leaves(scene, size, walked)
     growing = scene.load is not None or (scene.layer is not None and not g.line)  # load: creep; layer: bulge
     creeping = path_leaves(scene, size, walked, glassy=False) if leaves is None and growing else None
     return Preflight(scene, size, cells, walked, ranks, memory, leaves, creeping,
-                     time_resolution(scene, size, walked))
+                     time_resolution(scene, size, walked), rough=rough)
 
 
 def check_run(scene) -> Preflight:
@@ -514,16 +542,18 @@ def check_run(scene) -> Preflight:
         most = math.floor(MOST_CELLS * count / n)
         raise SceneError(scene.source, key, count,
                          f"gives {n:.0f} cells per contact half-width along {axis} (estimated half-width "
-                         f"{found.contact.smallest['xy'.index(axis)]:.3g} m); more than {MOST_CELLS} refine "
+                         f"{found.contact.resolved['xy'.index(axis)]:.3g} m); more than {MOST_CELLS} refine "
                          f"nothing a run can resolve (errors fall below 1e-6; docs/accuracy.md) and only cost "
                          f"time: n{axis} <= {most} gives {MOST_CELLS}")
     short = []
+    if found.rough is not None and (coarse := found.rough.warning(scene.source, max(g.dx, g.dy))):
+        short.append(coarse.partition(": ")[2])
     for axis, n in zip(("x", "y"), found.cells):
-        if n >= GOOD_CELLS:
+        if n >= GOOD_CELLS or found.rough is not None:
             continue
         key, count = f"[grid] n{axis}", getattr(g, f"n{axis}")
         extent = (g.x1 - g.x0) if axis == "x" else (g.y1 - g.y0)
-        width = found.contact.smallest[0 if axis == "x" else 1]
+        width = found.contact.resolved[0 if axis == "x" else 1]
         good = math.ceil(GOOD_CELLS * extent / width)
         if n < LEAST_CELLS and not scene.allow_coarse:
             raise SceneError(scene.source, key, count,

@@ -10,8 +10,10 @@ needs only consistent units; SI (m, Pa, N, s) is recommended.
 from __future__ import annotations
 
 import copy
+import dataclasses
 import math
 import pathlib
+import warnings
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -20,12 +22,13 @@ import numpy as np
 from petroll.errors import MISSING, SceneError
 from petroll.model import materials
 from petroll.model import motion
+from petroll.model.autogrid import REQUEST_KEYS, GridChoice, automatic, choose, provisional
 from petroll.model.bodies import Body, HeightMap, HeightProfile, make_body
 from petroll.model.bodies.rough import samples_surface
 from petroll.model.clock import TimeMode
 from petroll.model.friction import Friction, friction_of, saved_fields
 from petroll.model.grid import Grid, line_grid
-from petroll.model.limits import MAGNITUDES, scale_message
+from petroll.model.limits import MAGNITUDES, PetrollWarning, scale_message
 from petroll.model.schema import BODY_LENGTHS, CELL_DIGITS, MAX_CELLS, MODEL_KEYS, SCHEMA, Invalid, out_of_scale
 from petroll.model.toml_file import check_nesting, read_scene_file
 
@@ -80,16 +83,22 @@ class Scene:
     layer: materials.Layer | None = None  # [material] layer: a layer on a rigid base (None: a half-space)
     allow_coarse: bool = False  # [grid] allow_coarse: run below petroll.model.preflight.LEAST_CELLS
     friction: Friction | None = None  # [friction]: Coulomb friction (None: frictionless)
+    sizing: GridChoice | None = None  # the grid petroll sized (raw and text hold it); None: [grid] as given
 
     def replace(self, changes: str | dict[str, Any], value: Any = None) -> "Scene":
         """A copy with keys changed, validated again: ``scene.replace("motion.penetration", 3e-5)`` or,
         for changes that are only valid together, ``scene.replace({"motion.penetration": None,
         "motion.load": 0.2})``; a key inside an inline table is written with one more dot
-        (``material.layer.thickness``). A value of None removes the key.
+        (``material.layer.thickness``). A value of None removes the key. A scene whose grid petroll sized
+        is sized again for the changed keys, unless they change [grid] nx, ny, x or y: those change the
+        grid it chose.
         """
         if isinstance(changes, str):
             changes = {changes: value}
         raw = copy.deepcopy(self.raw)
+        if self.sizing is not None and all(not key.startswith("grid.") or key[5:] in REQUEST_KEYS
+                                           for key in changes):
+            raw["grid"] = copy.deepcopy(self.sizing.request)
         for key, new in changes.items():
             *path, name = key.split(".")
             if not path or not all(path) or not name:
@@ -138,11 +147,16 @@ def parse_scene(raw: dict, source: str = "<python>", base_dir: str | pathlib.Pat
                              "unknown section; allowed: " + ", ".join(f"[{s}]" for s in SCHEMA))
         if not isinstance(raw[section], dict):
             raise SceneError(source, f"[{section}]", raw[section], "must be a table of keys")
+    if automatic(raw.get("grid") or None):
+        return _sized_scene(raw, source, base_dir, default_output)
     line = _line_contact(raw.get("grid", {}), source)
     checked = _velocity_along_x(raw) if line else raw
     values = {name: _read_section(checked, name, source) for name in SCHEMA}
 
     g = values["grid"]
+    if g["cells_per_half_width"] is not None:
+        raise SceneError(source, "[grid] cells_per_half_width", raw["grid"]["cells_per_half_width"],
+                         "sizes a grid petroll chooses: give it without [grid] nx, ny, x, y (or leave it out)")
     if line:
         if g["periodic"] == (False, True):
             raise SceneError(source, "[grid] periodic", raw["grid"]["periodic"],
@@ -198,6 +212,26 @@ def parse_scene(raw: dict, source: str = "<python>", base_dir: str | pathlib.Pat
 
     check_scene(scene)
     return scene
+
+
+def _sized_scene(raw: dict, source: str, base_dir: pathlib.Path, default_output: pathlib.Path | None) -> Scene:
+    """The scene on the grid petroll sizes for it (petroll.model.autogrid): the contact estimated on a
+    provisional grid (its warnings not shown), the scene validated on the grid chosen; its raw and text hold
+    that grid (the text as run, headed by a comment saying so), ``sizing`` what was asked and chosen."""
+    request = copy.deepcopy(raw.get("grid") or {})
+    for key, value in request.items():
+        try:
+            SCHEMA["grid"][key].check(value)
+        except Invalid as exc:
+            raise SceneError(source, f"[grid] {key}", value, str(exc)) from None
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", PetrollWarning)
+        estimate = parse_scene({**raw, "grid": provisional(raw, source, base_dir)}, source, base_dir, "",
+                               default_output)
+    choice = choose(estimate, request)
+    chosen = {**copy.deepcopy(raw), "grid": choice.table}
+    scene = parse_scene(chosen, source, base_dir, f"# {choice.note}\n" + dumps(chosen), default_output)
+    return dataclasses.replace(scene, sizing=choice)
 
 
 def _line_contact(grid: dict, source: str) -> bool:

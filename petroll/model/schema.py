@@ -349,9 +349,21 @@ MODEL_KEYS: dict[str, tuple[set[str], set[str]]] = {
 }
 """Per model: the [material] keys it requires, and those it may take."""
 
+
+def _cells_per_half_width(value: Any) -> float:
+    from petroll.model.preflight import GOOD_CELLS, MOST_CELLS
+
+    number = not isinstance(value, bool) and isinstance(value, (int, float))
+    if not number or not GOOD_CELLS <= value <= MOST_CELLS / 4:
+        raise Invalid(f"must be a number from {GOOD_CELLS} (below, a run warns) to {MOST_CELLS // 4}")
+    return float(value)
+
+
 SCHEMA: dict[str, dict[str, Key]] = {
     "grid": {
-        "nx": Key("integer", "number of cells along X, 1 ... 2^24 (nx ny at most 2^31 - 1)", _cells),
+        "nx": Key("integer", "number of cells along X, 1 ... 2^24 (nx ny at most 2^31 - 1); a scene without "
+                  "[grid], or with only cells_per_half_width, has its grid sized by petroll "
+                  "(docs/accuracy.md)", _cells),
         "ny": Key("integer", "number of cells along Y, 1 ... 2^24 (nx ny at most 2^31 - 1); omit ny and y "
                   "for line contact (plane strain, docs/line-contact.md)", _cells, default=None),
         "x": Key("[min, max]", "extent of the grid along X in the material frame", _interval, unit="m"),
@@ -361,6 +373,12 @@ SCHEMA: dict[str, dict[str, Key]] = {
                         + "; the influence operator is then periodic along those axes, a body's offsets "
                         "wrap around, a height map of nx x ny samples at the grid's spacing is the periodic "
                         "surface (docs/rough.md)", _periodic, default=False),
+        "cells_per_half_width": Key("number", "without nx, ny, x, y: petroll sizes the grid (square cells, "
+                                    "this many per estimated contact half-width; the domain from the contact, "
+                                    "the load or penetration, the material's compliance and the path; a "
+                                    "generated rough surface: docs/rough.md), prints it and stores it in "
+                                    "results.h5; a scene without [grid] gets 16 (docs/accuracy.md)",
+                                    _cells_per_half_width, default=None),
         "allow_coarse": Key("boolean", "run even with fewer than 2 cells per estimated contact half-width "
                             "(refused otherwise; below 8 a run warns: docs/accuracy.md)", _flag, default=False),
     },
@@ -416,8 +434,9 @@ SCHEMA: dict[str, dict[str, Key]] = {
                         default=[0.0, 0.0], unit="m"),
         "material": Key("string or inline table", "the body is elastic: " + BODY_MATERIAL_FORM + "; the "
                         "bodies' compliances add (absent: a rigid body); with [friction] the pair must be "
-                        "quasi-identical, (1 - 2 nu)/G equal (a rigid body: [material] nu = 0.5); needs "
-                        "[material] model = \"elastic\" (docs/friction.md)", _body_material, default=None,
+                        "quasi-identical, (1 - 2 nu)/G equal (a rigid body: [material] nu = 0.5); on a viscoelastic "
+                        "half-space (sls, prony) only \"same\" (its creep function doubled); no layer or "
+                        "tabulated material (docs/friction.md)", _body_material, default=None,
                         fields=(("E", "Pa"),)),
     },
     "motion": {

@@ -2,7 +2,8 @@
 
 The body moves by some length over each step of the run (its path's, petroll.model.clock.moves; a steady
 solve's: V times its integrator's step, petroll.model.clock.steady_dt), which the contact must resolve as
-the grid does: steps per contact half-width along the motion (the smallest half-widths along X and Y,
+the grid does: steps per contact half-width along the motion (the smallest half-widths along X and Y, a
+steady rolling state's at its speed under load control (petroll.model.preflight.ContactSize.resolved),
 combined along each step's direction; on a rough periodic surface no more than the half-width of its
 single contacts, PeriodicSurface.contact_scale), the fewest over the run. Below ``GOOD_STEPS`` a run warns
 (one line naming [time] steps_per_cell or dt and the value that gives ``GOOD_STEPS``), below
@@ -94,7 +95,7 @@ def time_resolution(scene, size, walked: Path) -> TimeResolution | None:
         return None
     g, scale = scene.grid, contact_scale(scene.body)
     widths = []
-    for w, cell in zip(size.smallest, (g.dx, g.dy)):
+    for w, cell in zip(size.resolved, (g.dx, g.dy)):
         w = math.inf if math.isnan(w) else (w if w > 0 else cell)
         widths.append(min(w, scale))
     crossed = np.hypot(d[:, 0] / widths[0], d[:, 1] / widths[1])  # half-widths crossed per step

@@ -333,6 +333,17 @@ def _series_figure(results: Results, label: str):
     mu_ax.plot(abscissa, s["mu_r"], color="tab:green", **style)
     mu_ax.axhline(0.0, color="grey", linewidth=0.6)
     _widen_flat(mu_ax, s["mu_r"], 1e-4)
+    for ax in (force_ax, mu_ax, edge_ax):
+        ax.grid(alpha=0.3)
+    if results.rough is not None:  # a periodic cell: sliding friction and the area fraction, no one patch
+        mu_ax.set_ylabel(r"friction $\mu$ (-)")
+        mu_ax.set_title(r"friction coefficient $\mu$ = friction force / normal force", fontsize=10)
+        cell = len(results.x) * (results.x[1] - results.x[0]) * len(results.y) * (results.y[1] - results.y[0])
+        edge_ax.plot(abscissa, s["area"] / cell, color="tab:purple", **style)
+        edge_ax.set_ylabel(r"area fraction $A/A_0$ (-)")
+        edge_ax.set_title("real contact area / the cell's area", fontsize=10)
+        edge_ax.set_xlabel(xlabel)
+        return figure
     mu_ax.set_ylabel(r"rolling resistance $\mu_r$ (-)")
     mu_ax.set_title(r"rolling-resistance coefficient $\mu_r$ = resisting force / normal force", fontsize=10)
 
@@ -346,8 +357,6 @@ def _series_figure(results: Results, label: str):
     edge_ax.legend(loc="lower center", bbox_to_anchor=(0.5, 1.0), ncol=3, fontsize=9, frameon=False,
                    title="contact-patch edges", title_fontsize=10)
     edge_ax.set_xlabel(xlabel)
-    for ax in (force_ax, mu_ax, edge_ax):
-        ax.grid(alpha=0.3)
     return figure
 
 

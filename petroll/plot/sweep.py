@@ -28,6 +28,7 @@ class SweepData:
     xlabel: str
     dense: np.ndarray  # values between the points, for the limits' lines
     secondary: tuple | None  # (forward, inverse) to V tau/a for a top axis, or None
+    cell: bool = False  # a periodic cell (rough sliding): friction mu, A/A0, no patch edges, no Hertz
 
     @classmethod
     def of(cls, table) -> "SweepData":
@@ -52,9 +53,16 @@ class SweepData:
         unit = "" if table.unit == "-" else f" ({table.unit})"
         vector = table.key in ("motion.velocity", "body.position", "motion.creepage", "motion.tangential_force")
         dense = np.geomspace(x.min(), x.max(), 200) if logx else np.linspace(x.min(), x.max(), 200)
-        return cls(c, x, logx, bool(np.all(np.isfinite(c["mu_r_slow"]))), load_control, tol,
-                   f"{table.key}{unit}" + (" (magnitude)" if vector else ""), dense,
-                   _secondary_axis(x, c["v_tau_a"], logx))
+        cell = "area_fraction" in c and bool(np.all(np.isfinite(c["area_fraction"])))
+        xlabel = ("sliding speed V (m/s)" if cell and table.key == "motion.velocity" else
+                  f"{table.key}{unit}" + (" (magnitude)" if vector else ""))
+        return cls(c, x, logx, bool(np.all(np.isfinite(c["mu_r_slow"]))) and not cell, load_control, tol, xlabel,
+                   dense, None if cell else _secondary_axis(x, c["v_tau_a"], logx), cell)
+
+    @property
+    def mu(self) -> str:
+        """The coefficient's symbol: friction mu on a periodic cell, rolling resistance mu_r otherwise."""
+        return r"$\mu$" if self.cell else r"$\mu_r$"
 
     def slow_limit(self) -> tuple[np.ndarray, np.ndarray]:
         """(x, mu_r) of the slow-rolling limit: a line on the dense values where it is proportional."""
@@ -84,7 +92,7 @@ def plot_sweep(table, path: str | pathlib.Path) -> pathlib.Path:
         log_mu_panel(log_ax, d, top_title)
     force_panel(force_ax, d)
     area_panel(area_ax, d)
-    edges_panel(edge_ax, d)
+    (pressure_panel if d.cell else edges_panel)(edge_ax, d)
     convergence_panel(conv_ax, d)
     _x_axes(axes, d)
     label = pathlib.Path(table.directory).resolve().name
@@ -109,9 +117,10 @@ def creep_panel(ax, d: SweepData, title: dict, scene_text: str) -> None:
 
 
 def mu_panel(ax, d: SweepData, title: dict) -> None:
-    """mu_r against the varied value, with the slow- and fast-rolling limits."""
+    """mu_r against the varied value, with the slow- and fast-rolling limits (a periodic cell: the sliding
+    friction mu)."""
     c, x = d.c, d.x
-    ax.plot(x, c["mu_r"], color="tab:green", label=r"petroll, steady $\mu_r$", **STYLE)
+    ax.plot(x, c["mu_r"], color="tab:green", label=f"petroll, steady {d.mu}", **STYLE)
     top = max(float(np.nanmax(c["mu_r"], initial=0.0)), 1e-300)
     bottom = min(float(np.nanmin(c["mu_r"], initial=0.0)), 0.0)
     if d.limits:
@@ -122,8 +131,12 @@ def mu_panel(ax, d: SweepData, title: dict) -> None:
     else:
         ax.axhline(0.0, color="grey", linewidth=0.6)
     ax.set_ylim(bottom - 0.05 * (top - bottom), top + 0.25 * (top - bottom))
-    ax.set_ylabel(r"rolling resistance $\mu_r$ (-)")
-    ax.set_title(r"$\mu_r$ = resisting force / normal force (steady)", **title)
+    if d.cell:
+        ax.set_ylabel(r"friction $\mu$ (-)")
+        ax.set_title(r"$\mu$ = friction force / normal force (steady sliding)", **title)
+    else:
+        ax.set_ylabel(r"rolling resistance $\mu_r$ (-)")
+        ax.set_title(r"$\mu_r$ = resisting force / normal force (steady)", **title)
     ax.legend(fontsize=8, loc="upper left")
 
 
@@ -132,16 +145,16 @@ def log_mu_panel(ax, d: SweepData, title: dict) -> None:
     mu, x = d.c["mu_r"], d.x
     positive = mu > 0
     if np.any(positive):
-        ax.plot(x[positive], mu[positive], color="tab:green", label=r"petroll, steady $\mu_r$", **STYLE)
+        ax.plot(x[positive], mu[positive], color="tab:green", label=f"petroll, steady {d.mu}", **STYLE)
         if d.limits:
             ax.plot(*d.slow_limit(), color="black", linestyle="--", label="slow-rolling limit")
         ax.set_yscale("log")
         ax.set_ylim(float(mu[positive].min()) / 3, float(mu[positive].max()) * 3)
         ax.legend(fontsize=8, loc="lower center")
     else:
-        ax.text(0.5, 0.5, r"no positive $\mu_r$", transform=ax.transAxes, ha="center")
-    ax.set_ylabel(r"$\mu_r$ (-), log scale")
-    ax.set_title(r"$\mu_r$ on a log scale" + (" (the slow limit is a slope-1 line)" if d.limits else ""),
+        ax.text(0.5, 0.5, f"no positive {d.mu}", transform=ax.transAxes, ha="center")
+    ax.set_ylabel(f"{d.mu} (-), log scale")
+    ax.set_title(f"{d.mu} on a log scale" + (" (the slow limit is a slope-1 line)" if d.limits else ""),
                  **title)
 
 
@@ -162,7 +175,7 @@ def force_panel(ax, d: SweepData) -> None:
         for (name, text), color in zip(pairs, ("tab:blue", "black")):
             ax.plot(x, c[name] * scale, color=color, linestyle=":" if name.endswith("J0") else "--",
                     label=text)
-    elif np.all(np.isfinite(c[pairs[0][0]])):  # an elastic sphere: Hertz itself
+    elif np.all(np.isfinite(c[pairs[0][0]])) and not d.cell:  # an elastic sphere: Hertz itself
         ax.plot(x, c[pairs[0][0]] * scale, color="black", linestyle="--", label="Hertz")
     ax.legend(fontsize=8)
     ax.set_ylabel(what)
@@ -171,8 +184,14 @@ def force_panel(ax, d: SweepData) -> None:
 
 
 def area_panel(ax, d: SweepData) -> None:
-    """The contact area against pi a^2."""
+    """The contact area against pi a^2 (a periodic cell: the area fraction A/A0)."""
     c, x = d.c, d.x
+    if d.cell:
+        ax.plot(x, c["area_fraction"], color="tab:purple", label="area fraction", **STYLE)
+        ax.set_ylabel(r"area fraction $A/A_0$ (-)")
+        ax.set_title(r"real contact area / the cell's area, $A/A_0$ (steady)", **TITLE)
+        ax.legend(fontsize=8)
+        return
     ax.plot(x, c["area"] * MM**2, color="tab:purple", label="contact area", **STYLE)
     if np.all(np.isfinite(c["a"])):
         ax.plot(x, np.pi * c["a"] ** 2 * MM**2, color="grey", linestyle=":",
@@ -193,6 +212,15 @@ def edges_panel(ax, d: SweepData) -> None:
     ax.axhline(0.0, color="black", linewidth=0.6)
     ax.set_ylabel("along the motion, relative\nto the body (mm)")
     ax.set_title("contact-patch edges (steady)", **TITLE)
+    ax.legend(fontsize=8)
+    ax.set_xlabel(d.xlabel)
+
+
+def pressure_panel(ax, d: SweepData) -> None:
+    """The peak pressure (a periodic cell's panel where a single patch's edges would be)."""
+    ax.plot(d.x, d.c["p_max"] / 1e6, color="tab:red", label="peak pressure", **STYLE)
+    ax.set_ylabel("peak pressure (MPa)")
+    ax.set_title("peak pressure (steady)", **TITLE)
     ax.legend(fontsize=8)
     ax.set_xlabel(d.xlabel)
 

@@ -12,6 +12,14 @@ are the same problem, step by step, with W the step's rigid slip at each cell an
 previous step's tractions q' (:class:`Stepping`). A body of the same material ([body] material = "same")
 adds its compliance to c (quasi-identical bodies: no coupling with the normal problem).
 
+Viscoelastic bodies (:class:`ShearMemory`): with a constant Poisson's ratio the shear creep function is the
+normal one's shape, c(t) = J(t)/(1 - nu) (J the surface creep compliance (1 - nu^2) D(t), both bodies'), so
+the tangential displacement is u = K s with s = integral c(t - t') dq(t'), the hereditary integral the
+normal problem's integrators (petroll.solver.history) turn into s^(n+1) = c_eff q^(n+1) + v^(n+1), v from
+the past tractions. A step's problem is then the elastic one with the compliance c_eff and the history's
+displacement K v on its right-hand side: u' is replaced by u' - K v (u' = K s' from the sources s' of the
+last steps; elastic: s = c q).
+
 Steady rolling (:class:`SteadyRolling`) is stationary in the body's frame, where the material streams
 backwards through the contact: with one cell rolled per step (the transient run's steps_per_cell = 1 on
 square cells, as the normal problem's steady mode) the point now at cell i was at the cell ahead of it a
@@ -51,6 +59,29 @@ def rigid_slip(x: np.ndarray, y: np.ndarray, creepage, spin: float, distance: fl
     return distance * np.stack([creepage[0] - spin * ym, creepage[1] + spin * xm])
 
 
+class ShearMemory:
+    """The tangential creep function's hereditary history (module docstring): a normal-problem ``history``
+    (petroll.solver.history, on fields of shape (m, rows, ny): its integrators act cell by cell) of the
+    scene's surface creep compliance J(t), fed with the tractions times ``factor`` = 1/(1 - nu), so that
+    its effective compliance and preceding field are c_eff (1/Pa) and v (m/m: u = K v) of the tangential
+    displacement."""
+
+    def __init__(self, history, factor: float):
+        self.history, self.factor = history, factor
+
+    def compliance(self, dt: float) -> float:
+        """c_eff (1/Pa) of the next step, of length dt (s; 0: a jump, the instantaneous J(0))."""
+        return self.factor * self.history.compliance(dt)
+
+    def preceding(self, dt: float) -> np.ndarray | None:
+        """v (u = K v) of the next step (None: no memory yet)."""
+        return self.history.preceding(dt)
+
+    def advance(self, traction: np.ndarray, dt: float) -> None:
+        """Take the solved tractions (Pa) of the step of length dt into the history."""
+        self.history.advance(self.factor * traction, dt)
+
+
 class Stepping:
     """Shift and transient rolling step by step in the grid's frame (module docstring), with the tangential
     ``solver``: the tractions of the last steps kept (this rank's rows), u' = c K q' recomputed on the box
@@ -64,24 +95,51 @@ class Stepping:
     r = dt_n/dt_(n-1)), written as the QP's form (dt/a0) w + u - (a1 u' - a2 u'')/a0 with the rigid slip
     w taken at the step's end; first order otherwise (the slip of the step, w at the step's mean
     position). A rolling run with one cell per step converges to :class:`SteadyRolling` of the same
-    order."""
+    order.
 
-    def __init__(self, solver: TangentialSolver, order: int = 2):
+    ``memory``: a viscoelastic material's :class:`ShearMemory` (None: elastic, c the solver's): each step
+    then takes its compliance and history displacement from it at the step's length ``dt`` (s), and the
+    displacement sources s of the last two steps (u = K s) are kept beside the tractions."""
+
+    def __init__(self, solver: TangentialSolver, order: int = 2, memory: ShearMemory | None = None):
         if order not in (1, 2):
             raise ValueError(f"order {order}: 1 or 2")
-        self.solver, self.order = solver, order
+        self.solver, self.order, self.memory = solver, order, memory
         self.traction = solver.zeros()  # q^(n-1), Pa
         self.older = None  # q^(n-2) when the last step was a rolling one (with its distance)
+        self.source = solver.zeros() if memory is not None else None  # viscoelastic: s^(n-1), u = K s (m)
+        self.source_older = None  # s^(n-2) beside ``older``
         self.last_distance = None
         self.shift_total = np.zeros(solver.m)  # the body's rigid tangential displacement of the shifts, m
         self.creepage = np.zeros(solver.m)  # the last rolling step's (given or found)
         self.scale = 0.0  # the last rolling step's rolled distance in the QP's form (m): its slip is the
         # slip velocity over the rolling speed times it (order 2: distance/a0)
 
-    def _previous(self, bound: np.ndarray, combination: np.ndarray) -> np.ndarray:
-        """c K ``combination`` (m) on this rank's rows, on the box of the new contact and the field."""
-        cells = (bound > 0) | np.any(combination != 0, axis=0)
-        return self.solver.displacement(combination, self.solver.box(cells))
+    def _previous(self, bound: np.ndarray, weights=(1.0, 0.0), dt: float = 0.0):
+        """(u' (m, this rank's rows), the step's compliance c (1/Pa; None: the solver's), the history's v or
+        None) of a step of length ``dt`` (s): u' the displacement of w0 X^(n-1) - w1 X^(n-2) (``weights``;
+        w1 = 0: X^(n-1) alone), X the last steps' tractions (elastic: u' = c K X) or displacement sources
+        (viscoelastic: u' = K (X - v), the history's displacement moved to the right-hand side), on the
+        box of the new contact and the field."""
+        newer, older = (self.traction, self.older) if self.memory is None else (self.source, self.source_older)
+        field = newer if weights[1] == 0 else weights[0] * newer - weights[1] * older
+        compliance, v = None, None
+        if self.memory is not None:
+            compliance, v = self.memory.compliance(dt), self.memory.preceding(dt)
+            if v is not None:
+                field = field - v
+        cells = (bound > 0) | np.any(field != 0, axis=0)
+        unit = None if self.memory is None else 1.0
+        return self.solver.displacement(field, self.solver.box(cells), unit), compliance, v
+
+    def _remember(self, solution: TangentialSolution, compliance, v, dt: float, rolled: bool) -> None:
+        """Keep a viscoelastic step's sources (s = c q + v) and advance the history by the step."""
+        if self.memory is None:
+            return
+        source = compliance * solution.traction + (0.0 if v is None else v)
+        self.source_older = self.source if rolled else None
+        self.source = source
+        self.memory.advance(solution.traction, dt)
 
     def _moved(self, field: np.ndarray, distance: float, direction) -> np.ndarray:
         """A tangential field moved with the body by ``distance`` along ``direction``, rounded to whole
@@ -93,28 +151,31 @@ class Stepping:
             return field
         return np.stack([shift_field(f, di, dj, solver.rows, solver.comm) for f in field])
 
-    def shift(self, bound: np.ndarray, increment=None, force=None, tol: float | None = None) -> TangentialSolution:
+    def shift(self, bound: np.ndarray, increment=None, force=None, tol: float | None = None,
+              dt: float = 0.0) -> TangentialSolution:
         """One quasi-static step on the traction bound ``bound`` (Pa, this rank's rows): the body shifted by
         ``increment`` (m, an m-vector) relative to the half-space, or by the amount that makes the total
         traction ``force`` (N; N/m in line contact; the force the half-space exerts on the body: it
-        opposes the shift)."""
+        opposes the shift); ``dt`` the step's length (s; a viscoelastic history's step, 0: a jump)."""
         solver = self.solver
-        previous = self._previous(bound, self.traction)
+        previous, compliance, v = self._previous(bound, dt=dt)
         rigid = None
         if force is None:
             increment = np.zeros(solver.m) if increment is None else np.asarray(increment, dtype=float)
             rigid = np.broadcast_to(increment[:, None, None], (solver.m, *solver.local_shape))
-        solution = solver.solve(bound, rigid, previous, self.traction, force, tol)
+        solution = solver.solve(bound, rigid, previous, self.traction, force, tol, compliance)
+        self._remember(solution, compliance, v, dt, rolled=False)
         self.shift_total = self.shift_total + (solution.shift if force is not None else increment)
         self.traction, self.older, self.last_distance = solution.traction, None, None
         return solution
 
     def roll(self, bound: np.ndarray, centre, distance: float, direction, creepage=(0.0, 0.0),
-             spin: float = 0.0, force=None, tol: float | None = None) -> TangentialSolution:
+             spin: float = 0.0, force=None, tol: float | None = None, dt: float = 0.0) -> TangentialSolution:
         """One rolling step on the traction bound ``bound`` (Pa, this rank's rows): the body's reference
         point now at ``centre`` (m), having rolled ``distance`` (m) > 0 along the unit vector ``direction``
         over the step, at the creepage (xi, eta) and spin phi (1/m), or at the tangential ``force`` (N),
-        the creepage then found (``creepage`` attribute; the spin given). Returns the step's solution (its
+        the creepage then found (``creepage`` attribute; the spin given); ``dt`` the step's length (s; a
+        viscoelastic history's step). Returns the step's solution (its
         ``slip``: the slip of the step, m; ``shift``: the uniform slip found under force control)."""
         solver, grid = self.solver, self.solver.grid
         x = grid.x[solver.r0 : solver.r1, None] - centre[0]
@@ -123,17 +184,19 @@ class Stepping:
         if self.order == 2 and self.older is not None:
             r = distance / self.last_distance
             a0, a1, a2 = (1 + 2 * r) / (1 + r), 1 + r, r * r / (1 + r)
-            combination = (a1 * self.traction - a2 * self.older) / a0
+            weights = (a1 / a0, a2 / a0)
             rigid = rigid_slip(x, y, given, spin, distance / a0)[: solver.m]
             scale = distance / a0
         else:  # first order: relative to the body the point moved from distance x direction ahead
-            combination = self.traction
+            weights = (1.0, 0.0)
             rigid = rigid_slip(x, y, given, spin, distance, direction)[: solver.m]
             scale = distance
         warm = self._moved(self.traction, distance, direction)
         if self.older is not None and self.last_distance == distance:  # the body frame's trend, extrapolated
             warm = 2 * warm - self._moved(self.older, 2 * distance, direction)
-        solution = solver.solve(bound, rigid, self._previous(bound, combination), warm, force, tol)
+        previous, compliance, v = self._previous(bound, weights, dt)
+        solution = solver.solve(bound, rigid, previous, warm, force, tol, compliance)
+        self._remember(solution, compliance, v, dt, rolled=True)
         self.creepage = (np.asarray(creepage, dtype=float)[: solver.m] if force is None
                          else solution.shift / scale)
         self.older, self.traction, self.last_distance = self.traction, solution.traction, distance
@@ -188,18 +251,22 @@ class SteadyRolling:
 
     def solve(self, bound: np.ndarray, creepage=(0.0, 0.0), spin: float = 0.0, centre=(0.0, 0.0),
               force: np.ndarray | None = None, start: np.ndarray | None = None,
-              tol: float | None = None) -> SteadySolution:
+              tol: float | None = None, memory=None) -> SteadySolution:
         """The steady tractions on the traction bound ``bound`` (Pa, this rank's grid rows) at the creepage
         (xi, eta) and the spin phi (1/m) about ``centre`` (m; the body's reference point), or at the
         tangential force ``force`` (N; N/m in line contact; an m-vector), the creepage then found (the spin
         given). ``start``: a first guess (Pa, (m, rows, ny)); ``tol``: the natural residual's tolerance
-        (default the solver's)."""
+        (default the solver's). ``memory``: a viscoelastic material's tangential state machine (h0 (1/Pa),
+        s1, M, c) at one cell per step (petroll.solver.history.state_space of the creep function c(t));
+        the window then reaches the grid's edge behind the contact (the wake; beyond it is left out)."""
         solver = self.solver
         m, tol = solver.m, solver.tol if tol is None else tol
         box = solver.box(bound > 0)
         if box is None:
             raise SolverError("steady rolling with friction: no contact")
-        problem = solver.scaled(bound, self._behind(box))
+        elastic = memory is None or memory[1] is None
+        problem = solver.scaled(bound, self._behind(box, None if elastic else solver.grid),
+                                None if elastic else memory[0])
         box, g, q_ref, s_ref = problem.box, problem.g, problem.q_ref, problem.s_ref
         total = None
         if force is not None:
@@ -207,7 +274,7 @@ class SteadyRolling:
             creepage = (0.0, 0.0)
         b = solver.to_box(self.rigid(creepage, spin, centre), box) / s_ref
         newton = SteadyNewton(problem.apply, problem.precondition, g / q_ref, b, self.comm, problem.nx,
-                              self.axis, self.sign, self.order, total)
+                              self.axis, self.sign, self.order, total, None if elastic else memory)
         q0 = None if start is None else solver.to_box(start, box) / q_ref
         at, iterations = newton.solve(q0, np.zeros(m), tol)
         self.applications += newton.applications
@@ -218,16 +285,23 @@ class SteadyRolling:
         sums = np.array(q.sum(axis=(1, 2)), dtype=float)
         self.comm.Allreduce(MPI.IN_PLACE, sums, op=MPI.SUM)
         traction = solver.from_box(q, box)
-        solution = TangentialSolution(traction, solver.from_box(slip, box), solver.displacement(traction, box),
+        if elastic:
+            displacement = solver.displacement(traction, box)
+        else:  # u = K L q, L's sources on the window
+            displacement = solver.displacement(solver.from_box(memory[0] * newton.hereditary(q), box), box, 1.0)
+        solution = TangentialSolution(traction, solver.from_box(slip, box), displacement,
                                       solver.from_box(stick, box, False), at.w * s_ref, sums * solver.grid.cell_area,
                                       iterations, newton.applications, at.largest, box)
         return SteadySolution(solution, found, iterations, newton.applications)
 
-    def _behind(self, box):
+    def _behind(self, box, wake=None):
         """``box`` grown by ``order`` cells behind it along the motion: the shifted tractions S_k q of
-        H (q - S_k q) reach that far behind the contact (SolverError at the grid's edge)."""
+        H (q - S_k q) reach that far behind the contact (SolverError at the grid's edge); with ``wake``
+        (the grid: a viscoelastic material's), to the grid's edge behind it."""
         i0, i1, j0, j1 = box
         g, k = self.solver.grid, self.order
+        if wake is not None:
+            k = max(k, (i0 if self.sign > 0 else g.nx - i1) if self.axis == 0 else (j0 if self.sign > 0 else g.ny - j1))
         if self.axis == 0:
             i0, i1 = (i0 - k, i1) if self.sign > 0 else (i0, i1 + k)
         else:

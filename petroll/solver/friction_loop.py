@@ -17,7 +17,8 @@ import numpy as np
 from mpi4py import MPI
 
 from petroll.records import FrictionRecord
-from petroll.solver.friction import Stepping, SteadyRolling
+from petroll.solver.friction import ShearMemory, Stepping, SteadyRolling
+from petroll.solver.history import make_history, state_space
 from petroll.solver.tangential import TangentialSolution, TangentialSolver
 
 
@@ -29,7 +30,11 @@ class FrictionLoop:
         self.scene, self.friction, self.comm = scene, scene.friction, comm
         f = scene.friction
         self.solver = TangentialSolver(scene.grid, comm, f.nu, f.compliance, tol=scene.solver.tol)
-        self.stepping = Stepping(self.solver)
+        memory = None
+        if f.memory is not None:  # viscoelastic: the scene's creep function through its integrator
+            history = make_history(scene.material, scene.solver.integrator, (self.solver.m, *self.solver.local_shape))
+            memory = ShearMemory(history, f.memory)
+        self.stepping = Stepping(self.solver, memory=memory)
         self.records: list[FrictionRecord] = []
         self.fields: dict[str, np.ndarray] = {}
 
@@ -48,11 +53,11 @@ class FrictionLoop:
         force = self._force(record.t)
         if distance > 0:
             solution = stepping.roll(bound, (record.sx, record.sy), distance, direction, f.creepage, f.spin,
-                                     force)
+                                     force, dt=dt)
             creepage, rate = stepping.creepage, distance / (dt * stepping.scale)
         else:
             increment = None if force is not None else np.zeros(self.solver.m)
-            solution = stepping.shift(bound, increment, force)
+            solution = stepping.shift(bound, increment, force, dt=dt)
             creepage, rate = np.full(self.solver.m, math.nan), (1 / dt if dt > 0 else math.nan)
         return self._record(solution, bound, creepage, rate)
 
@@ -63,7 +68,12 @@ class FrictionLoop:
         axis = 0 if direction[1] == 0 else 1
         rolling = SteadyRolling(self.solver, axis, 1 if direction[axis] > 0 else -1)
         bound = f.coefficient * pressure
-        steady = rolling.solve(bound, f.creepage, f.spin, (record.sx, record.sy), self._force(record.t))
+        memory = None
+        if f.memory is not None:  # the creep function's response at one cell per step, h0 and c as c(t)'s
+            h0, s1, M, c = state_space(self.scene.material, self.scene.solver.integrator, rolling.cell / speed)
+            memory = (f.memory * h0, s1, M, None if c is None else f.memory * c)
+        steady = rolling.solve(bound, f.creepage, f.spin, (record.sx, record.sy), self._force(record.t),
+                               memory=memory)
         return self._record(steady.solution, bound, steady.creepage, speed)
 
     def _record(self, solution: TangentialSolution, bound: np.ndarray, creepage, rate: float) -> FrictionRecord:
@@ -96,6 +106,11 @@ class FrictionLoop:
         parts = {"traction": list(st.traction)}
         if st.older is not None:
             parts["traction_older"] = list(st.older)
+        if st.memory is not None:  # viscoelastic: the sources and the history's fields, component by component
+            parts["source"] = list(st.source)
+            if st.source_older is not None:
+                parts["source_older"] = list(st.source_older)
+            parts["shear"] = [c for f in st.memory.history.state() for c in f]
         last = math.nan if st.last_distance is None else st.last_distance
         return parts, np.array([last, st.scale, *st.shift_total, *st.creepage], dtype=float)
 
@@ -105,6 +120,11 @@ class FrictionLoop:
         st, m, small = self.stepping, self.solver.m, state["friction"]
         st.traction = np.stack(state["traction"])
         st.older = np.stack(state["traction_older"]) if "traction_older" in state else None
+        if st.memory is not None:
+            st.source = np.stack(state["source"])
+            st.source_older = np.stack(state["source_older"]) if "source_older" in state else None
+            shear = state["shear"]
+            st.memory.history.load_state([np.stack(shear[k : k + m]) for k in range(0, len(shear), m)])
         st.last_distance = None if math.isnan(small[0]) else float(small[0])
         st.scale = float(small[1])
         st.shift_total, st.creepage = np.array(small[2 : 2 + m]), np.array(small[2 + m : 2 + 2 * m])

@@ -23,6 +23,12 @@ kernel, (I - S_k)_II^-1 solved from the front of each run of stick cells along t
 exact inverse if the convolution and the shift commuted on I, so GMRES only resolves the runs' ends) and the
 identity elsewhere; under force control the uniform slip's row and column are eliminated exactly with the
 preconditioner's response to a uniform slip on the stick cells.
+
+Viscoelastic bodies (``hereditary``): the displacement is u = c K L q, L the integrator's response along the
+motion (:class:`Hereditary`: the material now at cell t was at t + k k steps ago, so (L q)_t = sum_k h_k
+q_(t+k), h its pulse response over h_0), so s = b + H (I - S_k) L q (L and S_k, both triangular Toeplitz
+along the lines, commute); the window reaches behind the contact over the wake L spreads the tractions into,
+and the preconditioner applies L^-1 after the run sums.
 """
 
 from __future__ import annotations
@@ -31,6 +37,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.fft
+import scipy.linalg
 from mpi4py import MPI
 
 from petroll.errors import SolverError
@@ -110,6 +118,41 @@ def _back_substitute(upper: np.ndarray, rhs: np.ndarray) -> np.ndarray:
     return y
 
 
+class Hereditary:
+    """The integrator's steady response along the motion on ``lines`` (petroll.solver.memory.Lines of a
+    window): the state machine (h0, s1, M, c) of petroll.solver.history.state_space, a traction pulse giving
+    h0 on its own step and h_k = c M^(k-1) s1 k steps later (the material arrives from the cells ahead).
+    :meth:`__call__` is L v over h0, (L v)_t = v_t + sum_k (h_k/h0) v_(t+k) along each line: a unit upper
+    triangular Toeplitz matrix of the line's length, whose inverse (:meth:`inverse`) is one too (its first
+    row found once); both applied as correlations along the lines by zero-padded FFTs."""
+
+    def __init__(self, machine, lines):
+        h0, s1, M, c = machine
+        n = lines.n_along
+        h, state = np.zeros(n), np.asarray(s1, dtype=float)
+        h[0] = 1.0
+        for k in range(1, n):
+            h[k] = float(np.asarray(c, dtype=float) @ state) / h0
+            state = np.asarray(M, dtype=float) @ state
+        inverse = scipy.linalg.solve_triangular(scipy.linalg.toeplitz(np.eye(n)[0], h), np.eye(n)[0], trans="T")
+        self.lines, self.n, self.size = lines, n, scipy.fft.next_fast_len(2 * n, real=True)
+        self.spectra = [scipy.fft.rfft(f, self.size) for f in (h, inverse)]
+
+    def _apply(self, spectrum: np.ndarray, v: np.ndarray) -> np.ndarray:
+        out = np.empty_like(v)
+        for k, field in enumerate(v):  # (L v)_t = sum_k h_k v_(t+k): a convolution of the reversed lines
+            lines = self.lines.from_grid(field)[:, ::-1]
+            product = scipy.fft.rfft(lines, self.size, axis=1) * spectrum
+            out[k] = self.lines.to_grid(scipy.fft.irfft(product, self.size, axis=1)[:, : self.n][:, ::-1])
+        return out
+
+    def __call__(self, v: np.ndarray) -> np.ndarray:
+        return self._apply(self.spectra[0], v)
+
+    def inverse(self, v: np.ndarray) -> np.ndarray:
+        return self._apply(self.spectra[1], v)
+
+
 @dataclass
 class _Point:
     """The natural residual and its pieces at one iterate (window cells, this rank's rows)."""
@@ -131,19 +174,26 @@ class SteadyNewton:
     """The steady problem of the module docstring on a window of cells (arrays (m, local rows, ny) in the
     window's even row split over ``comm``): ``apply(v)`` H v, ``precondition(v)`` M v, ``g`` (rows, ny) the
     bounds, ``b`` the rigid slip, motion along ``axis`` with ``sign``, ``order`` 1 or 2, ``total`` the
-    force held (m-vector, or None), all in the scaled units of petroll.solver.tangential."""
+    force held (m-vector, or None), all in the scaled units of petroll.solver.tangential; ``hereditary``: a
+    viscoelastic material's state machine (:class:`Hereditary`; None: elastic)."""
 
     def __init__(self, apply, precondition, g, b, comm, nx: int, axis: int, sign: int, order: int,
-                 total=None):
+                 total=None, hereditary=None):
         self.apply, self.precondition, self.g, self.b, self.comm = apply, precondition, g, b, comm
         self.m, self.order, self.total = b.shape[0], order, total
         self.inside = g > 0
         self.lines = Lines(RowPartition(nx, comm.size), g.shape[1], axis, sign, 0, comm)
+        self.hereditary = None if hereditary is None else Hereditary(hereditary, self.lines)
         self.capacity = comm.allreduce(float(g.sum()), op=MPI.SUM)
         self.applications = 0
         self.k = 0 if total is None else self.m  # entries of the uniform slip in a packed vector
 
     # -- along the motion ---------------------------------------------------------------------------------
+    def operator(self, v: np.ndarray) -> np.ndarray:
+        """H (I - S_k) L v: the slip's response to the tractions v (L = I: elastic)."""
+        d = v - self.shifted(v)
+        return self.apply(d if self.hereditary is None else self.hereditary(d))
+
     def shifted(self, v: np.ndarray) -> np.ndarray:
         """S_k v: each cell's value read from the cells ahead of it (0 beyond the window)."""
         out = np.empty_like(v)
@@ -193,7 +243,7 @@ class SteadyNewton:
         under force control w found so that sum q = total (Newton on the marches, which need no
         convolution)."""
         q_free = self._march(-self.b, None)
-        v = self.apply(q_free - self.shifted(q_free))
+        v = self.operator(q_free)
         self.applications += 1
         vb, vv = self._sum_pair(np.vdot(v, self.b), np.vdot(v, v))
         lam = -vv / vb if vb < 0 else 1.0  # b + v / lam ~ 0: the flexibility lam = 1/(its fit)
@@ -246,7 +296,7 @@ class SteadyNewton:
     # -- the residual and its Newton systems -----------------------------------------------------------
     def point(self, q: np.ndarray, w: np.ndarray) -> _Point:
         self.applications += 1
-        s = self.b + self.apply(q - self.shifted(q)) + w[:, None, None]
+        s = self.b + self.operator(q) + w[:, None, None]
         z = q - s
         norm = np.sqrt((z * z).sum(axis=0))
         stick = self.inside & (norm < self.g)
@@ -277,7 +327,7 @@ class SteadyNewton:
     def jacobian(self, at: _Point):
         def matvec(v: np.ndarray) -> np.ndarray:
             dq, dw = self.unpack(v)
-            ds = self.apply(dq - self.shifted(dq)) + dw[:, None, None]
+            ds = self.operator(dq) + dw[:, None, None]
             e = dq - ds
             tangential = e - at.n * (at.n * e).sum(axis=0) if self.m == 2 else 0.0 * e
             out = np.where(at.stick, ds, np.where(at.slip, dq - at.gamma * tangential, dq))
@@ -287,7 +337,8 @@ class SteadyNewton:
 
     def preconditioner(self, at: _Point):
         def stick_part(r: np.ndarray) -> np.ndarray:
-            return self.run_solve(self.precondition(np.where(at.stick, r, 0.0)), at.stick)
+            y = self.run_solve(self.precondition(np.where(at.stick, r, 0.0)), at.stick)
+            return y if self.hereditary is None else np.where(at.stick, self.hereditary.inverse(y), y)
 
         uniform = None
         if self.k:  # the stick cells' response to a unit uniform slip, and its sums (m x m)

@@ -519,23 +519,27 @@ class TangentialSolver:
             out[k, a - self.r0 : b - self.r0, j0:j1] = move_rows(v, box_rows, dst, self.comm)
         return out if values.ndim == 3 else out[0]
 
-    def displacement(self, traction: np.ndarray, box) -> np.ndarray:
+    def displacement(self, traction: np.ndarray, box, compliance: float | None = None) -> np.ndarray:
         """u = c K q (m; this rank's grid rows, zero outside ``box``) of a traction ``traction`` (Pa, grid
-        rows) that vanishes outside ``box``."""
+        rows) that vanishes outside ``box``; ``compliance`` c (1/Pa; default the solver's; 1: K applied
+        to a field of displacement sources, u = K s)."""
         if box is None:
             return self.zeros()
+        c = self.compliance if compliance is None else compliance
         conv = self.operator.window(box[1] - box[0], box[3] - box[2])
-        return self.from_box(self.compliance * conv(self.to_box(traction, box)), box)
+        return self.from_box(c * conv(self.to_box(traction, box)), box)
 
-    def scaled(self, bound: np.ndarray, box) -> Scaled:
+    def scaled(self, bound: np.ndarray, box, compliance: float | None = None) -> Scaled:
         """The problem on ``box`` of the traction bound ``bound`` (Pa, this rank's grid rows) in scaled units
-        (:class:`Scaled`; its operators take (m, window rows, ny) fields)."""
+        (:class:`Scaled`; its operators take (m, window rows, ny) fields), with the step's compliance c
+        (1/Pa; default the solver's: a viscoelastic step's is its integrator's effective one)."""
         g = self.to_box(bound, box)
         q_ref = self.comm.allreduce(float(g.max(initial=0.0)), op=MPI.MAX)
         nx, ny = box[1] - box[0], box[3] - box[2]
         conv, pc = self.operator.window(nx, ny), self.operator.window(nx, ny, inverse=True)
         k00 = conv.diagonal
-        return Scaled(box, g, q_ref, self.compliance * k00 * q_ref, nx, ny, lambda v: conv(v) / k00,
+        c = self.compliance if compliance is None else compliance
+        return Scaled(box, g, q_ref, c * k00 * q_ref, nx, ny, lambda v: conv(v) / k00,
                       lambda v: pc(v) * k00, conv.row_sum / k00)
 
     def scaled_force(self, force, problem: Scaled) -> np.ndarray:
@@ -552,13 +556,15 @@ class TangentialSolver:
     # -- the QP ------------------------------------------------------------------------------------------
     def solve(self, bound: np.ndarray, rigid: np.ndarray | None = None, previous: np.ndarray | None = None,
               warm: np.ndarray | None = None, force: np.ndarray | None = None,
-              tol: float | None = None) -> TangentialSolution:
+              tol: float | None = None, compliance: float | None = None) -> TangentialSolution:
         """The tractions on the traction bound ``bound`` g = mu p (Pa, this rank's grid rows), the rigid
         slip of the step ``rigid`` W (m; (m, rows, ny) or None: 0) and the relative displacement ``previous``
         u' the material points at each cell had a step earlier (m, (m, rows, ny), or None: 0). ``force``
         (N, an m-vector): hold sum q dA = force, a uniform slip added to W found (``shift``). ``warm``: a
-        first guess (Pa, (m, rows, ny)). The QP is posed on the bounding box of g > 0. SolverError when the
-        force exceeds what the bound allows, or when the solve fails."""
+        first guess (Pa, (m, rows, ny)). ``compliance``: the step's c (1/Pa; default the solver's), u = c K q
+        the step's own displacement (a viscoelastic history's part is in ``previous``). The QP is posed on
+        the bounding box of g > 0. SolverError when the force exceeds what the bound allows, or when the
+        solve fails."""
         g_cells = bound > 0
         box = self.box(g_cells)
         tol = self.tol if tol is None else tol
@@ -569,7 +575,7 @@ class TangentialSolver:
             return TangentialSolution(zero, zero.copy(), zero.copy(), np.zeros(self.local_shape, bool),
                                       np.zeros(self.m), np.zeros(self.m), 0, 0, 0.0, (0, 0, 0, 0))
         area = self.grid.cell_area
-        problem = self.scaled(bound, box)
+        problem = self.scaled(bound, box, compliance)
         g, q_ref, s_ref, m, ny = problem.g, problem.q_ref, problem.s_ref, self.m, problem.ny
         b = zero.copy() if rigid is None else np.array(rigid, dtype=float)
         if previous is not None:

@@ -62,6 +62,7 @@ from petroll.io.hdf5 import atomic_hdf5
 from petroll.io.results import Results, atomic_write, results_identity
 from petroll.io.rundir import clean_temporaries
 from petroll.model.clock import TimeMode
+from petroll.model.limits import warnings_once
 from petroll.model.schema import DEFAULT_STEADY, SCHEMA
 from petroll.model.scene import Scene
 
@@ -86,6 +87,7 @@ COLUMNS: dict[str, tuple[str, str]] = {
     "mu_r": ("-", "rolling-resistance coefficient at the last step"),
     "delta": ("m", "penetration at the last step"),
     "area": ("m^2", "contact area at the last step"),
+    "area_fraction": ("-", "A/A0: contact area / the cell's area (a grid periodic along X and Y; else NaN)"),
     "lead": ("m", "leading patch edge along the motion, relative to the body"),
     "trail": ("m", "trailing patch edge along the motion, relative to the body"),
     "p_max": ("Pa", "peak pressure at the last step"),
@@ -393,10 +395,12 @@ def sweep(scene: Scene, vary: Vary | str, out: str | pathlib.Path | None = None,
             static = point.time.dt is None and point.time.steps_per_cell is None
             state = ("steady (solved directly)" if direct else "steady" if row["steady"] else
                      "one step (no [time])" if static else "NOT steady")
-            log(f"point {index + 1}/{total} {label}: {done}; mu_r {row['mu_r']:.4e}, force "
-                f"{row['force']:.5g} N, {int(row['steps'])} steps, "
-                f"{state}"
-                + (f", V tau/a {row['v_tau_a']:.3g}" if math.isfinite(row["v_tau_a"]) else ""))
+            rough = (f"friction mu {row['mu_r']:.4e}, A/A0 {row['area_fraction']:.4g}"
+                     if math.isfinite(row["area_fraction"]) else f"mu_r {row['mu_r']:.4e}")
+            log(f"point {index + 1}/{total} {label}: {done}; {rough}, force "
+                f"{row['force']:.5g} N, {int(row['steps'])} steps, {state}"
+                + (f", V tau/a {row['v_tau_a']:.3g}" if math.isfinite(row["v_tau_a"]) else "")
+                + (f", grid {point.grid.nx} x {point.grid.ny} (sized)" if point.sizing is not None else ""))
     columns = {name: np.array([row[name] for row in rows], dtype=float) for name in COLUMNS if name in rows[0]}
     table = SweepTable(vary.key, unit, columns, scene.text, [f"points/{n}" for n in names], out, computed)
     _on_rank0(comm, lambda: write_table(table))
@@ -462,7 +466,9 @@ def table_row(scene: Scene, results: Results, value: float, estimate_error: bool
     viscous = isinstance(material, Tabulated) or (isinstance(material, Prony) and len(material.tau) > 0)
     tau = loss_peak_time(material) if viscous else math.nan
     sphere = isinstance(scene.body, Sphere)
-    line = scene.grid.line  # plane strain: force per length, area a width, delta relative to the datum
+    g, line = scene.grid, scene.grid.line  # plane strain: force per length, area a width, delta to the datum
+    cell = g.topology.statistics  # a periodic cell: its area fraction, no Hertz radius
+    row["area_fraction"] = st.area / ((g.x1 - g.x0) * (g.y1 - g.y0)) if cell else math.nan
     delta0 = float(s["delta"][0])
     direct = scene.time.mode is TimeMode.STEADY  # no first (instantaneous) step: Hertz with J0 at its load
     if direct and line and isinstance(scene.body, CylinderSection) and isinstance(material, Prony):
@@ -475,6 +481,7 @@ def table_row(scene: Scene, results: Results, value: float, estimate_error: bool
         a = math.sqrt(scene.body.radius * delta0)
     else:
         a = math.sqrt(float(s["area"][0]) / math.pi)
+    a = math.nan if cell else a
     row.update(speed=speed, tau=tau, a_T=scene.shift_factor, a=a,
                v_tau_a=speed * tau / a if a > 0 and speed > 0 else math.nan)
     nan = math.nan
@@ -573,12 +580,12 @@ def command(scene_path: str, vary_text: Sequence[str], out: str | None, quiet: b
         raise SweepError(f"--vary given {len(vary_text)} times; a sweep varies exactly one key "
                          f"({FORMS})")
     vary = parse_vary(vary_text[0])
-    scene = load_scene(scene_path)
     start = time.perf_counter()
     stop = StopRequest()
     say = (lambda line: print(f"petroll: {line}", flush=True))
     try:
-        with stop.handling():
+        with stop.handling(), warnings_once():
+            scene = load_scene(scene_path)
             table = sweep(scene, vary, out, comm, progress=not quiet and sys.stderr.isatty(), stop=stop,
                           log=say, transient=transient, estimate_error=estimate_error)
     except SweepInterrupted as exc:

@@ -219,17 +219,24 @@ class PeriodicSurface(Body):
         half-width of one of the surface's single contacts (a sinusoid of wavelength L: L / 2 pi; a
         self-affine surface: 0.2 to 0.3 times its short cut-off); inf for a flat surface. What the time
         step is weighed against on a rough surface (petroll.model.preflight, docs/accuracy.md)."""
+        q, power = self.spectrum()
+        curvature = float(np.sum(q**4 * power))
+        return math.sqrt(float(np.sum(q**2 * power)) / curvature) if curvature > 0.0 else math.inf
+
+    def spectrum(self) -> tuple[np.ndarray, np.ndarray]:
+        """(|q| in rad/m, |h_q|^2 in m^2) of every mode of the samples' trigonometric interpolant, flattened:
+        the half spectrum's columns weighted for their conjugates, the mean's power 0, so that the powers
+        sum to the mean square height."""
         nx, ny = self.heights.shape
         qx = 2.0 * np.pi * scipy.fft.fftfreq(nx, self.cell[0])
         qy = 2.0 * np.pi * scipy.fft.rfftfreq(ny, self.cell[1])
-        q2 = qx[:, None] ** 2 + qy[None, :] ** 2
         weight = np.full(len(qy), 2.0)  # the half spectrum: a column stands for its conjugate too
         weight[0] = 1.0
         if ny % 2 == 0:
             weight[-1] = 1.0
-        power = np.abs(scipy.fft.rfft2(self.heights)) ** 2 * weight
-        curvature = float(np.sum(q2**2 * power))
-        return math.sqrt(float(np.sum(q2 * power)) / curvature) if curvature > 0.0 else math.inf
+        power = np.abs(scipy.fft.rfft2(self.heights)) ** 2 * weight / (nx * ny) ** 2
+        power[0, 0] = 0.0
+        return np.hypot(qx[:, None], qy[None, :]).ravel(), power.ravel()
 
 
 @dataclass(frozen=True, eq=False)
