@@ -403,6 +403,7 @@ def check_cap(body, radius=1.0, cap=0.5, sectors=128, longest=0.05, bare=True, m
     assert body.radius_hint == pytest.approx(radius, rel=0.05)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("ext", ["stl", "obj"])
 def test_mesh_sphere_cap_matches_sphere(tmp_path, ext):
     xyz, tris, longest = spherical_cap()

@@ -169,6 +169,7 @@ def test_interrupted_and_restarted_run_is_bitwise_the_uninterrupted_run(case, co
         assert_identical(again, reference)
 
 
+@pytest.mark.slow
 def test_a_checkpoint_without_the_kept_first_guesses_restarts_to_the_same_answer(comm, shared_dir):
     """Checkpoints written before the warm start kept its last solutions lack state/recent: the restart
     then carries the checkpoint's pressure as the first guess and reaches the same answer within the
@@ -212,6 +213,7 @@ def test_restart_on_another_rank_count_agrees_to_1e_10(material, comm, shared_di
     assert_close(one, two)
 
 
+@pytest.mark.slow
 def test_tabulated_material_restarts_bitwise_and_a_changed_table_is_refused(comm, shared_dir):
     """The hereditary history (all increments and times) is in the checkpoint; its J table must not change."""
     if comm.rank == 0:
@@ -232,6 +234,7 @@ def test_tabulated_material_restarts_bitwise_and_a_changed_table_is_refused(comm
         restart_scene(check)
 
 
+@pytest.mark.slow
 @pytest.mark.ranks4
 def test_checkpoint_layout_and_sizes_do_not_grow_with_the_steps_for_prony(comm, shared_dir):
     """Prony: the state is p, W and one field per term whatever the step; only the series grow (the saved
@@ -292,6 +295,7 @@ def test_keep_removes_older_checkpoints_and_those_of_the_run_replaced(comm, shar
     assert sorted(p.name for p in (shared_dir / "checkpoints").iterdir()) == names
 
 
+@pytest.mark.slow
 def test_results_xdmf_describes_the_saved_fields_over_the_hdf5_data(comm, shared_dir):
     results = run(make_scene(raw_scene()), comm, shared_dir)
     if comm.rank != 0:
@@ -657,6 +661,7 @@ def test_without_parallel_hdf5_rank_0_writes_the_same_files_and_restarts_bitwise
     on_root(comm, compare)
 
 
+@pytest.mark.slow
 def test_remove_foreign_checkpoints_removes_only_those_it_read_as_another_runs(tmp_path, monkeypatch):
     """Issue 35: a checkpoint it fails to open (here a passing read error, OSError EIO), or finds damaged
     by its seal, is not known to be another run's and stays; one read as another run's goes; ours stay."""

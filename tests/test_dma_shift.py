@@ -80,6 +80,7 @@ def test_the_standard_errors_cover_the_true_errors_and_warn_at_10_percent_noise(
             assert min(worst) > 0.1 and all(warned)
 
 
+@pytest.mark.slow
 def test_a_pairs_standard_error_is_its_linear_response_to_each_row():
     """tts.pair_shift's gradient of the shift with respect to each row's log10 E' and log10 E'' (from which
     the standard errors follow) against central differences of the shift found again with that row
@@ -200,6 +201,7 @@ def test_auto_shift_refuses_with_one_line_what_it_cannot(comm, shared_dir, capsy
     assert not (tmp_path / "m.toml").exists()
 
 
+@pytest.mark.slow
 def test_the_shipped_polymer_scene_is_the_fit_of_the_shipped_instrument_table():
     """runs/sphere-polymer.toml's [material] is what ``petroll material fit runs/polymer-dma.csv --shift
     auto:268.15`` gives: the same keys, the same table law, the same curves (NNLS may differ by round-off

@@ -540,6 +540,7 @@ def test_a_restart_into_another_runs_directory_is_refused_unless_told(comm, shar
     assert all(read_checkpoint(p, comm).run_id == run_id for p in list_checkpoints(shared_dir / "A" / "checkpoints"))
 
 
+@pytest.mark.slow
 def test_stale_temporary_files_are_removed_at_start_and_restart(comm, shared_dir):
     from test_checkpoint import interrupter
     from petroll.io.checkpoint import RunInterrupted

@@ -240,6 +240,7 @@ def shrunk(text: str) -> str:
 SCENES = sorted(p.name for p in (ROOT / "runs").glob("*.toml"))
 
 
+@pytest.mark.slow
 def test_damaged_shipped_scenes(tmp_path, capsys, monkeypatch):
     """Each shipped scene (runs/), damaged: ``petroll check`` on every one, ``petroll run`` on those made
     cheap first (at most 24 x 24 cells, 5 steps)."""

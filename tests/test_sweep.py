@@ -192,6 +192,7 @@ def test_a_constant_speed_sweep_solves_each_point_directly_from_its_neighbour(co
 
 
 
+@pytest.mark.slow
 def test_a_sweep_varies_a_key_inside_an_inline_table(comm, shared_dir):
     """``material.layer.thickness``: each point is the scene with that thickness written in its TOML
     (parsed independently here), its unit is the thickness's (m), the layer's other keys are kept; keys

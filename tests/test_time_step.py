@@ -121,6 +121,7 @@ def test_steady_rolling_steps_are_warned_and_refused_where_mu_r_is_off(comm, sha
     assert abs(mu_r(steady_sphere(), comm) / fine - 1) < 0.005
 
 
+@pytest.mark.slow
 def test_a_transient_step_across_the_whole_track_is_refused_and_would_be_wrong(comm, shared_dir, cli_main):
     """runs/sphere.toml at steps_per_cell = 1e-9: one step rolls the whole 4 mm (107 cells, 0.11 steps per
     half-width): refused in one line; run anyway (allow_coarse) its mu_r is 1000 times too small against the
