@@ -11,6 +11,7 @@ import math
 import os
 import pathlib
 import shutil
+import re
 import signal
 import subprocess
 import time
@@ -430,3 +431,14 @@ def test_a_reader_that_stops_reading_ends_the_command_quietly(argv, cli):
         os.close(write)
     _, err = child.communicate(timeout=120)
     assert (child.returncode, err) == (128 + signal.SIGPIPE, "")
+
+
+@pytest.mark.serial  # one process: the line is checked where it is printed
+def test_a_step_count_per_cell_that_underflows_is_refused_in_one_line(tmp_path, cli_main):
+    """``steps_per_cell = 5e-324`` (the smallest double, drawn by test_fuzz's seed 2289785311): the steps per
+    second underflow to 0 (was ZeroDivisionError in model/clock.py); one line naming the key."""
+    text = (pathlib.Path(__file__).parents[1] / "runs" / "sphere-dma.toml").read_text(encoding="utf-8")
+    scene = tmp_path / "tiny.toml"
+    scene.write_text(re.sub(r"(?m)^steps_per_cell = .*$", "steps_per_cell = 5e-324", text), encoding="utf-8")
+    code, _, err = cli_main(["check", str(scene)])
+    assert code == 2 and err.count("\n") == 1 and "[time] steps_per_cell" in err, err

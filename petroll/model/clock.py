@@ -47,7 +47,12 @@ def step_length(scene, t: float, distance: float) -> float | None:
         if scale == 0:
             raise SceneError(scene.source, "[time] steps_per_cell", tm.steps_per_cell,
                              "needs a moving body: give [time] dt for a body at rest")
-        dt = scene.grid.cell / (tm.steps_per_cell * max(speed, 0.1 * scale))
+        rate = tm.steps_per_cell * max(speed, 0.1 * scale)  # cells per second; 0 when it underflows
+        if not rate > 0:
+            raise SceneError(scene.source, "[time] steps_per_cell", tm.steps_per_cell,
+                             "gives no finite step (the steps per second underflow to 0); "
+                             "give a value near 1 (docs/accuracy.md)")
+        dt = scene.grid.cell / rate
     if tm.end is not None:
         dt = min(dt, tm.end - t)
     elif speed > 0:
