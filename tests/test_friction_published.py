@@ -49,7 +49,7 @@ PUBLISHED = {
     # "NPOT NCON NADH NSLIP INORM ITANG" (NCON: contact, NADH: adhesion elements)
     "case 2, TC = 9 ms": (sls(9e-3), (1.365e-2, 78.74e6, 62, 37)),  # lines 143 and 156
     "case 3, TC = 45 ms": (sls(45e-3), (1.152e-2, 84.72e6, 57, 36)),  # lines 222 and 235
-    "case 5, elastic, relaxed G = 571.5 MPa": (elastic(GG / (1 + FG)), (1.378e-2, 60.32e6, 80, 51)),  # 371, 384
+    "case 5, elastic, relaxed G = 571.5 MPa": (elastic(GG / 2), (1.378e-2, 60.32e6, 80, 51)),  # 371, 384
     "case 6, elastic, glassy G = 1143 MPa": (elastic(GG), (9.792e-3, 85.29e6, 56, 36)),  # lines 441 and 454
 }
 """CONTACT's reference output of Wang and Knothe's cylinders (module docstring). Left out: case 1 (TC = 0,
@@ -83,9 +83,9 @@ def test_two_viscoelastic_cylinders_roll_as_the_published_steady_state(comm, sha
         s = run(parse_scene(cylinders(material), source=name), comm, shared_dir / name.split(",")[0]).series
         assert s["traction_x"][0] == pytest.approx(-0.6 * MU * LOAD, rel=1e-9)
         errors = (s["creepage_x"][0] / creepage - 1, s["p_max"][0] / p_max - 1)
-        print(f"{name}: creepage {s['creepage_x'][0]:.4e} ({errors[0]:+.2%}), p_max {s['p_max'][0] / 1e6:.2f} "
-              f"MPa ({errors[1]:+.2%}), {s['area'][0] / CELL:.0f} contact cells, "
-              f"{s['stick_area'][0] / CELL:.0f} stick cells")
+        print(f"{name}: creepage {s['creepage_x'][0]:.4e} ({errors[0]:+.2%}), "
+              f"p_max {s['p_max'][0] / 1e6:.2f} MPa ({errors[1]:+.2%}), "
+              f"{s['area'][0] / CELL:.0f} contact cells, {s['stick_area'][0] / CELL:.0f} stick cells")
         assert max(abs(e) for e in errors) <= 0.02, name
         assert round(s["area"][0] / CELL) == contact, name
         assert abs(s["stick_area"][0] / CELL - stick) <= 1.0 + 1e-9, name

@@ -137,3 +137,54 @@ def test_a_failing_boxed_attempt_is_not_retried(comm):
     with pytest.raises(SolverError, match="did not converge"):
         sim.step(0.01, 0.01)
     assert len(calls) == 1 and calls[0] is not None and calls[0] < np.inf  # the boxed attempt only
+
+
+# -- the tangential history's displacement (friction on a viscoelastic body) ------------------------------
+
+def dense_row_sum(grid, nu: float) -> float:
+    """The largest row sum of |K| (both components) of the tangential kernel on ``grid``, summed row by row
+    over the dense matrix's entries (the oracle of TangentialWake's bound)."""
+    from petroll.solver.kernels.cerruti import tangential_kernel
+
+    nx, ny = grid.nx, grid.ny
+    table = np.abs(tangential_kernel(grid, nu).values(np.arange(1 - nx, nx), np.arange(1 - ny, ny)))
+    rows = (table[0] + table[2], table[1] + table[2]) if len(table) == 3 else (table[0],)
+    # target (i, j) meets the sources at offsets i - i', j - j': the table's block [i, i + nx) x [j, j + ny)
+    return float(max(t[i : i + nx, j : j + ny].sum() for t in rows for i in range(nx) for j in range(ny)))
+
+
+@pytest.mark.parametrize("line", [False, True])
+@pytest.mark.parametrize("cutoff", [0.0, 1e-6, 1e-3])
+def test_the_tangential_history_s_box_is_within_the_stated_bound(comm, cutoff, line):
+    """TangentialWake (petroll/solver/wake.py): a history field whose wake fades behind a body at x = 3 mm
+    over 6 mm (both components; line contact one), its displacement on the box of the contact and of the
+    kept sources against the whole grid's convolution: on the contact within cutoff x max|X| x S_K, S_K the largest row
+    sum of |K| from the dense matrix (at most 1.21 times the normal problem's; line contact 1 - nu times);
+    cutoff 1e-3 drops sources and changes u' (measured 1e-3 of the bound: S_K sums over the grid)."""
+    from petroll.model.grid import line_grid
+    from petroll.solver.tangential import TangentialSolver
+    from petroll.solver.wake import TangentialWake
+
+    nu = 0.3
+    grid = line_grid(160, -5e-3, 4e-3) if line else Grid(80, 12, -5e-3, 4e-3, -0.6e-3, 0.6e-3)
+    solver = TangentialSolver(grid, comm, nu, 1.0)
+    x, y = grid.x[solver.r0 : solver.r1, None], grid.y[None, :]
+    across = np.clip(1 - (y / 6e-4) ** 2, 0, None)
+    fade = np.where((x < 3e-3) & (x > -3e-3), np.exp((x - 3e-3) / 4e-4), 0.0) * across
+    field = np.stack([1e-3 * fade, -3e-4 * fade * np.sign(y)])[: solver.m]
+    bound = np.clip(1 - ((x - 3e-3) ** 2 + y * y) / 0.25e-6, 0.0, None) * 1e6  # Pa, a disk of 0.5 mm
+    wake = TangentialWake(solver, cutoff)
+    boxed = wake.displacement(field, bound)
+    full = solver.displacement(field, (0, grid.nx, 0, grid.ny), 1.0)
+    assert wake.boxes == 1  # a box smaller than the grid
+    largest = comm.allreduce(float(np.abs(field).max()), op=MPI.MAX)
+    row_sum = dense_row_sum(grid, nu)
+    normal = ContactSolver(grid, MPI.COMM_SELF).influence.row_sum_bound(grid.nx, grid.ny)
+    assert row_sum <= ((1 - nu) if line else 1 + (2**0.5 - 1) * nu / 2) * normal * (1 + 1e-12)
+    scale = comm.allreduce(float(np.abs(full).max()), op=MPI.MAX)
+    error = comm.allreduce(float(np.abs(boxed - full)[:, bound > 0].max()), op=MPI.MAX)
+    assert error <= cutoff * largest * row_sum + 1e-13 * scale
+    if cutoff == 1e-3:
+        assert error > 1e-4 * cutoff * largest * row_sum
+    outside = comm.allreduce(int(np.all(boxed == 0, axis=0).sum())) / (grid.nx * grid.ny)
+    assert outside > (0.55 if cutoff == 1e-3 else 0.15)  # ahead of the body and the far wake left out

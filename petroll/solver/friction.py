@@ -45,6 +45,7 @@ from petroll.errors import SolverError
 from petroll.solver.partition import shift_field
 from petroll.solver.steady_friction import SteadyNewton
 from petroll.solver.tangential import TangentialSolution, TangentialSolver
+from petroll.solver.wake import TangentialWake
 
 
 def rigid_slip(x: np.ndarray, y: np.ndarray, creepage, spin: float, distance: float,
@@ -99,12 +100,17 @@ class Stepping:
 
     ``memory``: a viscoelastic material's :class:`ShearMemory` (None: elastic, c the solver's): each step
     then takes its compliance and history displacement from it at the step's length ``dt`` (s), and the
-    displacement sources s of the last two steps (u = K s) are kept beside the tractions."""
+    displacement sources s of the last two steps (u = K s) are kept beside the tractions. Their field spans
+    the track rolled so far (the material relaxes behind the body): ``wake`` (a
+    petroll.solver.wake.TangentialWake) computes its displacement on the box of the contact and of the
+    sources above the history cut-off, so that a step's cost stops growing with the track (None: on every
+    non-zero cell)."""
 
-    def __init__(self, solver: TangentialSolver, order: int = 2, memory: ShearMemory | None = None):
+    def __init__(self, solver: TangentialSolver, order: int = 2, memory: ShearMemory | None = None,
+                 wake: TangentialWake | None = None):
         if order not in (1, 2):
             raise ValueError(f"order {order}: 1 or 2")
-        self.solver, self.order, self.memory = solver, order, memory
+        self.solver, self.order, self.memory, self.wake = solver, order, memory, wake
         self.traction = solver.zeros()  # q^(n-1), Pa
         self.older = None  # q^(n-2) when the last step was a rolling one (with its distance)
         self.source = solver.zeros() if memory is not None else None  # viscoelastic: s^(n-1), u = K s (m)
@@ -128,6 +134,8 @@ class Stepping:
             compliance, v = self.memory.compliance(dt), self.memory.preceding(dt)
             if v is not None:
                 field = field - v
+            if self.wake is not None:
+                return self.wake.displacement(field, bound), compliance, v
         cells = (bound > 0) | np.any(field != 0, axis=0)
         unit = None if self.memory is None else 1.0
         return self.solver.displacement(field, self.solver.box(cells), unit), compliance, v
