@@ -411,3 +411,21 @@ def test_the_run_s_wall_time_leaves_its_estimate_out(comm, shared_dir, monkeypat
     results = petroll.run(roller(), comm, shared_dir / "slow", estimate_error=True)
     elapsed = comm.allreduce(time.perf_counter() - began, op=MPI.MAX)
     assert 0 < results.error_estimate[""]["run_wall_s"] <= elapsed - 1.0
+
+
+def test_a_steady_sliding_friction_s_error_holds_its_difference_from_the_lateral_force_s(comm, shared_dir):
+    """runs/rough-rubber.toml on 32^2 cells (its cut-off at 4 cells as shipped) with its estimate: mu_r's
+    error includes the fine grid's |mu_r - mu_lateral| (attribute lateral_difference, the printed line),
+    mu_lateral being results.h5's rough/mu_lateral; the other quantities carry none."""
+    from petroll.cli import estimate_lines
+
+    scene = load_scene(shipped_scene("rough-rubber.toml"))
+    scene = scene.replace({"grid.nx": 32, "grid.ny": 32, "body.cutoff": 4 * scene.grid.dx * 256 / 32})
+    results = petroll.run(scene, comm, out=shared_dir / "rough", estimate_error=True)
+    mu, lateral = results.series["mu_r"][-1], results.rough["mu_lateral"][-1]
+    q = results.error_estimate["mu_r"]
+    assert q["lateral_difference"] == pytest.approx(abs(mu - lateral), rel=1e-12)
+    assert q["lateral_difference"] > 1e-4 * mu and q["error"] >= q["lateral_difference"]
+    assert "lateral_difference" not in results.error_estimate["force"]
+    line = next(text for text in estimate_lines(results.error_estimate) if text.startswith("  mu_r"))
+    assert f"{q['lateral_difference']:.1e} of it |mu_r - mu_lateral|" in line
