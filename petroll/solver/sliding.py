@@ -57,8 +57,10 @@ class SlidingKernel(Spectral):
     with S = A H, ``form`` "operator": S; "modulus": |S|^2 / Re S = A |H|^2 / Re H (symmetric positive
     definite, real); "lag": S - modulus; "newton": conj(H) / Re H alone (no A: a multiplier of the modes,
     identity in real space along a non-Fourier axis; after M^-1 it gives K^-1); "dissipation": (k.e) Im S,
-    e the direction of motion (real and even: (k.e) and Im H are both odd in k; the material's power
-    under a pressure p is V sum p (D p) dA, :meth:`SteadySliding.dissipated`). Where a mode is its own
+    e the direction of motion, k.e taken at the frequency the integrator sees, its phase k.V dt per step
+    brought into (-pi, pi] (the same where a step crosses at most a cell's worth of the mode's phase; real
+    and even: (k.e) and Im H are both odd in k; the material's power under a pressure p is V sum p (D p)
+    dA, :meth:`SteadySliding.dissipated`). Where a mode is its own
     conjugate (2 m = 0 mod n along every Fourier axis) the real part is taken (a real field's transform
     is real there)."""
 
@@ -82,9 +84,8 @@ class SlidingKernel(Spectral):
         h = np.where(own, h.real, h)
         if self.form == "operator":
             return h
-        if self.form == "dissipation":
-            speed = math.hypot(*self.velocity)
-            return (kx * self.velocity[0] + ky * self.velocity[1]) / speed * h.imag
+        if self.form == "dissipation":  # k.e, at the frequency the integrator sees (its phase per step)
+            return -np.angle(np.exp(1j * phase)) / (math.hypot(*self.velocity) * self.dt) * h.imag
         modulus = np.abs(h) ** 2 / h.real
         if self.form == "modulus":
             return modulus

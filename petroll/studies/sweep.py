@@ -84,13 +84,10 @@ EXCLUSIVE = {
 COLUMNS: dict[str, tuple[str, str]] = {
     "value": ("(of KEY)", "the varied value (a vector key: its magnitude)"),
     "force": ("N", "normal force at the last step"),
-    "mu_r": ("-", "rolling-resistance coefficient at the last step (a periodic grid's steady sliding: the "
-             "friction coefficient from the dissipated power)"),
+    "mu_r": ("-", "rolling-resistance coefficient at the last step (steady sliding: friction, dissipation's)"),
     "delta": ("m", "penetration at the last step"),
     "area": ("m^2", "contact area at the last step"),
     "area_fraction": ("-", "A/A0: contact area / the cell's area (a grid periodic along X and Y; else NaN)"),
-    "mu_lateral": ("-", "the lateral force's coefficient at the last step, results.h5's rough/mu_lateral (a "
-                   "grid periodic along X and Y; else NaN): a steady sliding point's diagnostic beside mu_r"),
     "lead": ("m", "leading patch edge along the motion, relative to the body"),
     "trail": ("m", "trailing patch edge along the motion, relative to the body"),
     "p_max": ("Pa", "peak pressure at the last step"),
@@ -472,8 +469,6 @@ def table_row(scene: Scene, results: Results, value: float, estimate_error: bool
     g, line = scene.grid, scene.grid.line  # plane strain: force per length, area a width, delta to the datum
     cell = g.topology.statistics  # a periodic cell: its area fraction, no Hertz radius
     row["area_fraction"] = st.area / ((g.x1 - g.x0) * (g.y1 - g.y0)) if cell else math.nan
-    rough = results.rough or {}
-    row["mu_lateral"] = float(rough["mu_lateral"][-1]) if len(rough.get("mu_lateral", ())) else math.nan
     delta0 = float(s["delta"][0])
     direct = scene.time.mode is TimeMode.STEADY  # no first (instantaneous) step: Hertz with J0 at its load
     if direct and line and isinstance(scene.body, CylinderSection) and isinstance(material, Prony):
