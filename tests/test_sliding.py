@@ -59,6 +59,33 @@ def test_the_transfer_function_is_the_pulse_responses_sum_and_tends_to_the_compl
     assert order == pytest.approx(1.0 if integrator == "paper" else 2.0, abs=0.1)
 
 
+@pytest.mark.parametrize("integrator", ["relaxation", "exponential", "paper"])
+def test_every_integrator_loses_energy_at_every_phase_per_step(integrator):
+    """The sliding friction's sign (petroll.solver.sliding, the "dissipation" kernel): a pressure
+    oscillating by a phase theta per step in (-pi, pi], z = e^{-i theta}, gets a response H(z) with
+    theta Im H >= 0 (the response lags: the material takes energy), for an SLS and a 3-term Prony series
+    from steps far below to far above their times, where the integrator accepts the step; 0 for an elastic
+    material."""
+    from petroll.errors import SolverError
+
+    theta = np.linspace(-np.pi, np.pi, 4001)
+    elastic = materials.elastic(10e6, NU)
+    assert np.all(transfer(elastic, integrator, 1e-3, np.exp(-1j * theta)).imag == 0)
+    sls = materials.sls(10e6, 2e6, NU, tau_relax=2e-3)
+    prony = materials.maxwell(PRONY["Einf"], NU, PRONY["moduli"], PRONY["times"])
+    tried = 0
+    for material in (sls, prony):
+        for dt in np.geomspace(1e-7, 10.0, 9):
+            try:
+                h = transfer(material, integrator, dt, np.exp(-1j * theta))
+            except SolverError:  # a step the integrator refuses ("exponential", "paper" beyond their bounds)
+                continue
+            tried += 1
+            loss = theta * h.imag
+            assert loss.min() >= -1e-12 * np.abs(h).max() * np.pi and loss.max() > 0
+    assert tried >= 8
+
+
 def sinusoid_scene(comm, dirpath, material, speed, two_d=False, n=128, amplitude=1e-6, wavelength=1e-3,
                    steps_per_cell=None):
     """D (1 - cos kx) (invariant along y on 4 cells) or D (1 - cos kx cos ky) (on a square cell), pressed

@@ -57,12 +57,12 @@ class SlidingKernel(Spectral):
     with S = A H, ``form`` "operator": S; "modulus": |S|^2 / Re S = A |H|^2 / Re H (symmetric positive
     definite, real); "lag": S - modulus; "newton": conj(H) / Re H alone (no A: a multiplier of the modes,
     identity in real space along a non-Fourier axis; after M^-1 it gives K^-1); "dissipation": (k.e) Im S,
-    e the direction of motion, k.e taken at the frequency the integrator sees, its phase k.V dt per step
-    brought into (-pi, pi] (the same where a step crosses at most a cell's worth of the mode's phase; real
-    and even: (k.e) and Im H are both odd in k; the material's power under a pressure p is V sum p (D p)
-    dA, :meth:`SteadySliding.dissipated`). Where a mode is its own
-    conjugate (2 m = 0 mod n along every Fourier axis) the real part is taken (a real field's transform
-    is real there)."""
+    e the direction of motion, k.e at the frequency the integrator sees: its phase per step k.V dt brought
+    into (-pi, pi] (k.e itself where |k.V dt| <= pi: along an axis, at most one cell per step), so that
+    (k.e) Im H >= 0 for every mode (the integrator's loss); real and even, (k.e) and Im H being odd in k;
+    the material's power under a pressure p is V sum p (D p) dA (:meth:`SteadySliding.dissipated`). Where
+    a mode is its own conjugate (2 m = 0 mod n along every Fourier axis) the real part is taken (a real
+    field's transform is real there)."""
 
     def __init__(self, base: Spectral, material, integrator: str, velocity, dt: float, form: str):
         super().__init__(base.dx, base.dy, base.nx, base.ny, base.fourier)
@@ -287,8 +287,9 @@ class SteadySliding:
         """The power (W; line contact W/m) the material dissipates under the steady ``pressure`` (Pa, this
         rank's rows): the work of the pressure on the surface's displacement as each material point sees it
         change, mean(p dw/dt) over the cell times its area, w's modes oscillating at k.V (module
-        docstring), V sum_k |p_k|^2 (k.e) Im S_k = V sum p (D p) dA with D the "dissipation" kernel: >= 0
-        for a dissipative material, each mode's (k.e) Im H being >= 0, and 0 for an elastic one (H real).
+        docstring), V sum_k |p_k|^2 (k.e) Im S_k = V sum p (D p) dA with D the "dissipation" kernel
+        (SlidingKernel): >= 0 for a dissipative material, each mode's (k.e) Im H being >= 0, and 0 for an
+        elastic one (H real).
         On the contact w = delta - Z, so in the continuum it is the lateral force's power V sum p dZ/dx dA;
         on the grid they differ where the spectral derivative of w across the contact's edges does (the
         discretisation's difference; equal in full contact). Collective."""
