@@ -473,6 +473,8 @@ def summary(scene, results, wall: float, resumed=None) -> str:
     g = scene.grid
     if g.topology.statistics:  # a periodic cell: sliding friction, area fraction, no single patch
         resisting = f"friction mu {s['mu_r'][-1]:.4e}"
+        if results.solved_steady and "mu_lateral" in (results.rough or {}):  # mu_r: the dissipation's
+            resisting += f" (from the dissipation; the lateral force's {results.rough['mu_lateral'][-1]:.4e})"
         patch = f"area fraction A/A0 {s['area'][-1] / ((g.x1 - g.x0) * (g.y1 - g.y0)):.4g}"
     else:
         resisting = f"mu_r {s['mu_r'][-1]:.4e}"

@@ -416,7 +416,8 @@ def test_the_run_s_wall_time_leaves_its_estimate_out(comm, shared_dir, monkeypat
 def test_a_steady_sliding_friction_s_error_holds_its_difference_from_the_lateral_force_s(comm, shared_dir):
     """runs/rough-rubber.toml on 32^2 cells (its cut-off at 4 cells as shipped) with its estimate: mu_r's
     error includes the fine grid's |mu_r - mu_lateral| (attribute lateral_difference, the printed line),
-    mu_lateral being results.h5's rough/mu_lateral; the other quantities carry none."""
+    mu_lateral being results.h5's rough/mu_lateral; the other quantities carry none; the run's summary
+    gives both."""
     from petroll.cli import estimate_lines
 
     scene = load_scene(shipped_scene("rough-rubber.toml"))
@@ -429,3 +430,7 @@ def test_a_steady_sliding_friction_s_error_holds_its_difference_from_the_lateral
     assert "lateral_difference" not in results.error_estimate["force"]
     line = next(text for text in estimate_lines(results.error_estimate) if text.startswith("  mu_r"))
     assert f"{q['lateral_difference']:.1e} of it |mu_r - mu_lateral|" in line
+    from petroll.cli import summary
+
+    text = summary(scene, results, wall=1.0)  # the run's paragraph names both
+    assert f"friction mu {mu:.4e} (from the dissipation; the lateral force's {lateral:.4e})" in text
