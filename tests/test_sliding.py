@@ -8,6 +8,7 @@ import math
 
 import numpy as np
 import pytest
+from mpi4py import MPI
 
 from petroll.errors import SceneError
 from petroll.model import materials
@@ -272,6 +273,26 @@ def test_viscoelastic_sliding_friction_is_the_dissipation_and_never_negative(com
         mus.append(record.mu_r)
     mus = np.array(mus)
     assert mus.min() > 0 and 0 < np.argmax(mus) < len(mus) - 1  # the loss peak lies inside the range
+
+
+@pytest.mark.parallel
+def test_the_sliding_friction_and_its_lateral_diagnostic_are_the_same_on_every_rank_count(comm, shared_dir):
+    """A 64^2 rough surface sliding steadily on an SLS near its loss peak and far above it: mu_r (the
+    dissipated power's), the dissipation and the lateral force's coefficient (petroll.records.
+    lateral_friction, rough/mu_lateral's) on ``comm`` are those of the same solve on a single rank (the
+    oracle) to 1e-10."""
+    from petroll.records import lateral_friction
+
+    raw = rough_raw(comm, shared_dir, n=64)
+    for speed in (0.01, 10.0):
+        scene = parse_scene({**raw, "motion": {**raw["motion"], "velocity": [speed, 0.0]},
+                             "time": {"mode": "steady"}})
+        ours, alone = Simulation(scene, comm), Simulation(scene, MPI.COMM_SELF)
+        mine, oracle = next(ours.steps()), next(alone.steps())
+        for name in ("mu_r", "dissipation", "force"):
+            assert getattr(mine, name) == pytest.approx(getattr(oracle, name), rel=1e-10), name
+        assert ours.rough_outputs().mu_lateral == pytest.approx(lateral_friction(oracle, alone.direction),
+                                                                rel=1e-10)
 
 
 def test_the_dissipation_friction_of_a_sliding_sinusoid_in_full_contact_is_the_closed_form(comm, shared_dir):
