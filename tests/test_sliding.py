@@ -247,6 +247,7 @@ def test_elastic_sliding_has_no_friction_where_the_lateral_force_has_some(comm, 
         assert abs(lateral_friction(record, sim.direction)) > 1e-5
 
 
+@pytest.mark.slow
 def test_viscoelastic_sliding_friction_is_the_dissipation_and_never_negative(comm, shared_dir):
     """A rough surface (64^2) sliding on an SLS at 12 speeds across its loss peak (V tau_relax from 1e-3 to
     10 times the cell's length): mu_r is the dissipated power of the saved pressure computed by numpy's
