@@ -401,8 +401,13 @@ class ResultsFile:
 
     # -- helpers ----------------------------------------------------------------------------------------
     def _put_rough(self, f: RowFile, k: int, rough, mine: bool) -> None:
-        """Row k - 1 of the group rough: the saved step's RoughOutputs (rank 0 writes)."""
+        """Row k - 1 of the group rough: the saved step's RoughOutputs (rank 0 writes). A file written before
+        mu_lateral (a restart) gets it, NaN at its earlier rows."""
         if f.writer:
+            group = f.file["rough"]
+            for name in set(ROUGH_SCALARS) - set(group):
+                group.create_dataset(name, shape=(0,), maxshape=(None,), chunks=(64,), dtype=np.float64,
+                                     fillvalue=np.nan).attrs["units"] = ROUGH_UNITS[name]
             for name in ROUGH_UNITS:
                 f.file["rough"][name].resize(k, axis=0)
         for name in ROUGH_SCALARS:
