@@ -240,8 +240,11 @@ def test_the_sweep_command_runs_and_refuses_bad_specs_in_one_line(comm, capsys, 
         (["--vary", "motion.velocity=1..2:log:0"], "petroll: error: --vary 'motion.velocity=1..2:log:0': a "
                                                    "range needs N >= 2"),
         (["--vary", "material.E0=1e6,-1"], "petroll: error: "),  # the scene refuses the value
-        (["--vary", "motion.velocity=1,2", "--vary", "material.E0=1,2"], "petroll: error: --vary given 2 "
-                                                                         "times"),
+        (["--vary", "motion.velocity=1,2", "--vary", "material.E0=1,2", "--vary", "motion.load=1,2"],
+         "petroll: error: --vary given 3 times"),
+        (["--vary", "motion.velocity=1,2", "--vary", "motion.velocity=3,4"], "petroll: error: --vary "
+                                                                            "motion.velocity given twice"),
+        (["--vary", "motion.velocity=1,2", "--vary", "material.E0=1e6,-1"], "petroll: error: "),
         ([], "petroll: error: the following arguments are required: --vary"),
     ]:
         code, out, err = cli_main(["sweep", scene, "--out", str(shared_dir / "bad"), *argv])

@@ -121,6 +121,11 @@ COLUMNS: dict[str, tuple[str, str]] = {
     "creepage_y": ("-", "with [friction]: along Y"),
     "stick_area": ("m^2", "with [friction]: the stick area at the last step"),
     "friction_power": ("W", "with [friction]: the slip's power at the last step"),
+    "creep_coefficient": ("-", "with [friction] on a sphere under a creepage (no spin): Kalker's creep "
+                          "coefficient as the traction curve's secant, -F.xi / (G c^2 |xi|^2), G the bodies' "
+                          "relaxed shear modulus (1/the summed relaxed shear compliance), c the Hertz radius at "
+                          "the penetration (load control: the relaxed one at the force); a small creepage gives "
+                          "the initial slope (NaN otherwise)"),
     **{f"{name}_error": (unit, f"estimated discretisation error of {name} at the last step (only with "
                                "--estimate-error; NaN where the grids are not in the asymptotic range)")
        for name, unit in (("force", "N"), ("delta", "m"), ("mu_r", "-"), ("p_max", "Pa"), ("area", "m^2"),
@@ -502,6 +507,7 @@ def table_row(scene: Scene, results: Results, value: float, estimate_error: bool
                 row[f"delta_{name}"] = (3 * J * st.force / (4 * math.sqrt(radius))) ** (2 / 3)
     for name in FRICTION_COLUMNS:  # a run with friction (line contact: no _y series)
         row[name] = float(s[name][-1]) if name in s else nan
+    row["creep_coefficient"] = creep_coefficient(scene, row)
     if estimate_error:
         found = results.error_estimate or {}
         for name in COLUMNS:
@@ -510,15 +516,47 @@ def table_row(scene: Scene, results: Results, value: float, estimate_error: bool
     return row
 
 
+def creep_coefficient(scene: Scene, row: dict[str, float]) -> float:
+    """Kalker's creep coefficient of a point (COLUMNS; docs/friction.md#studies): the traction (``row``'s
+    traction_x, traction_y) against the creepage of ``scene``, -F.xi / (G c^2 |xi|^2) with G = 1/(the
+    summed relaxed shear compliance) and c the Hertz radius: sqrt(R delta) under displacement control (any
+    modulus's), (3 F R Jinf/4)^(1/3) the relaxed one at the normal force F under load control; NaN but for
+    a sphere under a non-zero creepage without spin (scene.friction a Friction)."""
+    from petroll.model.bodies import Sphere
+    from petroll.model.friction import Friction
+
+    f = scene.friction
+    if (not isinstance(f, Friction) or not isinstance(scene.body, Sphere) or f.force is not None or f.spin
+            or not any(f.creepage) or not isinstance(scene.material, Prony) or not row["force"] > 0):
+        return math.nan
+    xi = np.asarray(f.creepage, dtype=float)
+    if scene.load is None:  # Hertz's radius at the penetration, whatever the modulus
+        c = math.sqrt(scene.body.radius * row["delta"])
+    else:
+        c = (0.75 * row["force"] * scene.body.radius * scene.material.Jinf) ** (1 / 3)
+    traction = np.array([row["traction_x"], row["traction_y"]])
+    return float(-traction @ xi / (c * c * (xi @ xi)) * f.compliance)
+
+
+def _csv_rows(table: SweepTable, before: tuple[str, str, float] | None = None) -> tuple[str, list[str]]:
+    """(header, rows) of a table's CSV (COLUMNS, in order; ``before``: a first column (name, unit, value)
+    of every row, a family's second key)."""
+    names = [n for n in COLUMNS if n in table.columns]
+    line = LINE_UNITS if table.line else {}  # a line-contact sweep: per unit length
+    units = [table.unit if n == "value" else line.get(n, COLUMNS[n][0]) for n in names]
+    header = ",".join(f"{table.key if n == 'value' else n} ({u})" for n, u in zip(names, units))
+    first = "" if before is None else f"{before[2]:.10g},"
+    rows = [first + ",".join(f"{table.columns[n][i]:.10g}" for n in names) for i in range(len(table.points))]
+    return (header if before is None else f"{before[0]} ({before[1]}),{header}"), rows
+
+
 def write_table(table: SweepTable) -> None:
     """Write sweep.csv and sweep.h5 (each atomically). Call on one rank."""
     names = [n for n in COLUMNS if n in table.columns]
     line = LINE_UNITS if table.line else {}  # a line-contact sweep: per unit length
     units = [table.unit if n == "value" else line.get(n, COLUMNS[n][0]) for n in names]
-    header = ",".join(f"{table.key if n == 'value' else n} ({u})" for n, u in zip(names, units))
-    lines = [header] + [",".join(f"{table.columns[n][i]:.10g}" for n in names)
-                        for i in range(len(table.points))]
-    text = "\n".join(lines) + "\n"
+    header, rows = _csv_rows(table)
+    text = "\n".join([header, *rows]) + "\n"
     clean_temporaries(table.directory, [table.csv.name, table.h5.name])  # of a writer killed earlier
     atomic_write(table.csv, lambda tmp: tmp.write_text(text, encoding="utf-8"))
 
@@ -538,7 +576,78 @@ def write_table(table: SweepTable) -> None:
     atomic_hdf5(table.h5, fill)
 
 
-def _plot(table: SweepTable) -> None:
+@dataclass
+class Family:
+    """A family of sweeps (:func:`family`): one :class:`SweepTable` (a curve over its ``curve`` key) per
+    value of ``key`` (in ``unit``), written under ``directory``. Returned on every rank."""
+
+    key: str
+    unit: str
+    values: tuple[float, ...]
+    tables: list[SweepTable]
+    directory: pathlib.Path
+
+    @property
+    def csv(self) -> pathlib.Path:
+        return self.directory / "family.csv"
+
+    @property
+    def png(self) -> pathlib.Path:
+        return self.directory / "family.png"
+
+    @property
+    def computed(self) -> int:
+        """The points run by this call (the others were found finished)."""
+        return sum(len(t.computed) for t in self.tables)
+
+
+def family(scene: Scene, curve: Vary | str, across: Vary | str, out: str | pathlib.Path | None = None,
+           comm: MPI.Comm = MPI.COMM_WORLD, progress: bool = False, stop=None,
+           log: Callable[[str], None] | None = None, plot: bool = True, transient: bool = False) -> Family:
+    """A family of curves: for every value of ``across`` (a :class:`Vary` or its text) the sweep of
+    ``curve`` (:func:`sweep`) on the scene with that value, into ``out``/KEY=VALUE (default ``out``: the
+    scene's output directory + ``-sweep``); then family.csv (every curve's rows, the value of ``across``
+    first) and family.png (petroll.plot.sweep.plot_family: the curves on one figure). Traction curves at
+    several speeds or temperatures (``curve`` motion.creepage), creep coefficients against the speed at
+    several temperatures (docs/sweep.md#families-of-curves). Every point's scene is built before the first
+    runs; each curve resumes as a sweep does. Collective."""
+    curve = parse_vary(curve) if isinstance(curve, str) else curve
+    across = parse_vary(across) if isinstance(across, str) else across
+    if curve.key == across.key:
+        raise SweepError(f"--vary {across.key} given twice; a family varies two different keys ({FORMS})")
+    if out is None:
+        out = scene.output_dir.with_name(scene.output_dir.name + "-sweep")
+    out = pathlib.Path(out)
+    scenes = [_transient_point(scene, across.key, v) for v in across.values]
+    for member in scenes:  # every point of every curve checked before the first run
+        for v in curve.values:
+            point_scene(member, curve.key, v, transient)
+    names = [point_name(across.key, v) for v in across.values]
+    if len(set(names)) != len(names):
+        raise SweepError(f"--vary {across.spec or across.key}: values closer than 10 significant digits")
+    unit = key_unit(scene, across.key)
+    tables = []
+    for value, member, name in zip(across.values, scenes, names):
+        label = f"{across.key} = {value:.6g}" + (f" {unit}" if unit != "-" else "")
+        say = None if log is None else (lambda line, label=label: log(f"{label}: {line}"))
+        tables.append(sweep(member, curve, out / name, comm, progress, stop, say, plot, transient))
+    result = Family(across.key, unit, across.values, tables, out)
+
+    def write() -> None:
+        lines = []
+        for value, table in zip(result.values, tables):
+            header, rows = _csv_rows(table, (across.key, unit, value))
+            lines += rows if lines else [header, *rows]
+        clean_temporaries(out, [result.csv.name])
+        atomic_write(result.csv, lambda tmp: tmp.write_text("\n".join(lines) + "\n", encoding="utf-8"))
+
+    _on_rank0(comm, write)
+    if plot:
+        _on_rank0(comm, lambda: _plot(result))
+    return result
+
+
+def _plot(table: SweepTable | Family) -> None:
     from petroll.model.limits import PetrollWarning
 
     try:
@@ -547,9 +656,12 @@ def _plot(table: SweepTable) -> None:
         warnings.warn(PetrollWarning("sweep: matplotlib is not installed: the table is written, not the "
                                      "plot"), stacklevel=3)
         return
-    from petroll.plot import plot_sweep
+    from petroll.plot import plot_family, plot_sweep
 
-    plot_sweep(table, table.png)
+    if isinstance(table, Family):
+        plot_family(table, table.png)
+    else:
+        plot_sweep(table, table.png)
 
 
 def _on_rank0(comm: MPI.Comm, action: Callable[[], None]) -> None:
@@ -576,22 +688,36 @@ def command(scene_path: str, vary_text: Sequence[str], out: str | None, quiet: b
     from petroll.io.checkpoint import StopRequest
     from petroll.model.scene import load_scene
 
-    if len(vary_text) != 1:
-        raise SweepError(f"--vary given {len(vary_text)} times; a sweep varies exactly one key "
-                         f"({FORMS})")
+    if len(vary_text) > 2:
+        raise SweepError(f"--vary given {len(vary_text)} times; a sweep varies one key, a family of curves "
+                         f"two (the curves' key first: docs/sweep.md#families-of-curves) ({FORMS})")
     vary = parse_vary(vary_text[0])
+    across = parse_vary(vary_text[1]) if len(vary_text) == 2 else None
     start = time.perf_counter()
     stop = StopRequest()
     say = (lambda line: print(f"petroll: {line}", flush=True))
     try:
         with stop.handling(), warnings_once():
             scene = load_scene(scene_path)
-            table = sweep(scene, vary, out, comm, progress=not quiet and sys.stderr.isatty(), stop=stop,
-                          log=say, transient=transient, estimate_error=estimate_error)
+            if across is not None:
+                if estimate_error:
+                    raise SweepError("--estimate-error: with one --vary only (a sweep, not a family of curves)")
+                curves = family(scene, vary, across, out, comm, progress=not quiet and sys.stderr.isatty(),
+                                stop=stop, log=say, transient=transient)
+            else:
+                table = sweep(scene, vary, out, comm, progress=not quiet and sys.stderr.isatty(), stop=stop,
+                              log=say, transient=transient, estimate_error=estimate_error)
     except SweepInterrupted as exc:
         if comm.rank == 0:
             print(f"petroll: {scene.source}: sweep {exc}", file=sys.stderr, flush=True)
         return exc.exit_code
+    if across is not None:
+        if comm.rank == 0:
+            n = sum(len(t.points) for t in curves.tables)
+            print(f"petroll: {scene.source}: {len(curves.tables)} curves of {vary.key} at {across.key} = "
+                  f"{', '.join(f'{v:.6g}' for v in across.values)} ({n} points, {curves.computed} run; wall "
+                  f"time {time.perf_counter() - start:.1f} s). Table: {curves.csv}; plot: {curves.png}")
+        return 0
     if comm.rank == 0:
         n, ran = len(table.points), len(table.computed)
         print(f"petroll: {scene.source}: sweep of {vary.key} over {n} values ({ran} run, {n - ran} kept from "
