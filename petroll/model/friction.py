@@ -210,3 +210,25 @@ def _motion(m: dict, table: dict, time: dict, line: bool, coefficient: float, so
         if rest and time["end"] is not None:
             out["ramp"] = time["end"]
     return out
+
+
+def creep_coefficient(scene, force: float, delta: float, traction) -> float:
+    """Kalker's creep coefficient of a steady rolling run of ``scene`` as its traction curve's secant
+    (docs/friction.md#traction-against-speed-and-temperature): the tangential force ``traction`` (N,
+    (Fx, Fy)) against the scene's creepage xi, -F.xi / (G c^2 |xi|^2), G = 1/(the bodies' summed relaxed
+    shear compliance) and c the Hertz radius: sqrt(R delta) under displacement control (any modulus's),
+    (3 F R Jinf/4)^(1/3) the relaxed one at the normal ``force`` F (N) under load control (``delta`` the
+    penetration, m). At a small creepage the initial slope: Kalker's C11 for an elastic pair rolling along
+    X. NaN but for a sphere on a Prony (SLS, elastic) material under a non-zero creepage without spin."""
+    from petroll.model.bodies import Sphere
+
+    f = scene.friction
+    if (not isinstance(f, Friction) or not isinstance(scene.body, Sphere) or f.force is not None or f.spin
+            or not any(f.creepage) or not isinstance(scene.material, materials.Prony) or not force > 0):
+        return float("nan")
+    xi = np.asarray(f.creepage, dtype=float)
+    if scene.load is None:  # Hertz's radius at the penetration, whatever the modulus
+        c = np.sqrt(scene.body.radius * delta)
+    else:
+        c = (0.75 * force * scene.body.radius * scene.material.Jinf) ** (1 / 3)
+    return float(-np.asarray(traction, dtype=float) @ xi / (c * c * (xi @ xi)) * f.compliance)

@@ -2,15 +2,11 @@
 
     petroll sweep SCENE.toml --vary KEY=SPEC [--out DIR]
 
-SPEC is one of (docs/sweep.md)::
-
-    V1,V2,...            the listed values                  material.tau_relax=0.001,0.01,0.1
-    START..STOP:log:N    N values evenly spaced in log      motion.velocity=1e-5..10:log:25
-    START..STOP:lin:N    N values evenly spaced             motion.penetration=10e-6..30e-6:lin:5
-
-KEY is a scene key ``section.key`` holding a number. A vector key (``motion.velocity``, ``body.position``)
-varies its magnitude along the scene's own direction: the scene's ``velocity = [0.01, 0]`` with the value
-0.5 runs ``velocity = [0.5, 0]``. Varying one key of an exclusive pair drops the other (penetration/load,
+SPEC (docs/sweep.md): ``V1,V2,...`` (the listed values), ``START..STOP:log:N`` (N values evenly spaced in
+log) or ``START..STOP:lin:N`` (evenly spaced), e.g. ``motion.velocity=1e-5..10:log:25``. KEY is a scene
+key ``section.key`` holding a number. A vector key (``motion.velocity``, ``body.position``) varies its
+magnitude along the scene's own direction: the scene's ``velocity = [0.01, 0]`` with the value 0.5 runs
+``velocity = [0.5, 0]``. Varying one key of an exclusive pair drops the other (penetration/load,
 tau_creep/tau_relax, dt/steps_per_cell, end/distance).
 
 Each point is the scene with that value, at steady state. Where the steady state can be solved directly
@@ -23,19 +19,13 @@ scene's ``distance`` (or ``end``) must leave room to reach it, and a point that 
 (column ``steady`` = 0, a warning). A scene without [time] gives one instantaneous step per point (a
 static sweep, e.g. force against penetration).
 
-Output in DIR (default: the scene's output directory + ``-sweep``)::
-
-    points/KEY=VALUE/results.h5   each point's run (docs/results.md), checkpoints as the scene asks
-    sweep.csv, sweep.h5           one row per point: the steady values and the derived ones (COLUMNS)
-    sweep.png                     mu_r, force or penetration, area, patch edges, convergence against
-                                  the value, with V tau/a on a second axis where it applies
-
-A point whose complete results.h5 holds the same scene is not run again, so an interrupted sweep (or
-one extended by more values) resumes where it stopped; a point interrupted by SIGTERM/SIGINT continues
-from its checkpoint.
-
-Reuse: every point builds its own contact solver (influence kernels), since petroll.driver.run
-does not take one; measured, kernels cost about 1-3 % of a point's run (docs/sweep.md).
+Output in DIR (default: the scene's output directory + ``-sweep``): points/KEY=VALUE/results.h5 (each
+point's run, docs/results.md; checkpoints as the scene asks), sweep.csv and sweep.h5 (one row per point:
+the steady values and the derived ones, COLUMNS), sweep.png (petroll.plot.sweep). A point whose complete
+results.h5 holds the same scene is not run again, so an interrupted sweep (or one extended by more values)
+resumes where it stopped; a point interrupted by SIGTERM/SIGINT continues from its checkpoint. Every
+point builds its own contact solver (kernels: about 1-3 % of a point's run, docs/sweep.md). A family of
+such sweeps over a second key, and the command: petroll.studies.family.
 
 All functions here are collective over ``comm`` (every rank calls them with the same arguments) and
 return the same values on every rank.
@@ -47,7 +37,7 @@ import math
 import pathlib
 import re
 import warnings
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import h5py
@@ -62,7 +52,7 @@ from petroll.io.hdf5 import atomic_hdf5
 from petroll.io.results import Results, atomic_write, results_identity
 from petroll.io.rundir import clean_temporaries
 from petroll.model.clock import TimeMode
-from petroll.model.limits import warnings_once
+from petroll.model.friction import creep_coefficient
 from petroll.model.schema import DEFAULT_STEADY, SCHEMA
 from petroll.model.scene import Scene
 
@@ -122,10 +112,8 @@ COLUMNS: dict[str, tuple[str, str]] = {
     "stick_area": ("m^2", "with [friction]: the stick area at the last step"),
     "friction_power": ("W", "with [friction]: the slip's power at the last step"),
     "creep_coefficient": ("-", "with [friction] on a sphere under a creepage (no spin): Kalker's creep "
-                          "coefficient as the traction curve's secant, -F.xi / (G c^2 |xi|^2), G the bodies' "
-                          "relaxed shear modulus (1/the summed relaxed shear compliance), c the Hertz radius at "
-                          "the penetration (load control: the relaxed one at the force); a small creepage gives "
-                          "the initial slope (NaN otherwise)"),
+                          "coefficient as the traction curve's secant (petroll.model.friction.creep_coefficient); "
+                          "its initial slope at a small creepage (NaN otherwise)"),
     **{f"{name}_error": (unit, f"estimated discretisation error of {name} at the last step (only with "
                                "--estimate-error; NaN where the grids are not in the asymptotic range)")
        for name, unit in (("force", "N"), ("delta", "m"), ("mu_r", "-"), ("p_max", "Pa"), ("area", "m^2"),
@@ -243,7 +231,7 @@ STEADY_DROPPED = ("end", "distance", "steady", "max_steps")
 def point_scene(scene: Scene, key: str, value: float, transient: bool = False) -> Scene:
     """The scene of one sweep point: ``key`` set to ``value`` (module docstring); solved directly ([time]
     mode = "steady") where that applies and ``transient`` is False, else [time] steady added."""
-    point = _transient_point(scene, key, value)
+    point = valued_scene(scene, key, value)
     time = point.raw.get("time")
     if transient or not time or time.get("mode") == "steady":
         return point
@@ -255,7 +243,7 @@ def point_scene(scene: Scene, key: str, value: float, transient: bool = False) -
         return point
 
 
-def _transient_point(scene: Scene, key: str, value: float) -> Scene:
+def valued_scene(scene: Scene, key: str, value: float) -> Scene:
     """The scene with ``key`` set to ``value``, [time] steady added (run from rest to steady state)."""
     section, _, name = key.partition(".")
     current = scene.raw.get(section, {}).get(name)
@@ -408,9 +396,9 @@ def sweep(scene: Scene, vary: Vary | str, out: str | pathlib.Path | None = None,
                 + (f", grid {point.grid.nx} x {point.grid.ny} (sized)" if point.sizing is not None else ""))
     columns = {name: np.array([row[name] for row in rows], dtype=float) for name in COLUMNS if name in rows[0]}
     table = SweepTable(vary.key, unit, columns, scene.text, [f"points/{n}" for n in names], out, computed)
-    _on_rank0(comm, lambda: write_table(table))
+    on_rank0(comm, lambda: write_table(table))
     if plot:
-        _on_rank0(comm, lambda: _plot(table))
+        on_rank0(comm, lambda: _plot(table))
     return table
 
 
@@ -507,7 +495,8 @@ def table_row(scene: Scene, results: Results, value: float, estimate_error: bool
                 row[f"delta_{name}"] = (3 * J * st.force / (4 * math.sqrt(radius))) ** (2 / 3)
     for name in FRICTION_COLUMNS:  # a run with friction (line contact: no _y series)
         row[name] = float(s[name][-1]) if name in s else nan
-    row["creep_coefficient"] = creep_coefficient(scene, row)
+    row["creep_coefficient"] = creep_coefficient(scene, row["force"], row["delta"],
+                                                 (row["traction_x"], row["traction_y"]))
     if estimate_error:
         found = results.error_estimate or {}
         for name in COLUMNS:
@@ -516,29 +505,7 @@ def table_row(scene: Scene, results: Results, value: float, estimate_error: bool
     return row
 
 
-def creep_coefficient(scene: Scene, row: dict[str, float]) -> float:
-    """Kalker's creep coefficient of a point (COLUMNS; docs/friction.md#studies): the traction (``row``'s
-    traction_x, traction_y) against the creepage of ``scene``, -F.xi / (G c^2 |xi|^2) with G = 1/(the
-    summed relaxed shear compliance) and c the Hertz radius: sqrt(R delta) under displacement control (any
-    modulus's), (3 F R Jinf/4)^(1/3) the relaxed one at the normal force F under load control; NaN but for
-    a sphere under a non-zero creepage without spin (scene.friction a Friction)."""
-    from petroll.model.bodies import Sphere
-    from petroll.model.friction import Friction
-
-    f = scene.friction
-    if (not isinstance(f, Friction) or not isinstance(scene.body, Sphere) or f.force is not None or f.spin
-            or not any(f.creepage) or not isinstance(scene.material, Prony) or not row["force"] > 0):
-        return math.nan
-    xi = np.asarray(f.creepage, dtype=float)
-    if scene.load is None:  # Hertz's radius at the penetration, whatever the modulus
-        c = math.sqrt(scene.body.radius * row["delta"])
-    else:
-        c = (0.75 * row["force"] * scene.body.radius * scene.material.Jinf) ** (1 / 3)
-    traction = np.array([row["traction_x"], row["traction_y"]])
-    return float(-traction @ xi / (c * c * (xi @ xi)) * f.compliance)
-
-
-def _csv_rows(table: SweepTable, before: tuple[str, str, float] | None = None) -> tuple[str, list[str]]:
+def csv_rows(table: SweepTable, before: tuple[str, str, float] | None = None) -> tuple[str, list[str]]:
     """(header, rows) of a table's CSV (COLUMNS, in order; ``before``: a first column (name, unit, value)
     of every row, a family's second key)."""
     names = [n for n in COLUMNS if n in table.columns]
@@ -555,7 +522,7 @@ def write_table(table: SweepTable) -> None:
     names = [n for n in COLUMNS if n in table.columns]
     line = LINE_UNITS if table.line else {}  # a line-contact sweep: per unit length
     units = [table.unit if n == "value" else line.get(n, COLUMNS[n][0]) for n in names]
-    header, rows = _csv_rows(table)
+    header, rows = csv_rows(table)
     text = "\n".join([header, *rows]) + "\n"
     clean_temporaries(table.directory, [table.csv.name, table.h5.name])  # of a writer killed earlier
     atomic_write(table.csv, lambda tmp: tmp.write_text(text, encoding="utf-8"))
@@ -576,78 +543,7 @@ def write_table(table: SweepTable) -> None:
     atomic_hdf5(table.h5, fill)
 
 
-@dataclass
-class Family:
-    """A family of sweeps (:func:`family`): one :class:`SweepTable` (a curve over its ``curve`` key) per
-    value of ``key`` (in ``unit``), written under ``directory``. Returned on every rank."""
-
-    key: str
-    unit: str
-    values: tuple[float, ...]
-    tables: list[SweepTable]
-    directory: pathlib.Path
-
-    @property
-    def csv(self) -> pathlib.Path:
-        return self.directory / "family.csv"
-
-    @property
-    def png(self) -> pathlib.Path:
-        return self.directory / "family.png"
-
-    @property
-    def computed(self) -> int:
-        """The points run by this call (the others were found finished)."""
-        return sum(len(t.computed) for t in self.tables)
-
-
-def family(scene: Scene, curve: Vary | str, across: Vary | str, out: str | pathlib.Path | None = None,
-           comm: MPI.Comm = MPI.COMM_WORLD, progress: bool = False, stop=None,
-           log: Callable[[str], None] | None = None, plot: bool = True, transient: bool = False) -> Family:
-    """A family of curves: for every value of ``across`` (a :class:`Vary` or its text) the sweep of
-    ``curve`` (:func:`sweep`) on the scene with that value, into ``out``/KEY=VALUE (default ``out``: the
-    scene's output directory + ``-sweep``); then family.csv (every curve's rows, the value of ``across``
-    first) and family.png (petroll.plot.sweep.plot_family: the curves on one figure). Traction curves at
-    several speeds or temperatures (``curve`` motion.creepage), creep coefficients against the speed at
-    several temperatures (docs/sweep.md#families-of-curves). Every point's scene is built before the first
-    runs; each curve resumes as a sweep does. Collective."""
-    curve = parse_vary(curve) if isinstance(curve, str) else curve
-    across = parse_vary(across) if isinstance(across, str) else across
-    if curve.key == across.key:
-        raise SweepError(f"--vary {across.key} given twice; a family varies two different keys ({FORMS})")
-    if out is None:
-        out = scene.output_dir.with_name(scene.output_dir.name + "-sweep")
-    out = pathlib.Path(out)
-    scenes = [_transient_point(scene, across.key, v) for v in across.values]
-    for member in scenes:  # every point of every curve checked before the first run
-        for v in curve.values:
-            point_scene(member, curve.key, v, transient)
-    names = [point_name(across.key, v) for v in across.values]
-    if len(set(names)) != len(names):
-        raise SweepError(f"--vary {across.spec or across.key}: values closer than 10 significant digits")
-    unit = key_unit(scene, across.key)
-    tables = []
-    for value, member, name in zip(across.values, scenes, names):
-        label = f"{across.key} = {value:.6g}" + (f" {unit}" if unit != "-" else "")
-        say = None if log is None else (lambda line, label=label: log(f"{label}: {line}"))
-        tables.append(sweep(member, curve, out / name, comm, progress, stop, say, plot, transient))
-    result = Family(across.key, unit, across.values, tables, out)
-
-    def write() -> None:
-        lines = []
-        for value, table in zip(result.values, tables):
-            header, rows = _csv_rows(table, (across.key, unit, value))
-            lines += rows if lines else [header, *rows]
-        clean_temporaries(out, [result.csv.name])
-        atomic_write(result.csv, lambda tmp: tmp.write_text("\n".join(lines) + "\n", encoding="utf-8"))
-
-    _on_rank0(comm, write)
-    if plot:
-        _on_rank0(comm, lambda: _plot(result))
-    return result
-
-
-def _plot(table: SweepTable | Family) -> None:
+def _plot(table: SweepTable) -> None:
     from petroll.model.limits import PetrollWarning
 
     try:
@@ -656,15 +552,12 @@ def _plot(table: SweepTable | Family) -> None:
         warnings.warn(PetrollWarning("sweep: matplotlib is not installed: the table is written, not the "
                                      "plot"), stacklevel=3)
         return
-    from petroll.plot import plot_family, plot_sweep
+    from petroll.plot import plot_sweep
 
-    if isinstance(table, Family):
-        plot_family(table, table.png)
-    else:
-        plot_sweep(table, table.png)
+    plot_sweep(table, table.png)
 
 
-def _on_rank0(comm: MPI.Comm, action: Callable[[], None]) -> None:
+def on_rank0(comm: MPI.Comm, action: Callable[[], None]) -> None:
     """Run ``action`` on rank 0; an OSError or PetrollError there is raised on every rank (one line)."""
     message = None
     if comm.rank == 0:
@@ -677,50 +570,3 @@ def _on_rank0(comm: MPI.Comm, action: Callable[[], None]) -> None:
     message = comm.bcast(message, root=0)
     if message is not None:
         raise SweepError(message)
-
-
-def command(scene_path: str, vary_text: Sequence[str], out: str | None, quiet: bool, comm: MPI.Comm,
-            transient: bool = False, estimate_error: bool = False) -> int:
-    """``petroll sweep``: every rank; prints one line per point and a summary on rank 0."""
-    import sys
-    import time
-
-    from petroll.io.checkpoint import StopRequest
-    from petroll.model.scene import load_scene
-
-    if len(vary_text) > 2:
-        raise SweepError(f"--vary given {len(vary_text)} times; a sweep varies one key, a family of curves "
-                         f"two (the curves' key first: docs/sweep.md#families-of-curves) ({FORMS})")
-    vary = parse_vary(vary_text[0])
-    across = parse_vary(vary_text[1]) if len(vary_text) == 2 else None
-    start = time.perf_counter()
-    stop = StopRequest()
-    say = (lambda line: print(f"petroll: {line}", flush=True))
-    try:
-        with stop.handling(), warnings_once():
-            scene = load_scene(scene_path)
-            if across is not None:
-                if estimate_error:
-                    raise SweepError("--estimate-error: with one --vary only (a sweep, not a family of curves)")
-                curves = family(scene, vary, across, out, comm, progress=not quiet and sys.stderr.isatty(),
-                                stop=stop, log=say, transient=transient)
-            else:
-                table = sweep(scene, vary, out, comm, progress=not quiet and sys.stderr.isatty(), stop=stop,
-                              log=say, transient=transient, estimate_error=estimate_error)
-    except SweepInterrupted as exc:
-        if comm.rank == 0:
-            print(f"petroll: {scene.source}: sweep {exc}", file=sys.stderr, flush=True)
-        return exc.exit_code
-    if across is not None:
-        if comm.rank == 0:
-            n = sum(len(t.points) for t in curves.tables)
-            print(f"petroll: {scene.source}: {len(curves.tables)} curves of {vary.key} at {across.key} = "
-                  f"{', '.join(f'{v:.6g}' for v in across.values)} ({n} points, {curves.computed} run; wall "
-                  f"time {time.perf_counter() - start:.1f} s). Table: {curves.csv}; plot: {curves.png}")
-        return 0
-    if comm.rank == 0:
-        n, ran = len(table.points), len(table.computed)
-        print(f"petroll: {scene.source}: sweep of {vary.key} over {n} values ({ran} run, {n - ran} kept from "
-              f"an earlier call; wall time {time.perf_counter() - start:.1f} s). Table: {table.csv}, "
-              f"{table.h5}; plot: {table.png}")
-    return 0
