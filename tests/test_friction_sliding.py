@@ -122,6 +122,7 @@ def test_sliding_friction_scenes_are_checked(comm, shared_dir):
     assert same.friction.coefficient == MU
 
 
+@pytest.mark.parallel
 def test_sliding_friction_on_two_ranks_is_the_one_rank_run(comm, tmp_path, shared_dir):
     """Rows split over ``comm`` against every rank's own COMM_SELF run, to 1e-10: the series and fields."""
     scene = parse_scene(with_friction(bumps(comm, shared_dir, SLS, n=16, velocity=(0.3, 0.4))))

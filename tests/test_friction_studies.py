@@ -27,6 +27,7 @@ def elastic(scene, modulus: float):
                           "material.Einf": None, "material.tau_creep": None})
 
 
+@pytest.mark.slow
 def test_the_creep_coefficient_runs_from_the_relaxed_to_the_glassy_kalker_coefficient(comm, shared_dir):
     """runs/creep-coefficient.toml (a rigid sphere on the SLS of E0/Einf = 5 pressed 25 um: the Hertz radius
     a at any modulus, a creepage 1e-4 where the force saturates near 4e-2) swept over V tau/a = 1e-3 ... 1e3
@@ -54,6 +55,7 @@ def test_the_creep_coefficient_runs_from_the_relaxed_to_the_glassy_kalker_coeffi
     assert (shared_dir / "speeds" / "sweep.png").read_bytes()[:4] == b"\x89PNG"
 
 
+@pytest.mark.slow
 def test_a_family_of_traction_curves_over_the_temperature_of_a_fitted_material(comm, cli_main, shared_dir):
     """`petroll material fit runs/rubber-dma.csv --shift wlf:...` writes a [material] block that goes into a
     scene as it is (the geometry of runs/creep-coefficient.toml, the tread rubber's 39-term Prony series
