@@ -62,7 +62,7 @@ def test_a_family_of_traction_curves_over_the_temperature_of_a_fitted_material(c
     and its WLF law); `petroll sweep --vary motion.creepage=... --vary material.temperature=...` gives one
     traction curve per temperature (family.csv, family.png, each curve a sweep directory). Time-temperature
     superposition is the oracle: the curve at T is the curve at T_ref at the speed a_T V (log10 a_T =
-    -C1 (T - T_ref)/(C2 + T - T_ref)), to 1e-7; the colder curve's forces are larger (the rubber stiffer)."""
+    -C1 (T - T_ref)/(C2 + T - T_ref)), to 1e-10 (measured 1.5e-15); the colder curve's forces are larger (the rubber stiffer)."""
     block = shared_dir / "rubber.toml"
     code, _, err = cli_main(["material", "fit", str(ROOT / "runs" / "rubber-dma.csv"), "--shift",
                              "wlf:8.86,101.6,293.15", "--out", str(block)])
@@ -87,7 +87,7 @@ def test_a_family_of_traction_curves_over_the_temperature_of_a_fitted_material(c
         assert (shared_dir / "family" / "family.png").read_bytes()[:4] == b"\x89PNG"
     comm.Barrier()
     scene = load_scene(scene_path)
-    curves = {}
+    curves, worst = {}, 0.0
     for temperature in temperatures:
         found = SweepTable.open(shared_dir / "family" / f"material.temperature={temperature:.10g}")
         a_t = 10 ** (-8.86 * (temperature - 293.15) / (101.6 + temperature - 293.15))
@@ -97,7 +97,8 @@ def test_a_family_of_traction_curves_over_the_temperature_of_a_fitted_material(c
                           comm=comm, plot=False)
         for key in ("traction_x", "force", "mu_r"):
             a, b = found.columns[key], reference.columns[key]
-            assert np.abs(a - b).max() <= 1e-7 * np.abs(b).max(), (temperature, key)
+            worst = max(worst, np.abs(a - b).max() / np.abs(b).max())
+            assert np.abs(a - b).max() <= 1e-10 * np.abs(b).max(), (temperature, key)
         curves[temperature] = found.columns["traction_x"]
-    print(f"traction at 303.15 K {curves[303.15]} N, at 318.15 K {curves[318.15]} N")
+    print(f"traction at 303.15 K {curves[303.15]} N, at 318.15 K {curves[318.15]} N; vs T_ref at a_T V: {worst:.1e}")
     assert np.all(curves[318.15] > 0) and np.all(curves[303.15] / curves[318.15] > 1.03)  # stiffer when colder
