@@ -245,6 +245,8 @@ def test_the_sweep_command_runs_and_refuses_bad_specs_in_one_line(comm, capsys, 
         (["--vary", "motion.velocity=1,2", "--vary", "motion.velocity=3,4"], "petroll: error: --vary "
                                                                             "motion.velocity given twice"),
         (["--vary", "motion.velocity=1,2", "--vary", "material.E0=1e6,-1"], "petroll: error: "),
+        (["--vary", "motion.velocity=1,2", "--vary", "material.E0=1e6,2e6", "--estimate-error"],
+         "petroll: error: --estimate-error: with one --vary only"),
         ([], "petroll: error: the following arguments are required: --vary"),
     ]:
         code, out, err = cli_main(["sweep", scene, "--out", str(shared_dir / "bad"), *argv])
