@@ -11,6 +11,7 @@ import petroll
 from petroll.errors import SceneError
 from petroll.model.scene import dumps, parse_scene
 from petroll.solver.simulation import Simulation
+from petroll.studies.sweep import sweep
 from petroll.studies.target import PILOT_CELLS, asks_target, targeted
 
 E, NU, R, F = 1e7, 0.5, 0.01, 0.2
@@ -65,6 +66,20 @@ def test_the_run_prints_and_stores_the_choice(shared_dir, comm, cli_main):
         assert f"target_error = 0.002: {cells} cells per contact half-width" in out
     api = petroll.run(with_target(2e-3), comm, out=shared_dir / "api")  # the API runs the pilot too
     assert api.scene_text == text
+
+
+def test_a_sweep_chooses_each_point_s_grid_and_keeps_finished_points(shared_dir, comm):
+    """Each point's results.h5 holds its own choice; a sweep run again finds its points finished (their
+    text as run is the targeted scene's), and solves none."""
+    scene = with_target(2e-3)
+    first = sweep(scene, "motion.load=0.05,0.2", shared_dir / "sweep", comm, plot=False)
+    assert first.computed == [0, 1]
+    for point in first.points:
+        text = petroll.Results.open(shared_dir / "sweep" / point / "results.h5").scene_text
+        assert text.startswith("# [grid] target_error = 0.002: ")
+    again = sweep(scene, "motion.load=0.05,0.2", shared_dir / "sweep", comm, plot=False)
+    assert again.computed == []
+    assert again.columns["force"] == pytest.approx(first.columns["force"], rel=1e-12)
 
 
 @pytest.mark.parametrize("grid, key, says", [
