@@ -3,13 +3,14 @@ closed form on an elastic sphere (its error at most the target, finer for a tigh
 printed and stored in results.h5, and the refusals."""
 
 import math
+import pathlib
 import tomllib
 
 import pytest
 
 import petroll
 from petroll.errors import SceneError
-from petroll.model.scene import dumps, parse_scene
+from petroll.model.scene import dumps, load_scene, parse_scene
 from petroll.solver.simulation import Simulation
 from petroll.studies.sweep import sweep
 from petroll.studies.target import PILOT_CELLS, asks_target, targeted
@@ -66,6 +67,8 @@ def test_the_run_prints_and_stores_the_choice(shared_dir, comm, cli_main):
         assert f"target_error = 0.002: {cells} cells per contact half-width" in out
     api = petroll.run(with_target(2e-3), comm, out=shared_dir / "api")  # the API runs the pilot too
     assert api.scene_text == text
+    scene = load_scene(shared_dir / "target.toml")
+    assert targeted(scene, comm).output_dir == scene.output_dir == pathlib.Path("results/target")
 
 
 def test_a_sweep_chooses_each_point_s_grid_and_keeps_finished_points(shared_dir, comm):

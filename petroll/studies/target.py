@@ -99,4 +99,5 @@ def targeted(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD) -> Scene:
     said = (f"target_error = {target:g}: {cells} cells per contact half-width, predicted relative errors "
             f"{predicted} (a pilot at {PILOT_CELLS} and {PILOT_CELLS // 2})")
     choice = dataclasses.replace(sized.sizing, note=f"{sized.sizing.note}; {said}")
-    return dataclasses.replace(sized, text=f"# [grid] {said}\n{sized.text}", sizing=choice)
+    return dataclasses.replace(sized, text=f"# [grid] {said}\n{sized.text}", sizing=choice,
+                               output_dir=scene.output_dir)  # (replace forgets a scene file's default)
