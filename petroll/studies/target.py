@@ -52,11 +52,12 @@ def asks_target(scene: Scene) -> bool:
 @dataclasses.dataclass(frozen=True)
 class Pilot:
     """The pilot of a target: the relative ``errors`` it estimates at PILOT_CELLS (name -> error), the
-    ``orders`` taken (name -> k), and the cells per half-width each quantity needs (``needs``)."""
+    ``orders`` taken (name -> k), and the cells per half-width each quantity needs (``needs``; inf: its
+    value is 0 and its error is not, no relative error)."""
 
     errors: dict[str, float]
     orders: dict[str, float]
-    needs: dict[str, int]
+    needs: dict[str, float]
 
     def predicted(self, cells: int) -> dict[str, float]:
         """The relative errors the pilot predicts at ``cells`` per contact half-width."""
@@ -77,7 +78,8 @@ def pilot(scene: Scene, target: float, comm: MPI.Comm = MPI.COMM_WORLD) -> Pilot
         q = richardson(value, tuple(c[name] for c in coarse), None, orders[name],
                        round_off=ROUND_OFF.get(name, 0.0))
         errors[name] = 0.0 if q.error == 0 else q.error / abs(value) if value != 0 else math.inf
-        needs[name] = math.ceil(PILOT_CELLS * (errors[name] / target) ** (1 / orders[name]))
+        needs[name] = (math.ceil(PILOT_CELLS * (errors[name] / target) ** (1 / orders[name]))
+                       if math.isfinite(errors[name]) else math.inf)  # a value of 0 with an error
     return Pilot(errors, {name: orders[name] for name in names}, needs)
 
 
