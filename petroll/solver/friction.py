@@ -116,21 +116,21 @@ class Stepping:
         # slip velocity over the rolling speed times it (order 2: distance/a0)
 
     def _previous(self, bound: np.ndarray, weights=(1.0, 0.0), dt: float = 0.0):
-        """(u' (m, this rank's rows), the step's compliance c (1/Pa; None: the solver's), the history's v or
-        None) of a step of length ``dt`` (s): u' the displacement of w0 X^(n-1) - w1 X^(n-2) (``weights``;
-        w1 = 0: X^(n-1) alone), X the last steps' tractions (elastic: u' = c K X) or displacement sources
-        (viscoelastic: u' = K (X - v), the history's displacement moved to the right-hand side), on the
-        box of the new contact and the field."""
+        """(u' (m, this rank's rows) or None, its source X or None, the step's compliance c (1/Pa; None: the
+        solver's), the history's v or None) of a step of length ``dt`` (s), from w0 X^(n-1) - w1 X^(n-2)
+        (``weights``; w1 = 0: X^(n-1) alone), X the last steps' tractions (elastic: u' = c K X, left to the
+        QP's gradient) or displacement sources (viscoelastic: u' = K (X - v), the history's displacement
+        moved to the right-hand side, computed here on the box of the new contact and the field: the
+        history reaches along the wake)."""
         newer, older = (self.traction, self.older) if self.memory is None else (self.source, self.source_older)
         field = newer if weights[1] == 0 else weights[0] * newer - weights[1] * older
-        compliance, v = None, None
-        if self.memory is not None:
-            compliance, v = self.memory.compliance(dt), self.memory.preceding(dt)
-            if v is not None:
-                field = field - v
+        if self.memory is None:
+            return None, field, None, None
+        compliance, v = self.memory.compliance(dt), self.memory.preceding(dt)
+        if v is not None:
+            field = field - v
         cells = (bound > 0) | np.any(field != 0, axis=0)
-        unit = None if self.memory is None else 1.0
-        return self.solver.displacement(field, self.solver.box(cells), unit), compliance, v
+        return self.solver.displacement(field, self.solver.box(cells), 1.0), None, compliance, v
 
     def _remember(self, solution: TangentialSolution, compliance, v, dt: float, rolled: bool) -> None:
         """Keep a viscoelastic step's sources (s = c q + v) and advance the history by the step."""
@@ -158,12 +158,12 @@ class Stepping:
         traction ``force`` (N; N/m in line contact; the force the half-space exerts on the body: it
         opposes the shift); ``dt`` the step's length (s; a viscoelastic history's step, 0: a jump)."""
         solver = self.solver
-        previous, compliance, v = self._previous(bound, dt=dt)
+        previous, earlier, compliance, v = self._previous(bound, dt=dt)
         rigid = None
         if force is None:
             increment = np.zeros(solver.m) if increment is None else np.asarray(increment, dtype=float)
             rigid = np.broadcast_to(increment[:, None, None], (solver.m, *solver.local_shape))
-        solution = solver.solve(bound, rigid, previous, self.traction, force, tol, compliance)
+        solution = solver.solve(bound, rigid, previous, self.traction, force, tol, compliance, earlier)
         self._remember(solution, compliance, v, dt, rolled=False)
         self.shift_total = self.shift_total + (solution.shift if force is not None else increment)
         self.traction, self.older, self.last_distance = solution.traction, None, None
@@ -194,8 +194,8 @@ class Stepping:
         warm = self._moved(self.traction, distance, direction)
         if self.older is not None and self.last_distance == distance:  # the body frame's trend, extrapolated
             warm = 2 * warm - self._moved(self.older, 2 * distance, direction)
-        previous, compliance, v = self._previous(bound, weights, dt)
-        solution = solver.solve(bound, rigid, previous, warm, force, tol, compliance)
+        previous, earlier, compliance, v = self._previous(bound, weights, dt)
+        solution = solver.solve(bound, rigid, previous, warm, force, tol, compliance, earlier)
         self._remember(solution, compliance, v, dt, rolled=True)
         self.creepage = (np.asarray(creepage, dtype=float)[: solver.m] if force is None
                          else solution.shift / scale)
@@ -284,12 +284,7 @@ class SteadyRolling:
         stick = (g > 0) & (np.sqrt((q * q).sum(axis=0)) < g - tol * q_ref)
         sums = np.array(q.sum(axis=(1, 2)), dtype=float)
         self.comm.Allreduce(MPI.IN_PLACE, sums, op=MPI.SUM)
-        traction = solver.from_box(q, box)
-        if elastic:
-            displacement = solver.displacement(traction, box)
-        else:  # u = K L q, L's sources on the window
-            displacement = solver.displacement(solver.from_box(memory[0] * newton.hereditary(q), box), box, 1.0)
-        solution = TangentialSolution(traction, solver.from_box(slip, box), displacement,
+        solution = TangentialSolution(solver.from_box(q, box), solver.from_box(slip, box),
                                       solver.from_box(stick, box, False), at.w * s_ref, sums * solver.grid.cell_area,
                                       iterations, newton.applications, at.largest, box)
         return SteadySolution(solution, found, iterations, newton.applications)
