@@ -522,16 +522,16 @@ def test_two_ranks_agree_with_one(comm):
 
 
 def test_the_friction_benchmark_and_the_solvers_comparison_run(comm, shared_dir):
-    """``bench_friction(quick=True)`` (4 cells per radius, one contact length, a 3-point curve) runs, writes
+    """``bench_friction(quick=True)`` (4 cells per radius, five contact lengths, a 3-point curve) runs, writes
     friction.csv on rank 0 and reports every case; ``compare_solvers`` at 4 cells per radius (each rank
     alone: FISTA's hundreds of iterations are slow under an oversubscribed mpirun) reports every solver,
     the projected CG converging (the measured numbers: docs/friction.md)."""
     from petroll.bench.friction import bench_friction, compare_solvers
 
     rows = bench_friction(shared_dir, quick=True, comm=comm)
-    assert len(rows) == 9 and all(row["applications"] > 0 for row in rows)
+    assert len(rows) == 10 and all(row["applications"] > 0 for row in rows)
     if comm.rank == 0:
-        assert (shared_dir / "friction.csv").read_text().count("\n") == 10
+        assert (shared_dir / "friction.csv").read_text().count("\n") == 11
     table = compare_solvers(MPI.COMM_SELF, n=4)
     assert {row["solver"] for row in table} >= {"DiskPCG", "FISTA (restarted)", "TAO pk"}
     assert all(row["applications"] for row in table if row["solver"].startswith("DiskPCG ("))
