@@ -174,9 +174,7 @@ EDGE = 1e-12
 """A cell whose |q| is within this fraction of its bound counts as on the bound (slip)."""
 
 SAFE = 2.0
-"""An iterate whose gradient was updated rather than computed is accepted when its natural residual plus
-SAFE times the bound of the update's error is within the tolerance: the projection onto a disk moves by
-at most sqrt(2) times a slip's largest component's change."""
+"""An updated gradient's error bound counts SAFE times in the residual (a disk's projection: <= sqrt 2)."""
 
 
 @dataclass
@@ -221,16 +219,13 @@ class DiskPCG:
     interval [-g, g]); g (n,) >= 0 (a cell with g = 0 holds q = 0). ``apply(d)``: H d for (m, n) d;
     ``precondition(r)``: an approximation of H^-1 r (symmetric positive definite); ``norm``: a bound of
     |H|_inf (the largest row sum of |H|). :meth:`solve` stops when the natural residual max |q - P(q - s)|
-    <= tol (and under force control |sum q - total| <= tol sum g), with the gradient's possible error
-    counted in: the residual plus SAFE times the bound of that error within tol, else the gradient is
-    computed afresh and judged again; SolverError after ``max_iterations`` iterations or for a direction
-    of non-positive curvature.
+    <= tol (and under force control |sum q - total| <= tol sum g), plus SAFE x the bound of an updated
+    gradient's error; SolverError after ``max_iterations`` iterations or for non-positive curvature.
 
     The gradient is updated from H d between fresh evaluations; a slip cell's turn along its edge's arc
     moves it off the straight step by e (second order in the turn), which leaves the updated gradient off
     by at most |H|_inf max|e|: it is computed afresh once those errors add up to the residual, after any
-    projection of a stick cell, and at least every ``refresh`` iterations (near the answer the turns are
-    tiny: the last iterate is accepted on its updated gradient). The reductions over
+    projection of a stick cell, and at least every ``refresh`` iterations. The reductions over
     the ranks are batched: about five a iteration besides the convolution's."""
 
     def __init__(self, apply, precondition, g: np.ndarray, comm: MPI.Comm, tol: float, max_iterations: int,
@@ -241,7 +236,6 @@ class DiskPCG:
         self.inside = g > 0
         self.capacity = comm.allreduce(float(g.sum()), op=MPI.SUM)
         self.applications = 0
-        self.source = None
 
     def sums(self, *parts) -> list[np.ndarray]:
         """The sums over the ranks of each part (scalars or arrays), in one reduction."""
@@ -290,9 +284,8 @@ class DiskPCG:
                       changed > 0)
 
     def solve(self, q: np.ndarray, b: np.ndarray, source: np.ndarray | None = None) -> DiskResult:
-        """The minimiser from the first guess q, the linear term b - H ``source`` (source: None, 0)."""
-        g, total = self.g, self.total
-        self.source = source
+        """The minimiser from the first guess q, the linear term b - H ``source`` (None: 0)."""
+        g, total, self.source = self.g, self.total, source
         q = project(np.where(self.inside, q, 0.0), g)
         if total is not None:
             q = self.restore(q)
@@ -302,8 +295,8 @@ class DiskPCG:
         for iteration in range(self.max_iterations + 1):
             st = self.state(q, r, previous_slip)
             if self.monitor is not None:
-                shifted = q if source is None else q - source  # the objective less 1/2 f.H f - b.f
-                self.monitor(iteration, st, 0.5 * float(self.sums(np.vdot(shifted, r + b))[0]))
+                y = q if source is None else q - source  # the objective less 1/2 f.H f - b.f: a constant
+                self.monitor(iteration, st, 0.5 * float(self.sums(np.vdot(y, r + b))[0]))
             if st.residual <= self.tol and st.force_error <= self.tol * max(self.capacity, 1e-300):
                 if st.residual + SAFE * drift <= self.tol:
                     return DiskResult(q, st.s, st.multiplier, iteration, self.applications, st.residual,
@@ -420,10 +413,9 @@ def _solve_small(matrix: np.ndarray, rhs: np.ndarray) -> np.ndarray:
 class TangentialSolution:
     """A solved tangential problem. Fields hold this rank's grid rows, shape (m, local rows, ny), m the
     traction components (2; line contact 1): ``traction`` q (Pa, on the body), ``slip`` S (m, over the
-    step: W + u - u', u = c K q the relative displacement, body minus half-space: the solver's
-    ``displacement(traction, window)``), ``stick`` (bool, local rows x ny: p > 0 and |q| < g - tol max g).
-    Global values: ``shift`` the uniform part of W found under force control (m; 0 without), ``force`` sum
-    q dA (N; N/m in line contact), the work and residual of the solve, the window [i0, i1) x [j0, j1)."""
+    step: W + u - u', u = c K q: ``TangentialSolver.displacement``), ``stick`` (bool, local rows x ny: p > 0
+    and |q| < g - tol max g). Global values: ``shift`` the uniform part of W found under force control (m;
+    0 without), ``force`` sum q dA (N), the work and residual of the solve, the window [i0, i1) x [j0, j1)."""
 
     traction: np.ndarray
     slip: np.ndarray
@@ -567,14 +559,12 @@ class TangentialSolver:
               compliance: float | None = None, earlier: np.ndarray | None = None) -> TangentialSolution:
         """The tractions on the traction bound ``bound`` g = mu p (Pa, this rank's grid rows), the rigid
         slip of the step ``rigid`` W (m; (m, rows, ny) or None: 0) and the relative displacement u' the
-        material points at each cell had a step earlier: ``previous`` (m, (m, rows, ny), or None: 0) plus,
-        when ``earlier`` X (Pa, (m, rows, ny)) is given, c K X (c the solver's compliance: X the last steps'
-        tractions; it enters the QP's gradient, H (q - X c/c_step) + W - u'/s: no convolution of its own).
-        ``force`` (N, an m-vector): hold sum q dA = force, a uniform slip added to W found (``shift``).
-        ``warm``: a first guess (Pa, (m, rows, ny)). ``compliance``: the step's c_step (1/Pa; default the
-        solver's), u = c_step K q the step's own displacement (a viscoelastic history's part is in
-        ``previous``). The QP is posed on the bounding box of g > 0 and X != 0. SolverError when the force
-        exceeds what the bound allows, or when the solve fails."""
+        material points at each cell had a step earlier: ``previous`` (m, (m, rows, ny), or None: 0) plus
+        c K X of ``earlier`` X (Pa, the last tractions; in the QP's gradient H (q - X c/c_s): no convolution
+        of its own). ``force`` (N, an m-vector): hold sum q dA = force, a uniform slip added to W found
+        (``shift``). ``warm``: a first guess (Pa). ``compliance``: the step's c_s (1/Pa; default the
+        solver's c), u = c_s K q. The QP is posed on the bounding box of g > 0 and X != 0. SolverError when
+        the force exceeds what the bound allows, or when the solve fails."""
         g_cells = bound > 0
         tol = self.tol if tol is None else tol
         zero = self.zeros()
@@ -584,17 +574,14 @@ class TangentialSolver:
             return TangentialSolution(zero, zero.copy(), np.zeros(self.local_shape, bool), np.zeros(self.m),
                                       np.zeros(self.m), 0, 0, 0.0, (0, 0, 0, 0))
         box = self.box(g_cells if earlier is None else g_cells | np.any(earlier != 0, axis=0))
-        area = self.grid.cell_area
         problem = self.scaled(bound, box, compliance)
         g, q_ref, s_ref, m, ny = problem.g, problem.q_ref, problem.s_ref, self.m, problem.ny
         b = zero.copy() if rigid is None else np.array(rigid, dtype=float)
         if previous is not None:
             b -= previous
         b = self.to_box(b, box).reshape(m, -1) / s_ref
-        source = None
-        if earlier is not None:
-            ratio = self.compliance / (self.compliance if compliance is None else compliance)
-            source = self.to_box(earlier, box).reshape(m, -1) * (ratio / q_ref)
+        ratio = self.compliance / (self.compliance if compliance is None else compliance) / q_ref
+        source = None if earlier is None else self.to_box(earlier, box).reshape(m, -1) * ratio
         total = None if force is None else self.scaled_force(force, problem)
         start = np.zeros((m, g.size)) if warm is None else self.to_box(warm, box).reshape(m, -1) / q_ref
         result = DiskPCG(lambda d: problem.apply(d.reshape(m, -1, ny)).reshape(m, -1),
@@ -609,5 +596,5 @@ class TangentialSolver:
         sums = np.array(q.sum(axis=(1, 2)), dtype=float)
         self.comm.Allreduce(MPI.IN_PLACE, sums, op=MPI.SUM)
         return TangentialSolution(self.from_box(q, box), self.from_box(slip, box), self.from_box(stick, box, False),
-                                  result.multiplier * s_ref, sums * area, result.iterations, result.applications,
-                                  result.residual, box)
+                                  result.multiplier * s_ref, sums * self.grid.cell_area, result.iterations,
+                                  result.applications, result.residual, box)
