@@ -9,7 +9,8 @@ half-width, a margin of 4 cells), nu = 0.3, two bodies of one material (complian
   solver's cold start): the reference of the "3 x the normal solve" target;
 - shift: Cattaneo's shift by Q = mu P/2 in one step (force control), and the same load in 4 steps;
 - transient: rolling one cell a step at that force after the shift, over five contact lengths (per step:
-  the first, third and fifth contact length: the transient fades by about 0.15 a contact length);
+  the first, third and fifth contact length: the transient fades by about 0.15 a contact length), and
+  half a cell a step (2 steps per cell: the third contact length);
 - steady: the steady state at that force solved directly (cold; and on bodies of an SLS at V tau/a = 1,
   the wake 2 radii behind), and a 30-point creep-force curve (creepage
   up to 3 times the linear theory's saturation, each point started from the last) at 16 cells per radius
@@ -113,8 +114,7 @@ def bench_friction(out: pathlib.Path | None = None, quick: bool = False, comm: M
                      seconds=seconds, iterations="", note="pk from Hertz's pressure"))
     rows.append(dict(case="normal QP, rolling step (reference)", applications=moved, fft_pairs=moved,
                      seconds=moved_seconds, iterations="", note="from the last pressure, moved"))
-    lengths = 5
-    grid, solver, bound = hertz_case(n, comm, length=2 * lengths)
+    grid, solver, bound = hertz_case(n, comm, length=10.0)  # five contact lengths of track
     force = np.array([-0.5 * _force(comm, bound(), grid), 0.0])
     stepping = Stepping(solver)
     solution, seconds = _timed(lambda: stepping.shift(bound(), force=force))
@@ -126,8 +126,11 @@ def bench_friction(out: pathlib.Path | None = None, quick: bool = False, comm: M
     for k in range(1, 5):
         total += steps.shift(bound(), force=force * k / 4).applications
     rows.append(dict(case="shift Q = mu P/2, 4 steps (per step)", applications=total / 4, fft_pairs=total / 2,
-                     seconds=(time.perf_counter() - start) / 4, iterations="", note="from the last step's"))
-    rows += _transient(stepping, bound, force, n, lengths)
+                     seconds=(time.perf_counter() - start) / 4, iterations="", note="from the last two, extrapolated"))
+    rows += _transient(stepping, bound, force, n, (1, 3, 5))
+    halves = Stepping(solver)
+    halves.shift(bound(), force=force)
+    rows += _transient(halves, bound, force, n, (3,), per_cell=2)
     steady = SteadyRolling(solver, 0, 1)
     result, seconds = _timed(lambda: steady.solve(bound(), force=force))
     rows.append(dict(case="steady, force control, cold", applications=result.applications,
@@ -159,21 +162,23 @@ def steady_viscoelastic(n: int, comm: MPI.Comm, force: np.ndarray) -> dict:
                 iterations=result.iterations, note=f"creepage {result.creepage[0]:.6g}")
 
 
-def _transient(stepping: Stepping, bound, force, n: int, lengths: int) -> list[dict]:
-    """Rolling one cell a step after the shift over ``lengths`` (5) contact lengths: per step over the
-    first, third and fifth of them."""
-    dx = 1.0 / n
+def _transient(stepping: Stepping, bound, force, n: int, lengths, per_cell: int = 1) -> list[dict]:
+    """Rolling 1/``per_cell`` of a cell a step after the shift: per step over each contact length of
+    ``lengths`` (counted from 1)."""
+    dx = 1.0 / (n * per_cell)
     records = []
-    for k in range(1, 2 * lengths * n + 1):
+    for k in range(1, 2 * max(lengths) * n * per_cell + 1):
         solution, seconds = _timed(lambda: stepping.roll(bound(k * dx), (k * dx, 0.0), dx, (1.0, 0.0), force=force))
         records.append((solution.applications, seconds, solution.iterations))
-    rows = []
-    for length in (1, 3, 5):
-        part = records[2 * n * (length - 1) : 2 * n * length]
+    rows, steps = [], 2 * n * per_cell
+    for length in lengths:
+        part = records[steps * (length - 1) : steps * length]
         apps = sum(r[0] for r in part) / len(part)
-        rows.append(dict(case=f"transient rolling, contact length {length} (per step)", applications=apps,
+        every = "" if per_cell == 1 else f", {per_cell} steps per cell"
+        rows.append(dict(case=f"transient rolling{every}, contact length {length} (per step)", applications=apps,
                          fft_pairs=2 * apps, seconds=sum(r[1] for r in part) / len(part),
-                         iterations=sum(r[2] for r in part) / len(part), note="from the last two, moved"))
+                         iterations=sum(r[2] for r in part) / len(part),
+                         note=f"from {per_cell} and {2 * per_cell} steps back, carried"))
     return rows
 
 
