@@ -134,6 +134,7 @@ class FrictionLoop:
         n = len(series["step"])
         self.records = [FrictionRecord.from_series(series, i) for i in range(n)]
         positions = np.reshape(small[2 + 2 * m :], (-1, 2))
-        recent = np.reshape(state["traction_recent"], (len(positions), m, *st.traction.shape[1:]))
+        # none in a checkpoint written before they were kept: the next step then starts from zero
+        recent = np.reshape(state.get("traction_recent", []), (len(positions), m, *st.traction.shape[1:]))
         st.warm.recent = [(field, float(x), float(y)) for field, (x, y) in zip(recent, positions)]
 
