@@ -7,6 +7,8 @@ tangential problem (petroll.solver.friction.Stepping: a quasi-static shift while
 over the step, Kalker's transient rolling otherwise) on the traction bound mu p, and :meth:`steady` the
 steady rolling state (SteadyRolling) on the steady pressure. Each step's :class:`FrictionRecord` holds its
 global values (the series of results.h5); :attr:`FrictionLoop.fields` the newest step's fields.
+:class:`FullSlip` is steady sliding's instead (a periodic grid, petroll.model.friction.Sliding): no
+tangential problem, the traction mu p; :func:`friction_loop` picks the one of a scene.
 """
 
 from __future__ import annotations
@@ -16,11 +18,53 @@ import math
 import numpy as np
 from mpi4py import MPI
 
+from petroll.model.friction import Sliding
 from petroll.records import FrictionRecord
 from petroll.solver.friction import ShearMemory, Stepping, SteadyRolling
 from petroll.solver.history import make_history, state_space
 from petroll.solver.tangential import TangentialSolution, TangentialSolver
 from petroll.solver.wake import TangentialWake
+
+
+def friction_loop(scene, comm: MPI.Comm):
+    """What a run of ``scene`` (with [friction]) solves beside the normal problem on ``comm``: steady
+    sliding's :class:`FullSlip`, or the tangential problems of :class:`FrictionLoop`."""
+    return FullSlip(scene, comm) if isinstance(scene.friction, Sliding) else FrictionLoop(scene, comm)
+
+
+class FullSlip:
+    """Steady sliding with friction ([time] mode = "steady" on a periodic grid; docs/friction.md#steady-
+    sliding): the body slides over the whole contact, so the traction is q = -mu p d at every cell (d the
+    direction of sliding: it opposes the body's slip), stick area 0, and the slip velocity is the sliding
+    speed V at every cell in contact (the surface's tangential strain rate, of the order of the strain
+    times V, is left out, as the linear theory leaves it out). The bodies being quasi-identical, q moves no
+    surface normally: the steady pressure is the frictionless one, and the force resisting the sliding is
+    mu P (the tractions') plus the pressure's hysteresis force mu_r P (the StepRecord's mu_r: the
+    dissipated power's, petroll.solver.sliding).
+    :meth:`steady` records it; :attr:`records`, :attr:`fields` as :class:`FrictionLoop`'s."""
+
+    def __init__(self, scene, comm: MPI.Comm):
+        self.scene, self.comm = scene, comm
+        self.records: list[FrictionRecord] = []
+        self.fields: dict[str, np.ndarray] = {}
+
+    def steady(self, record, pressure: np.ndarray, direction, speed: float) -> FrictionRecord:
+        """The full slip of the steady ``pressure`` (Pa, this rank's rows; ``record`` its StepRecord), the
+        body sliding along ``direction`` (a unit vector) at ``speed`` (m/s)."""
+        mu, line = self.scene.friction.coefficient, self.scene.grid.line
+        area = self.scene.grid.cell_area
+        traction = [-mu * d * pressure for d in direction]
+        sums = np.array([t.sum() for t in traction])
+        self.comm.Allreduce(MPI.IN_PLACE, sums, op=MPI.SUM)
+        self.fields = {"traction_x": traction[0], "slip": np.where(pressure > 0, speed, 0.0)}
+        if not line:
+            self.fields["traction_y"] = traction[1]
+        force = sums * area * np.array([1.0, 0.0 if line else 1.0])
+        nan = math.nan
+        out = FrictionRecord(float(force[0]), float(force[1]), nan, 0.0 if line else nan, 0.0, 0.0, 0.0,
+                             mu * record.force * speed, 0, 0)
+        self.records.append(out)
+        return out
 
 
 class FrictionLoop:
@@ -60,7 +104,7 @@ class FrictionLoop:
             creepage, rate = stepping.creepage, distance / (dt * stepping.scale)
         else:
             increment = None if force is not None else np.zeros(self.solver.m)
-            solution = stepping.shift(bound, increment, force, dt=dt)
+            solution = stepping.shift(bound, increment, force, dt=dt, centre=(record.sx, record.sy))
             creepage, rate = np.full(self.solver.m, math.nan), (1 / dt if dt > 0 else math.nan)
         return self._record(solution, bound, creepage, rate)
 
@@ -103,10 +147,12 @@ class FrictionLoop:
     # -- the checkpoint's state -------------------------------------------------------------------------
     def state(self) -> tuple[dict[str, list[np.ndarray]], np.ndarray]:
         """(fields: name -> this rank's rows of each component, small: [last rolled distance (m; NaN: the
-        last step was a shift), its distance in the QP's form (m), shift (m), creepage]) of the stepping
-        state a restart needs."""
+        last step was a shift), its distance in the QP's form (m), shift (m), creepage, then the body's
+        position (x, y) of each of the first guesses' kept tractions]) of the stepping state a restart
+        needs."""
         st = self.stepping
-        parts = {"traction": list(st.traction)}
+        parts = {"traction": list(st.traction),
+                 "traction_recent": [c for field, _, _ in st.warm.recent for c in field]}
         if st.older is not None:
             parts["traction_older"] = list(st.older)
         if st.memory is not None:  # viscoelastic: the sources and the history's fields, component by component
@@ -115,11 +161,12 @@ class FrictionLoop:
                 parts["source_older"] = list(st.source_older)
             parts["shear"] = [c for f in st.memory.history.state() for c in f]
         last = math.nan if st.last_distance is None else st.last_distance
-        return parts, np.array([last, st.scale, *st.shift_total, *st.creepage], dtype=float)
+        positions = [v for _, x, y in st.warm.recent for v in (x, y)]
+        return parts, np.array([last, st.scale, *st.shift_total, *st.creepage, *positions], dtype=float)
 
     def restore(self, state: dict, series: dict[str, np.ndarray]) -> None:
-        """Put a checkpoint's state (this rank's rows: "traction", "traction_older" as :meth:`state` gave
-        them, "friction" its small array) and ``series`` (name: values) back."""
+        """Put a checkpoint's state (this rank's rows: "traction", "traction_older", "traction_recent" as
+        :meth:`state` gave them, "friction" its small array) and ``series`` (name: values) back."""
         st, m, small = self.stepping, self.solver.m, state["friction"]
         st.traction = np.stack(state["traction"])
         st.older = np.stack(state["traction_older"]) if "traction_older" in state else None
@@ -133,4 +180,8 @@ class FrictionLoop:
         st.shift_total, st.creepage = np.array(small[2 : 2 + m]), np.array(small[2 + m : 2 + 2 * m])
         n = len(series["step"])
         self.records = [FrictionRecord.from_series(series, i) for i in range(n)]
+        positions = np.reshape(small[2 + 2 * m :], (-1, 2))
+        # none in a checkpoint written before they were kept: the next step then starts from zero
+        recent = np.reshape(state.get("traction_recent", []), (len(positions), m, *st.traction.shape[1:]))
+        st.warm.recent = [(field, float(x), float(y)) for field, (x, y) in zip(recent, positions)]
 
