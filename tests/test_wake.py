@@ -217,7 +217,7 @@ def test_a_long_viscoelastic_friction_run_is_the_same_with_the_tangential_cut_of
     history's displacement on the box of TangentialWake against the whole track's at every step (the code
     before the cut-off): every step's u' within the stated bound of the whole track's on the contact
     (measured: at most 2.4e-3 and 5.9e-3 of it at the cut-offs 1e-9 and 1e-4); the creepage series and the
-    last tractions within 1e-9 at the default cut-off 1e-9 (measured 1.2e-10, 3.3e-12 of mu p0), within
+    last tractions within 1e-9 at the default cut-off 1e-9 (measured 1.2e-10, 2.2e-12 of mu p0), within
     1e-4 and 1e-5 of mu p0 at 1e-4 (measured 2.7e-5, 2.7e-7); the box stops growing: over the last 80
     steps 80 of the grid's 184 rows at 1e-9, 48 at 1e-4."""
     from petroll.model.scene import parse_scene
