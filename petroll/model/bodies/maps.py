@@ -244,7 +244,10 @@ class HeightMap(Body):
         heights, (hx, hy) = self.heights, self.cell
         nx, ny = heights.shape
         corner = self._corners()
-        order = np.argsort(np.where(corner, heights, np.inf), axis=None)[:candidates]
+        masked = np.where(corner, heights, np.inf)
+        count = min(candidates, masked.size)
+        lowest = np.argpartition(masked, count - 1, axis=None)[:count]
+        order = lowest[np.argsort(masked.flat[lowest], kind="stable")]
         best = float(heights.flat[order[0]])
         for i, j in zip(*np.unravel_index(order, heights.shape)):
             if not corner[i, j]:

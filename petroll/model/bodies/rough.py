@@ -37,19 +37,20 @@ CHUNK_BYTES = 1 << 25
 """Size of the columns' spectra transformed at once while rows' coefficients are made (bytes)."""
 
 
-def _spectral_slopes(heights: np.ndarray, cell: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
-    """(dh/dx, dh/dy) of the trigonometric interpolant of periodic samples, at the samples (Nyquist
-    frequencies, whose derivative a real lattice cannot carry, left out)."""
-    nx, ny = heights.shape
+def _spectral_slopes(spectrum: np.ndarray, shape: tuple[int, int],
+                     cell: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
+    """(dh/dx, dh/dy) of the trigonometric interpolant of periodic samples of ``shape``, given their
+    ``spectrum`` (scipy.fft.rfft2), at the samples (Nyquist frequencies, whose derivative a real lattice
+    cannot carry, left out)."""
+    nx, ny = shape
     kx = 2.0 * np.pi * scipy.fft.fftfreq(nx, cell[0])
     ky = 2.0 * np.pi * scipy.fft.rfftfreq(ny, cell[1])
     if nx % 2 == 0:
         kx[nx // 2] = 0.0
     if ny % 2 == 0:
         ky[-1] = 0.0
-    spectrum = scipy.fft.rfft2(heights)
-    return (scipy.fft.irfft2(1j * kx[:, None] * spectrum, s=heights.shape),
-            scipy.fft.irfft2(1j * ky[None, :] * spectrum, s=heights.shape))
+    return (scipy.fft.irfft2(1j * kx[:, None] * spectrum, s=shape),
+            scipy.fft.irfft2(1j * ky[None, :] * spectrum, s=shape))
 
 
 def _multipliers(n: int, h: float) -> tuple[np.ndarray, np.ndarray]:
@@ -96,10 +97,12 @@ class PeriodicSurface(Body):
     a lattice of 1/16 of a cell around the lowest samples (so Z >= 0 to within S's variation over 1/32 of
     a cell).
 
-    Memory: the samples (8 bytes each) and the spline coefficients of the heights and slopes (24 bytes per
-    sample) of only the sample rows the last large query needed, :data:`ROWS_MARGIN` rows each side (and
-    those of smaller queries since): a rank that evaluates the surface on its rows of a grid holds those
-    rows' coefficients (after a whole-grid query, the whole grid's, until a rank's query replaces them).
+    Memory: the samples (8 bytes each), their half spectrum (8 bytes per sample, made once) and the spline
+    coefficients of the heights and slopes (24 bytes per sample) of only the sample rows the last large
+    query needed, :data:`ROWS_MARGIN` rows each side (and those of smaller queries since): a rank that
+    evaluates the surface on its rows of a grid holds those rows' coefficients (from its construction,
+    which finds the lowest point, and after a whole-grid query, the whole grid's, until a rank's query
+    replaces them).
     """
 
     heights: np.ndarray
@@ -126,16 +129,20 @@ class PeriodicSurface(Body):
         set_(self, "_lowest", 0.0)
         set_(self, "_lowest", self._spline_minimum())
         # the summits' radius of curvature ~ 1 / rms curvature (first guesses only)
-        slopes = _spectral_slopes(heights, cell)
+        slopes = _spectral_slopes(self._spectrum, heights.shape, cell)
         curvature = np.gradient(slopes[0], cell[0], axis=0) + np.gradient(slopes[1], cell[1], axis=1)
         rms = math.sqrt(float(np.mean(curvature**2)))
         set_(self, "_radius_hint", 1.0 / rms if rms > 0.0 else max(heights.shape) * max(cell))
 
     def _spline_minimum(self, candidates: int = 8) -> float:
         """The lowest value of S on a lattice of 1/16 of a cell within a cell of each of the ``candidates``
-        lowest samples (the lowest sample if lower)."""
+        lowest samples (the lowest sample if lower). Every sample row's coefficients are prepared for it:
+        they cost one pass of the columns' transforms whichever rows are kept, and the pre-flight's
+        queries that follow (over the whole grid) need them all."""
         samples = self.heights
-        lowest = np.unravel_index(np.argsort(samples, axis=None)[:candidates], samples.shape)
+        self._prepare(np.arange(samples.shape[0]))
+        count = min(candidates, samples.size)
+        lowest = np.unravel_index(np.argpartition(samples, count - 1, axis=None)[:count], samples.shape)
         offsets = np.linspace(-1.0, 1.0, 33)
         u, v = np.broadcast_arrays(lowest[0][:, None, None] + offsets[None, :, None],
                                    lowest[1][:, None, None] + offsets[None, None, :])
@@ -213,6 +220,11 @@ class PeriodicSurface(Body):
         return self._radius_hint
 
     @functools.cached_property
+    def _spectrum(self) -> np.ndarray:
+        """scipy.fft.rfft2 of the samples, made once (the radius hint, :meth:`spectrum`)."""
+        return scipy.fft.rfft2(self.heights)
+
+    @functools.cached_property
     def contact_scale(self) -> float:
         """sqrt(<|grad h|^2> / <|lap h|^2>) (m) of the samples' trigonometric interpolant (from their
         spectrum: sqrt(sum q^2 |h_q|^2 / sum q^4 |h_q|^2)): the rms slope over the rms curvature, about the
@@ -234,7 +246,7 @@ class PeriodicSurface(Body):
         weight[0] = 1.0
         if ny % 2 == 0:
             weight[-1] = 1.0
-        power = np.abs(scipy.fft.rfft2(self.heights)) ** 2 * weight / (nx * ny) ** 2
+        power = np.abs(self._spectrum) ** 2 * weight / (nx * ny) ** 2
         power[0, 0] = 0.0
         return np.hypot(qx[:, None], qy[None, :]).ravel(), power.ravel()
 
