@@ -237,7 +237,7 @@ class HeightMap(Body):
     def _spline_minimum(self, candidates: int = 8) -> float:
         """min S over the cells with a surface: a bounded minimisation (L-BFGS-B, in cell units, heights
         scaled by their spread around the start) from each of the lowest ``candidates`` samples that are
-        corners of such a cell, within the cells around it, on the spline's local piece there
+        corners of such a cell (equal ones in the order of their places), within the cells around it, on the spline's local piece there
         (:meth:`_patch`: each evaluation reads 4 x 4 coefficients); the lowest sample if lower."""
         from scipy import optimize
 
@@ -246,8 +246,9 @@ class HeightMap(Body):
         corner = self._corners()
         masked = np.where(corner, heights, np.inf)
         count = min(candidates, masked.size)
-        lowest = np.argpartition(masked, count - 1, axis=None)[:count]
-        order = lowest[np.argsort(masked.flat[lowest], kind="stable")]
+        # the lowest ``count`` in the order of a stable sort (ties: by place), without sorting them all
+        lowest = np.flatnonzero(masked <= np.partition(masked, count - 1, axis=None)[count - 1])
+        order = lowest[np.argsort(masked.flat[lowest], kind="stable")][:count]
         best = float(heights.flat[order[0]])
         for i, j in zip(*np.unravel_index(order, heights.shape)):
             if not corner[i, j]:

@@ -140,7 +140,7 @@ class PeriodicSurface(Body):
         they cost one pass of the columns' transforms whichever rows are kept, and the pre-flight's
         queries that follow (over the whole grid) need them all."""
         samples = self.heights
-        self._prepare(np.arange(samples.shape[0]))
+        self._prepare(np.arange(samples.shape[0]), False)
         count = min(candidates, samples.size)
         lowest = np.unravel_index(np.argpartition(samples, count - 1, axis=None)[:count], samples.shape)
         offsets = np.linspace(-1.0, 1.0, 33)
@@ -164,21 +164,25 @@ class PeriodicSurface(Body):
         """How many sample rows' spline coefficients the surface holds now (of nx)."""
         return len(self._prepared["rows"])
 
-    def _prepare(self, needed: np.ndarray) -> dict:
+    def _prepare(self, needed: np.ndarray, every_column: bool) -> dict:
         """The prepared rows, holding the sample rows ``needed`` (sorted, within 0 ... nx - 1). A query of
-        at least an eighth of the rows (a rank's rows of a grid) keeps those held only if they hold the
-        needed rows and not more than those and :data:`ROWS_MARGIN` around each, else prepares just those;
-        a smaller query (a probe of a few points) keeps what is held, adding its rows if missing."""
+        at least an eighth of the rows over ``every_column`` of the samples (a rank's rows of a grid) keeps
+        only the needed rows and :data:`ROWS_MARGIN` around each (cut from those held where they hold
+        them, else made); any other query (a probe, a lattice over part of the surface) keeps what is
+        held, adding its rows if missing. Coefficients are made only for rows not held: a row's do not
+        depend on which other rows are made with it."""
         nx = self.heights.shape[0]
         wanted = np.unique((needed[:, None] + np.arange(-ROWS_MARGIN, ROWS_MARGIN + 1)) % nx)
         prepared = self._prepared
         held = np.isin(needed, prepared["rows"]).all()
-        if 8 * len(needed) >= nx and (not held or len(prepared["rows"]) > len(wanted)):
-            rows = wanted
-        elif not held:
-            rows = np.union1d(prepared["rows"], wanted)
-        else:
+        big = every_column and 8 * len(needed) >= nx
+        if held and not (big and len(prepared["rows"]) > len(wanted)):
             return prepared
+        if big and np.isin(wanted, prepared["rows"]).all():  # held, with more: keep these only
+            prepared["values"] = prepared["values"][:, np.searchsorted(prepared["rows"], wanted)]
+            prepared["rows"] = wanted
+            return prepared
+        rows = wanted if big else np.union1d(prepared["rows"], wanted)
         prepared["values"] = None  # the old rows go before the new ones come
         prepared["values"] = _row_coefficients(self.heights, self.cell, rows)
         prepared["rows"] = rows
@@ -194,12 +198,14 @@ class PeriodicSurface(Body):
         u = u - nx * np.floor(u / nx)  # in [0, nx]
         base = np.floor(u).astype(np.intp)
         stencil = np.unique(np.unique(base)[:, None] + np.arange(-1, 3))  # rows -1 ... nx + 2, unwrapped
-        prepared = self._prepare(np.unique(stencil % nx))
+        ny = self.heights.shape[1]
+        v = (np.asarray(y, dtype=float) - self.origin[1]) / self.cell[1]
+        prepared = self._prepare(np.unique(stencil % nx), np.unique(np.floor(v) % ny).size == ny)
         whole = len(prepared["rows"]) == nx  # all rows: the spline wraps around by itself
         if not whole:  # the stencils' rows in order, each point's row numbered among them
             index = np.searchsorted(prepared["rows"], stencil % nx)
             u = u - (base - np.searchsorted(stencil, base))
-        u, v = np.broadcast_arrays(u, (np.asarray(y, dtype=float) - self.origin[1]) / self.cell[1])
+        u, v = np.broadcast_arrays(u, v)
         coordinates = np.stack([u, v]).reshape(2, -1)
         out = []
         for w in np.atleast_1d(which):
