@@ -150,8 +150,9 @@ def test_append_bench_times_every_append(tmp_path):
 
 def test_peers_bench_converges_each_solver_to_the_reference(tmp_path):
     """petroll alone (the peers need their own environment), from zero, from Hertz's pressure and as a
-    scene run by `petroll run` (a whole process, its results read back): the tolerance chosen is one whose pressure is within the target of the 1e-12 reference, tighter than the
-    loosest tried, with a residual to match; times and ratios filled."""
+    scene run by `petroll run` (a whole process, its results read back): the tolerance chosen is one
+    whose pressure is within the target of the 1e-12 reference, tighter than the loosest tried, with a
+    residual to match; times and ratios filled."""
     from petroll.bench.peers import TOLERANCES, peers
 
     rows = peers(tmp_path, problems=("hertz",), cells=(24,), repeats=1, target=1e-8, solvers=("petroll",))

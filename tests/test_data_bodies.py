@@ -204,8 +204,8 @@ def test_a_map_on_the_cells_is_the_sphere_sampled_there_and_solves_as_the_sphere
     """runs/hertz.toml with the sphere's apex on a cell centre, as a height map of the sphere sampled on the
     cell centres (the apex among them): the map's heights at the centres are the sphere's there to
     round-off, asked for without fitting a spline, and the contact's pressure is the analytic body's to
-    1e-10 relative (both solved to 1e-13). Samples a quarter of a cell off the centres, or at another spacing, make a map that
-    is not on the cells (the spline between the samples)."""
+    1e-10 relative (both solved to 1e-13). Samples a quarter of a cell off the centres, or at another
+    spacing, make a map that is not on the cells (the spline between the samples)."""
     from petroll.model.bodies import make_body
     from petroll.model.bodies.maps import CellMap
 
@@ -230,7 +230,8 @@ def test_a_map_on_the_cells_is_the_sphere_sampled_there_and_solves_as_the_sphere
     raw["body"] = table
     mapped = solved_pressure(raw, comm, shared_dir)
     scale = comm.allreduce(float(exact.max(initial=0.0)), op=MPI.MAX)
-    assert scale > 0 and comm.allreduce(float(np.abs(mapped - exact).max(initial=0.0)), op=MPI.MAX) <= 1e-10 * scale
+    difference = comm.allreduce(float(np.abs(mapped - exact).max(initial=0.0)), op=MPI.MAX)
+    assert scale > 0 and difference <= 1e-10 * scale
 
 
 def spline_minimum_searched(heights: np.ndarray, h: float) -> float:

@@ -20,11 +20,12 @@ to the smallest error any peer reached as well (so its answer is never the less 
 answer's ``residual`` is computed here alike (:func:`residual`). Times: ``cold_s`` the whole process up to
 its first answer (interpreter, imports, set-up, first solve: the process's wall time, timed here, less
 the second solve), ``warm_s`` the second solve in that process (from the same start), timed by the script; medians of ``repeats`` runs; ratios petroll (zero) / solver (< 1: petroll faster).
-The user's path is a row of its own (start ``scene``): the problem written as a scene (:func:`write_scene`:
-the Hertz sphere as the analytic body, the wavy sphere as a height-map file) and run by ``petroll run`` as
-a whole process, results written; its tolerance searched from the one petroll's Hertz start needed (the
-same solve), held to the smallest error a peer reached as petroll (zero) is; ``cold_s`` that process's wall time, ``warm_s`` its step's
-solve time (results.h5's solve_time); ``scene_ratio``: its cold time over each row's.
+The user's path is a row of its own (start ``scene``): the problem written as a scene
+(:func:`write_scene`: the Hertz sphere as the analytic body, the wavy sphere as a height-map file) and run
+by ``petroll run`` as a whole process, results written; its tolerance searched from the one petroll's
+Hertz start needed (the same solve), held to the smallest error a peer reached as petroll (zero) is;
+``cold_s`` that process's wall time, ``warm_s`` its step's solve time (results.h5's solve_time);
+``scene_ratio``: its cold time over each row's.
 Writes peers.csv and peers.png. The peers live in .venv-peers (created or completed on first use with
 pip: they need numpy 2, which must not enter petroll's environment). The scripts are no part of an
 install: run from one, the benchmark stops at once with a one-line error (:func:`peer_scripts`).
@@ -131,7 +132,8 @@ def _rows(out: pathlib.Path, problems, cells, repeats: int, target: float, solve
                 peer_process(sys.executable, "petroll", [problem, "hertz", reference, "1e-12"])
                 done = {}
                 for solver, start in runs:
-                    peer = min([target, *(float(r["difference"]) for (s, _), r in done.items() if s != "petroll")])
+                    peer = min([target, *(float(r["difference"]) for (who, _), r in done.items()
+                                          if who != "petroll")])
                     bound = peer if solver == "petroll" and start in ("zero", "scene") else target
                     if start == "scene":
                         tried = TOLERANCES[TOLERANCES.index(float(done["petroll", "hertz"]["tol"])):]
@@ -140,8 +142,9 @@ def _rows(out: pathlib.Path, problems, cells, repeats: int, target: float, solve
                         field = where / "scene" / "pressure.npy"
                     else:
                         field = where / "pressure.npy"
-                        found = peer_process(python[solver], solver, [problem, start, field, *map(str, TOLERANCES),
-                                                              "--reference", reference, "--target", bound])
+                        found = peer_process(python[solver], solver, [problem, start, field,
+                                                                      *map(str, TOLERANCES), "--reference",
+                                                                      reference, "--target", bound])
                         timed = [peer_process(python[solver], solver, [problem, start, field, found["tol"]])
                                  for _ in range(repeats)]
                         for r in timed:  # the process up to its first answer: less the second solve it timed
@@ -223,7 +226,8 @@ def scene_process(scene: pathlib.Path) -> dict:
         last = (done.stderr or done.stdout).strip().splitlines()[-1:]
         raise PetrollError(f"bench peers: petroll run {scene} failed: {last}")
     with h5py.File(scene.parent / "out" / "results.h5", "r") as h5:
-        return {"cold_s": seconds, "pressure": h5["fields/pressure"][-1], "warm_s": float(h5["series/solve_time"][-1]),
+        return {"cold_s": seconds, "pressure": h5["fields/pressure"][-1],
+                "warm_s": float(h5["series/solve_time"][-1]),
                 "iterations": int(h5["series/applications"][-1])}
 
 

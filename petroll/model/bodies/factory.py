@@ -165,8 +165,9 @@ def make_body(table: dict, base_dir: pathlib.Path, source: str, line: bool = Fal
     ``grid``: the scene's grid (a generated roughness takes its cells and size; a height map whose samples
     sit on its cells' centres with the body at ``position``, m, is a :class:`CellMap`).
 
-    The table's ``position`` may be present and is ignored here (the scene reader passes it checked).  Relative file paths are resolved against
-    ``base_dir``.  Raises SceneError for an unknown shape or key, a missing key, a wrong type or a bad value.
+    The table's ``position`` may be present and is ignored here (the scene reader passes it checked).
+    Relative file paths are resolved against ``base_dir``.  Raises SceneError for an unknown shape or key,
+    a missing key, a wrong type or a bad value.
     """
     values = _keys(table, LINE_BODY_KEYS if line else BODY_KEYS, line, source)
     shape = table["shape"]

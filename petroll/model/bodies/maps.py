@@ -64,13 +64,13 @@ class HeightMap(Body):
     Z = S - min S, S the interpolating tensor-product cubic spline of the samples (scipy's
     RectBivariateSpline with s = 0: not-a-knot ends; quadratic or linear along an axis of 3 or 2 samples),
     min S its lowest point (found by a bounded minimisation around the lowest samples on the spline's local
-    pieces, so that Z >= 0 wherever the samples fall); the slope is S's derivative.  S is twice continuously differentiable, so
-    heights and slopes do not depend on where the points they are evaluated at fall between the samples
-    (cubic polynomials are reproduced exactly; on a smooth surface heights are accurate to O(h^4) and slopes
-    to O(h^3)).  +inf outside the extent.  Entries equal to +inf mean "no surface there" (as produced by
-    :func:`mesh_height_map` where no triangle covers a point): Z is +inf in every grid cell with such a
-    corner (the spline is fitted with them replaced by their nearest finite sample).  NaN and -inf are
-    refused.
+    pieces, so that Z >= 0 wherever the samples fall); the slope is S's derivative.  S is twice continuously
+    differentiable, so heights and slopes do not depend on where the points they are evaluated at fall
+    between the samples (cubic polynomials are reproduced exactly; on a smooth surface heights are accurate
+    to O(h^4) and slopes to O(h^3)).  +inf outside the extent.  Entries equal to +inf mean "no surface there"
+    (as produced by :func:`mesh_height_map` where no triangle covers a point): Z is +inf in every grid cell
+    with such a corner (the spline is fitted with them replaced by their nearest finite sample).  NaN and
+    -inf are refused.
 
     Cost: heights asked for at the samples themselves (within :data:`ON_SAMPLE` of a cell) are the samples
     (less the lowest point); the spline is fitted on first use elsewhere (FITPACK, O(samples) once), its
@@ -139,8 +139,8 @@ class HeightMap(Body):
     def _evaluate(self, x, y, dx: int, dy: int) -> tuple[np.ndarray, np.ndarray]:
         """S's derivative of orders (dx, dy) at (x, y) m from the reference point (broadcast; 0 where the
         map has no surface) and where it has one. Heights at the samples themselves are the samples. Points
-        on a grid (x a column, y a row, both sorted where inside the map) are evaluated as a tensor product, about 30 times faster
-        than point by point."""
+        on a grid (x a column, y a row, both sorted where inside the map) are evaluated as a tensor
+        product, about 30 times faster than point by point."""
         u = np.asarray(x, dtype=float) - self._origin[0]
         v = np.asarray(y, dtype=float) - self._origin[1]
         i, uc, in_x = self._cells(u, 0)
@@ -149,9 +149,9 @@ class HeightMap(Body):
         values = np.zeros(valid.shape)
         if not valid.any():
             return values, valid
-        if not (dx or dy) and (at := self._at_samples(uc, vc, valid)) is not None:
-            values[valid] = np.broadcast_to(self.heights[at], valid.shape)[valid]
-        elif (u.ndim == 2 and v.ndim == 2 and u.shape[1] == 1 and v.shape[0] == 1
+        if not (dx or dy) and (at := self._at_samples(uc, vc, in_x, in_y)) is not None:
+            return np.where(valid, self.heights[at], 0.0), valid
+        if (u.ndim == 2 and v.ndim == 2 and u.shape[1] == 1 and v.shape[0] == 1
                 and np.all(np.diff(uc[in_x[:, 0], 0]) >= 0) and np.all(np.diff(vc[0, in_y[0]]) >= 0)):
             rows, cols = in_x[:, 0], in_y[0]
             values[np.ix_(rows, cols)] = self._spline_at(uc[rows, 0], vc[0, cols], dx, dy, grid=True)
@@ -161,16 +161,15 @@ class HeightMap(Body):
             values[valid] = self._spline_at(uc[valid], vc[valid], dx, dy, grid=False)
         return values, valid
 
-    def _at_samples(self, uc: np.ndarray, vc: np.ndarray, valid: np.ndarray) -> tuple | None:
-        """The samples' indices (a pair of arrays that broadcast like ``valid``) where every valid point of
-        coordinates (``uc``, ``vc``) from the first sample lies on a sample (within :data:`ON_SAMPLE` of a
-        cell), else None."""
+    def _at_samples(self, uc: np.ndarray, vc: np.ndarray, in_x: np.ndarray, in_y: np.ndarray) -> tuple | None:
+        """The samples' indices (a pair of arrays that broadcast like the points) where every coordinate
+        (``uc``, ``vc``) from the first sample inside the map along its axis (``in_x``, ``in_y``) lies on a
+        sample (within :data:`ON_SAMPLE` of a cell), else None."""
         index = []
-        for w, h, axis in ((uc, self.cell[0], 0), (vc, self.cell[1], 1)):
+        for w, inside, h, axis in ((uc, in_x, self.cell[0], 0), (vc, in_y, self.cell[1], 1)):
             f = w / h
             nearest = np.rint(f)
-            off = np.abs(f - nearest) > ON_SAMPLE
-            if np.broadcast_to(off, valid.shape)[valid].any():
+            if (np.abs(f - nearest) > ON_SAMPLE)[inside].any():
                 return None
             index.append(np.clip(nearest.astype(np.intp), 0, self.heights.shape[axis] - 1))
         return tuple(index)
@@ -237,8 +236,9 @@ class HeightMap(Body):
     def _spline_minimum(self, candidates: int = 8) -> float:
         """min S over the cells with a surface: a bounded minimisation (L-BFGS-B, in cell units, heights
         scaled by their spread around the start) from each of the lowest ``candidates`` samples that are
-        corners of such a cell (equal ones in the order of their places), within the cells around it, on the spline's local piece there
-        (:meth:`_patch`: each evaluation reads 4 x 4 coefficients); the lowest sample if lower."""
+        corners of such a cell (equal ones in the order of their places), within the cells around it, on the
+        spline's local piece there (:meth:`_patch`: each evaluation reads 4 x 4 coefficients); the lowest
+        sample if lower."""
         from scipy import optimize
 
         heights, (hx, hy) = self.heights, self.cell
