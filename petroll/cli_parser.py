@@ -116,7 +116,8 @@ def _study_verbs(verbs) -> None:
     sweep.add_argument("scene", help="scene file (TOML)")
     sweep.add_argument("--vary", action="append", required=True, metavar="KEY=SPEC",
                        help="KEY=V1,V2,... or KEY=START..STOP:log:N or KEY=START..STOP:lin:N, e.g. "
-                       "motion.velocity=1e-4..1e-1:log:7 (a vector key varies its magnitude)")
+                       "motion.velocity=1e-4..1e-1:log:7 (a vector key varies its magnitude); given twice: "
+                       "a family of curves, one sweep of the first key per value of the second")
     sweep.add_argument("--out", help="output directory (default: the scene's [output] dir + -sweep)")
     sweep.add_argument("--quiet", action="store_true", help="no progress line (also off when not a terminal)")
     sweep.add_argument("--transient", action="store_true", help="run every point from rest to steady state, "
