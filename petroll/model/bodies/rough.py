@@ -166,9 +166,9 @@ class PeriodicSurface(Body):
 
     def _prepare(self, needed: np.ndarray, every_column: bool) -> dict:
         """The prepared rows, holding the sample rows ``needed`` (sorted, within 0 ... nx - 1). A query of
-        at least an eighth of the rows over ``every_column`` of the samples (a rank's rows of a grid) keeps
-        only the needed rows and :data:`ROWS_MARGIN` around each (cut from those held where they hold
-        them, else made); any other query (a probe, a lattice over part of the surface) keeps what is
+        at least an eighth of the rows whose stencils take ``every_column`` of the samples (a rank's rows
+        of a grid) keeps only the needed rows and :data:`ROWS_MARGIN` around each (cut from those held
+        where they hold them, else made); any other query (a probe, a lattice over part of the surface) keeps what is
         held, adding its rows if missing. Coefficients are made only for rows not held: a row's do not
         depend on which other rows are made with it."""
         nx = self.heights.shape[0]
@@ -200,7 +200,8 @@ class PeriodicSurface(Body):
         stencil = np.unique(np.unique(base)[:, None] + np.arange(-1, 3))  # rows -1 ... nx + 2, unwrapped
         ny = self.heights.shape[1]
         v = (np.asarray(y, dtype=float) - self.origin[1]) / self.cell[1]
-        prepared = self._prepare(np.unique(stencil % nx), np.unique(np.floor(v) % ny).size == ny)
+        columns = np.unique((np.unique(np.floor(v))[:, None] + np.arange(-1, 3)) % ny)  # the stencils'
+        prepared = self._prepare(np.unique(stencil % nx), columns.size == ny)
         whole = len(prepared["rows"]) == nx  # all rows: the spline wraps around by itself
         if not whole:  # the stencils' rows in order, each point's row numbered among them
             index = np.searchsorted(prepared["rows"], stencil % nx)
