@@ -346,12 +346,15 @@ def _main(args: argparse.Namespace, comm) -> int:
     from petroll.io.checkpoint import RunInterrupted, StopRequest
     from petroll.io.results import Results
     from petroll.model.scene import load_scene
+    from petroll.studies.target import asks_target, targeted
 
     start = time.perf_counter()
     if args.verb == "restart":
         scene, checkpoint, out = _restart_inputs(args, comm)
     else:
         scene, checkpoint, out = load_scene(args.scene), None, args.out
+        if asks_target(scene):  # its pilot before the note: the note says the grid chosen for the target
+            scene = targeted(scene, comm)
         if scene.sizing is not None and comm.rank == 0:  # the grid petroll chose, before the run
             print(f"petroll: {scene.source}: {scene.sizing.note}", flush=True)
     _test_failure(comm)

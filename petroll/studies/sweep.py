@@ -55,6 +55,7 @@ from petroll.model.clock import TimeMode
 from petroll.model.friction import creep_coefficient
 from petroll.model.schema import DEFAULT_STEADY, SCHEMA
 from petroll.model.scene import Scene
+from petroll.studies.target import asks_target, targeted
 
 """[time] steady given to every point of a sweep whose scene has a [time] table without one."""
 
@@ -365,6 +366,8 @@ def sweep(scene: Scene, vary: Vary | str, out: str | pathlib.Path | None = None,
         if signum:
             raise SweepInterrupted(signum, index, total, label)
         directory = out / "points" / name
+        if asks_target(point):  # its grid chosen here: the point's text as run, to resume it by
+            point = targeted(point, comm)
         results = _finished(directory, point, comm, estimate_error)
         if results is None:
             try:
