@@ -213,7 +213,7 @@ def test_a_map_on_the_cells_is_the_sphere_sampled_there_and_solves_as_the_sphere
     position = (float(grid.x[32]), float(grid.y[32]))
     name = save(comm, shared_dir / "on-cells.npy", sphere_map(grid.dx, 41))
     table = {"shape": "heightmap", "file": name, "cell": grid.dx, "position": list(position)}
-    body = make_body(table, shared_dir, "test", grid=grid, position=position)
+    body = make_body(table, shared_dir, "test", grid=grid)
     assert isinstance(body, CellMap)
     x, y = grid.offsets(grid.x[:, None], grid.y[None, :], *position)
     got, want = body.height(x, y), Sphere(RADIUS).height(x, y)
@@ -222,7 +222,7 @@ def test_a_map_on_the_cells_is_the_sphere_sampled_there_and_solves_as_the_sphere
     np.testing.assert_allclose(got[inside], want[inside], rtol=0, atol=1e-13 * want[inside].max())
     for moved, cell in (((0.25 * grid.dx, 0.0), grid.dx), ((0.0, 0.0), 0.5 * grid.dx)):
         where = (position[0] + moved[0], position[1] + moved[1])
-        other = make_body(dict(table, cell=cell), shared_dir, "test", grid=grid, position=where)
+        other = make_body(dict(table, cell=cell, position=list(where)), shared_dir, "test", grid=grid)
         assert type(other).__name__ == "HeightMap"
     raw = raw_scene("hertz.toml", position)
     raw["solver"]["tol"] = 1e-13  # both converged (their first guesses differ: the radius hints)

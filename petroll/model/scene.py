@@ -175,8 +175,7 @@ def parse_scene(raw: dict, source: str = "<python>", base_dir: str | pathlib.Pat
     for key in BODY_LENGTHS:
         if key in raw.get("body", {}) and (bad := out_of_scale(raw["body"][key])) is not None:
             raise SceneError(source, f"[body] {key}", raw["body"][key], scale_message(bad, "m"))
-    body = periodic_body(make_body(raw.get("body", {}), base_dir, source, line=line, grid=grid,
-                                   position=values["body"]["position"]), grid)
+    body = periodic_body(make_body(raw.get("body", {}), base_dir, source, line=line, grid=grid), grid)
     m = values["motion"]
     if line:
         _check_line_motion(m, raw.get("motion", {}), source, grid.topology.whole)

@@ -7,7 +7,7 @@ import pathlib
 
 from petroll.errors import MISSING, SceneError
 from petroll.model.bodies.analytic import Cylinder, CylinderSection, Ellipsoid, Sphere
-from petroll.model.bodies.base import Body, cell_pair, type_name
+from petroll.model.bodies.base import Body, cell_pair, point_pair, type_name
 from petroll.model.bodies.maps import CellMap, HeightMap, HeightProfile, on_cells
 from petroll.model.bodies.mesh import mesh_height_map
 from petroll.model.bodies.rough import PeriodicSurface, RoughBody, grid_surface, samples_surface
@@ -158,14 +158,13 @@ def _keys(table: dict, catalogue: dict, line: bool, source: str) -> dict:
 
 
 def make_body(table: dict, base_dir: pathlib.Path, source: str, line: bool = False,
-              grid: Grid | None = None, position: tuple[float, float] = (0.0, 0.0)) -> Body:
+              grid: Grid | None = None) -> Body:
     """Build the body of a scene's ``[body]`` table (``shape`` plus that shape's keys, see BODY_KEYS).
 
     ``line``: a line-contact (plane-strain) scene: only the shapes of LINE_BODY_KEYS, as profiles Z(x).
     ``grid``: the scene's grid (a generated roughness takes its cells and size; a height map whose samples
-    sit on its cells' centres with the body at ``position``, m, is a :class:`CellMap`).
+    sit on its cells' centres with the body at the table's ``position``, m, is a :class:`CellMap`).
 
-    The table's ``position`` may be present and is ignored here (the scene reader passes it checked).
     Relative file paths are resolved against ``base_dir``.  Raises SceneError for an unknown shape or key,
     a missing key, a wrong type or a bad value.
     """
@@ -180,6 +179,7 @@ def make_body(table: dict, base_dir: pathlib.Path, source: str, line: bool = Fal
         surface = None if grid is None else samples_surface(topography.heights, topography.cell, grid)
         if surface is not None:
             return surface
+        position = point_pair(source, "[body] position", table.get("position", (0.0, 0.0)))
         if grid is not None and on_cells(topography.heights, topography.cell, grid, position):
             return CellMap(topography.heights, topography.cell, source=source)
         return HeightMap(topography.heights, topography.cell, source=source)
