@@ -149,19 +149,21 @@ def test_append_bench_times_every_append(tmp_path):
 
 
 def test_peers_bench_converges_each_solver_to_the_reference(tmp_path):
-    """petroll alone (the peers need their own environment), from zero and from Hertz's pressure: the
-    tolerance chosen is one whose pressure is within the target of the 1e-12 reference, tighter than the
-    loosest tried, with a residual to match; times and ratios filled."""
+    """petroll alone (the peers need their own environment), from zero, from Hertz's pressure and as a
+    scene run by `petroll run` (a whole process, its results read back): the tolerance chosen is one
+    whose pressure is within the target of the 1e-12 reference, tighter than the loosest tried, with a
+    residual to match; times and ratios filled."""
     from petroll.bench.peers import TOLERANCES, peers
 
     rows = peers(tmp_path, problems=("hertz",), cells=(24,), repeats=1, target=1e-8, solvers=("petroll",))
-    assert [(r["solver"], r["start"]) for r in rows] == [("petroll", "zero"), ("petroll", "hertz")]
+    assert [(r["solver"], r["start"]) for r in rows] == [("petroll", "zero"), ("petroll", "hertz"),
+                                                         ("petroll", "scene")]
     for row in rows:
         assert float(row["difference"]) <= 1e-8 and row["within"] == 1, row
         assert float(row["tol"]) in TOLERANCES and float(row["tol"]) < TOLERANCES[0]
         assert 0 < float(row["residual"]) <= 10 * float(row["tol"])
         assert float(row["cold_s"]) > float(row["warm_s"]) > 0 and row["count"] > 0
-    assert rows[0]["cold_ratio"] == "1.000"
+    assert rows[0]["cold_ratio"] == "1.000" and rows[2]["scene_ratio"] == "1.000"
     assert (tmp_path / "peers.csv").exists() and (tmp_path / "peers.png").stat().st_size > 0
 
 

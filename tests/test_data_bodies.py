@@ -187,3 +187,97 @@ def test_load_control_solves_what_penetration_control_solves(comm, shared_dir, k
     assert held.delta == pytest.approx(fixed.delta, rel=1e-7)
     peak = comm.allreduce(float(penetration.pressure.max()), op=MPI.MAX)
     assert comm.allreduce(float(np.abs(loaded.pressure - penetration.pressure).max()), op=MPI.MAX) <= 1e-6 * peak
+
+
+# ---------------------------------------------------------------------------------------------------------
+# what a body from data costs: a map on the cells is its samples; a map's lowest point from local pieces
+
+
+def solved_pressure(raw: dict, comm, base_dir) -> np.ndarray:
+    """The pressure (this rank's rows, Pa) of the scene's first step."""
+    sim = Simulation(parse_scene(raw, source="test", base_dir=base_dir), comm)
+    next(sim.steps())
+    return sim.pressure
+
+
+def test_a_map_on_the_cells_is_the_sphere_sampled_there_and_solves_as_the_sphere(comm, shared_dir):
+    """runs/hertz.toml with the sphere's apex on a cell centre, as a height map of the sphere sampled on the
+    cell centres (the apex among them): the map's heights at the centres are the sphere's there to
+    round-off, asked for without fitting a spline, and the contact's pressure is the analytic body's to
+    1e-10 relative (both solved to 1e-13). Samples a quarter of a cell off the centres, or at another
+    spacing, make a map that is not on the cells (the spline between the samples)."""
+    from petroll.model.bodies import make_body
+    from petroll.model.bodies.maps import CellMap
+
+    grid = load_scene(shipped_scene("hertz.toml")).grid
+    position = (float(grid.x[32]), float(grid.y[32]))
+    name = save(comm, shared_dir / "on-cells.npy", sphere_map(grid.dx, 41))
+    table = {"shape": "heightmap", "file": name, "cell": grid.dx, "position": list(position)}
+    body = make_body(table, shared_dir, "test", grid=grid)
+    assert isinstance(body, CellMap)
+    x, y = grid.offsets(grid.x[:, None], grid.y[None, :], *position)
+    got, want = body.height(x, y), Sphere(RADIUS).height(x, y)
+    inside = np.isfinite(got)
+    assert inside.sum() == 41 * 41 and not body._splines  # the samples themselves: no spline fitted
+    np.testing.assert_allclose(got[inside], want[inside], rtol=0, atol=1e-13 * want[inside].max())
+    for moved, cell in (((0.25 * grid.dx, 0.0), grid.dx), ((0.0, 0.0), 0.5 * grid.dx)):
+        where = (position[0] + moved[0], position[1] + moved[1])
+        other = make_body(dict(table, cell=cell, position=list(where)), shared_dir, "test", grid=grid)
+        assert type(other).__name__ == "HeightMap"
+    raw = raw_scene("hertz.toml", position)
+    raw["solver"]["tol"] = 1e-13  # both converged (their first guesses differ: the radius hints)
+    exact = solved_pressure(raw, comm, shared_dir)
+    raw["body"] = table
+    mapped = solved_pressure(raw, comm, shared_dir)
+    scale = comm.allreduce(float(exact.max(initial=0.0)), op=MPI.MAX)
+    difference = comm.allreduce(float(np.abs(mapped - exact).max(initial=0.0)), op=MPI.MAX)
+    assert scale > 0 and difference <= 1e-10 * scale
+
+
+def spline_minimum_searched(heights: np.ndarray, h: float) -> float:
+    """The oracle: the lowest value of the whole map's spline (scipy's RectBivariateSpline through every
+    sample, evaluated point by point) on a lattice of 1/64 of a cell over the cells around the 8 lowest
+    samples (equal ones in the order of their places), polished from the lattice's lowest point by
+    Nelder-Mead within those cells."""
+    from scipy import optimize
+    from scipy.interpolate import RectBivariateSpline
+
+    nx, ny = heights.shape
+    spline = RectBivariateSpline(np.arange(nx) * h, np.arange(ny) * h, heights, s=0)
+    best = math.inf
+    for k in np.argsort(heights, axis=None, kind="stable")[:8]:
+        i, j = np.unravel_index(k, heights.shape)
+        box = [(max(i - 1, 0) * h, min(i + 1, nx - 1) * h), (max(j - 1, 0) * h, min(j + 1, ny - 1) * h)]
+        u, v = (np.linspace(lo, hi, 129) for lo, hi in box)
+        values = spline(u, v)
+        a, b = np.unravel_index(np.argmin(values), values.shape)
+        found = optimize.minimize(lambda p: float(spline(*np.clip(p, *zip(*box)), grid=False)), [u[a], v[b]],
+                                  method="Nelder-Mead", options={"xatol": 1e-12 * h, "fatol": 1e-30})
+        best = min(best, float(values.min()), float(found.fun))
+    return best
+
+
+@pytest.mark.parametrize("kind", ["inside", "edge", "flat", "rough"])
+def test_a_map_off_the_cells_finds_its_lowest_point_on_the_spline_s_local_pieces(kind):
+    """A map's lowest point (from the spline's local pieces around its lowest samples, each evaluation
+    reading 4 x 4 coefficients) is the whole map's spline's lowest point, searched on a fine lattice and
+    polished (:func:`spline_minimum_searched`), to 1e-9 of a cell: a paraboloid whose apex falls between
+    samples, one whose apex lies in the first cell off an edge, a flat-bottomed bowl (whose equal lowest
+    samples are taken in the order of their places) and a rough map."""
+    from petroll.model.bodies import HeightMap
+
+    h, n = 1e-3, 24
+    u = np.arange(n) * h
+    x, y = u[:, None], u[None, :]
+    if kind == "inside":
+        heights = ((x - 10.37 * h) ** 2 + 2 * (y - 13.61 * h) ** 2) / (4 * h)
+    elif kind == "edge":
+        heights = ((x - 0.41 * h) ** 2 + (y - 11.5 * h) ** 2) / (4 * h) + 0.01 * np.sin(y / (3 * h)) * h
+    elif kind == "flat":
+        heights = np.maximum(np.hypot(x - 11.3 * h, y - 12.2 * h) - 4 * h, 0.0) ** 2 / (2 * h)
+    else:
+        heights = np.random.default_rng(4).normal(size=(n, n)) * h
+    body = HeightMap(heights, h)
+    want = spline_minimum_searched(heights, h)
+    assert want <= heights.min()
+    assert abs(body._lowest - want) <= 1e-9 * h

@@ -235,3 +235,37 @@ def test_a_generated_rough_surface_has_one_sample_per_cell(tmp_path):
         parse_scene(raw, source="test.toml")
     with pytest.raises(SceneError, match=r"\[body\] seed"):
         scene_body({"shape": "rough", **keys, "seed": "one"}, tmp_path)
+
+
+def test_a_generated_surface_makes_its_coefficients_once_before_its_run(monkeypatch):
+    """runs/rough-rubber.toml's surface (a periodic grid's generated rough body) read and checked before a
+    run (load_scene, the pre-flight, the path's checks, the first whole-grid heights and slopes): its
+    spline coefficients are made once, for every row (its lowest point needs some, the whole-grid queries
+    that follow all), and its samples' spectrum once (the radius hint, the cut-off and the contact scale)."""
+    import sys
+
+    import scipy.fft
+
+    from petroll.model import preflight
+    from petroll.model.bodies import rough
+    from petroll.model.scene import load_scene, shipped_scene
+
+    made = {"coefficients": 0, "spectra": 0}
+    coefficients, rfft2 = rough._row_coefficients, scipy.fft.rfft2
+
+    def counted(*args):
+        made["coefficients"] += 1
+        return coefficients(*args)
+
+    def transformed(*args, **kwargs):  # the surface's transforms (not the generator's, of its own)
+        made["spectra"] += sys._getframe(1).f_globals["__name__"] == rough.__name__
+        return rfft2(*args, **kwargs)
+
+    monkeypatch.setattr(rough, "_row_coefficients", counted)
+    monkeypatch.setattr(scipy.fft, "rfft2", transformed)
+    scene = load_scene(shipped_scene("rough-rubber.toml"))
+    preflight.check_run(scene)
+    g = scene.grid
+    scene.body.height(g.x[:, None], g.y[None, :])
+    scene.body.slope(g.x[:, None], g.y[None, :])
+    assert made == {"coefficients": 1, "spectra": 1} and scene.body.rows_held == g.nx

@@ -20,6 +20,12 @@ to the smallest error any peer reached as well (so its answer is never the less 
 answer's ``residual`` is computed here alike (:func:`residual`). Times: ``cold_s`` the whole process up to
 its first answer (interpreter, imports, set-up, first solve: the process's wall time, timed here, less
 the second solve), ``warm_s`` the second solve in that process (from the same start), timed by the script; medians of ``repeats`` runs; ratios petroll (zero) / solver (< 1: petroll faster).
+The user's path is a row of its own (start ``scene``): the problem written as a scene
+(:func:`write_scene`: the Hertz sphere as the analytic body, the wavy sphere as a height-map file) and run
+by ``petroll run`` as a whole process, results written; its tolerance searched from the one petroll's
+Hertz start needed (the same solve), held to the smallest error a peer reached as petroll (zero) is;
+``cold_s`` that process's wall time, ``warm_s`` its step's solve time (results.h5's solve_time);
+``scene_ratio``: its cold time over each row's.
 Writes peers.csv and peers.png. The peers live in .venv-peers (created or completed on first use with
 pip: they need numpy 2, which must not enter petroll's environment). The scripts are no part of an
 install: run from one, the benchmark stops at once with a one-line error (:func:`peer_scripts`).
@@ -113,27 +119,36 @@ def _rows(out: pathlib.Path, problems, cells, repeats: int, target: float, solve
     project's machine, would otherwise compile every petroll module in every timed process)."""
     compileall.compile_dir(pathlib.Path(__file__).parents[1], quiet=2)  # unwritable: silent
     runs = [(name, "zero") for name in solvers if name != "petroll"]
-    if "petroll" in solvers:
-        runs = [*runs, ("petroll", "zero"), ("petroll", "hertz")]  # after the peers: held to their error
+    if "petroll" in solvers:  # after the peers: held to their error; the scene from Hertz's start's tol
+        runs = [*runs, ("petroll", "zero"), ("petroll", "hertz"), ("petroll", "scene")]
     python = {name: sys.executable if name == "petroll" else peers_python() for name, _ in runs}
     rows = []
     with tempfile.TemporaryDirectory() as scratch:
         where = pathlib.Path(scratch)
-        problem, reference, field = where / "problem.npz", where / "reference.npy", where / "pressure.npy"
+        problem, reference = where / "problem.npz", where / "reference.npy"
         for name in problems:
             for n in cells:
                 write_problem(name, n, problem)
                 peer_process(sys.executable, "petroll", [problem, "hertz", reference, "1e-12"])
                 done = {}
                 for solver, start in runs:
-                    bound = min([target, *(float(r["difference"]) for r in done.values())])
-                    bound = bound if (solver, start) == ("petroll", "zero") else target
-                    found = peer_process(python[solver], solver, [problem, start, field, *map(str, TOLERANCES),
-                                                          "--reference", reference, "--target", bound])
-                    timed = [peer_process(python[solver], solver, [problem, start, field, found["tol"]])
-                             for _ in range(repeats)]
-                    for r in timed:  # the process up to its first answer: less the second solve it then timed
-                        r["cold_s"] -= r["warm_s"]
+                    peer = min([target, *(float(r["difference"]) for (who, _), r in done.items()
+                                          if who != "petroll")])
+                    bound = peer if solver == "petroll" and start in ("zero", "scene") else target
+                    if start == "scene":
+                        tried = TOLERANCES[TOLERANCES.index(float(done["petroll", "hertz"]["tol"])):]
+                        found, timed = scene_runs(name, problem, where / "scene", reference, tried, bound,
+                                                  repeats)
+                        field = where / "scene" / "pressure.npy"
+                    else:
+                        field = where / "pressure.npy"
+                        found = peer_process(python[solver], solver, [problem, start, field,
+                                                                      *map(str, TOLERANCES), "--reference",
+                                                                      reference, "--target", bound])
+                        timed = [peer_process(python[solver], solver, [problem, start, field, found["tol"]])
+                                 for _ in range(repeats)]
+                        for r in timed:  # the process up to its first answer: less the second solve it timed
+                            r["cold_s"] -= r["warm_s"]
                     done[(solver, start)] = {
                         "problem": name, "cells": f"{n}x{n}", "solver": solver, "start": start,
                         "tol": f"{found['tol']:g}", "difference": f"{found['difference']:.2g}",
@@ -144,15 +159,98 @@ def _rows(out: pathlib.Path, problems, cells, repeats: int, target: float, solve
                         "count": found["iterations"], "force_error": f"{timed[0]['force_error']:+.1e}"}
                     print(f"bench peers: {name} {n}^2 {solver} ({start}): tol {found['tol']:g}, "
                           f"{done[(solver, start)]['cold_s']:.2f} s cold", flush=True)
-                ours = done.get(("petroll", "zero"))
+                ours, scene = done.get(("petroll", "zero")), done.get(("petroll", "scene"))
                 for row in done.values():
                     if ours:
                         row["cold_ratio"] = f"{ours['cold_s'] / row['cold_s']:.3f}"
                         row["warm_ratio"] = f"{ours['warm_s'] / row['warm_s']:.3f}"
+                    if scene:
+                        row["scene_ratio"] = f"{scene['cold_s'] / row['cold_s']:.3f}"
                     rows.append(dict(row, cold_s=f"{row['cold_s']:.3g}", warm_s=f"{row['warm_s']:.3g}"))
     write_table(rows, out / "peers.csv")
     _plot(rows, out / "peers.png")
     return rows
+
+
+def write_scene(name: str, problem: pathlib.Path, folder: pathlib.Path, tol: float) -> pathlib.Path:
+    """The problem as the scene a user runs (``petroll run``): its grid, the elastic half-space of its
+    compliance (E = 1 / J, nu = 0), its load, [solver] tol; the body the analytic sphere (``hertz``) or
+    its heights as a height-map file on the cells (``wavy``: heights.npy beside the scene); results in
+    ``folder``/out. Returns the scene file."""
+    data = np.load(problem)
+    heights, cell = data["heights"], float(data["cell"])
+    half = heights.shape[0] * cell / 2
+    folder.mkdir(parents=True, exist_ok=True)
+    if name == "hertz":
+        body = f'shape = "sphere"\nradius = {float(data["radius"])!r}'
+    else:
+        np.save(folder / "heights.npy", heights)
+        body = f'shape = "heightmap"\nfile = "heights.npy"\ncell = {cell!r}'
+    scene = folder / "scene.toml"
+    scene.write_text(f"""[grid]
+nx = {heights.shape[0]}
+ny = {heights.shape[1]}
+x = [{-half!r}, {half!r}]
+y = [{-half!r}, {half!r}]
+
+[material]
+model = "elastic"
+E = {1 / float(data["compliance"])!r}
+nu = 0.0
+
+[body]
+{body}
+
+[motion]
+load = {float(data["load"])!r}
+
+[solver]
+tol = {tol!r}
+
+[output]
+dir = "{(folder / "out").as_posix()}"
+""")
+    return scene
+
+
+def scene_process(scene: pathlib.Path) -> dict:
+    """One whole ``petroll run --overwrite`` of ``scene`` (this Python's petroll command): its wall time
+    (``cold_s``), the last saved pressure (Pa), its step's solve time (``warm_s``) and applications."""
+    import h5py
+
+    command = pathlib.Path(sys.executable).with_name("petroll")
+    start = time.perf_counter()
+    done = subprocess.run([str(command), "run", "--overwrite", str(scene)], capture_output=True, text=True)
+    seconds = time.perf_counter() - start
+    if done.returncode:
+        last = (done.stderr or done.stdout).strip().splitlines()[-1:]
+        raise PetrollError(f"bench peers: petroll run {scene} failed: {last}")
+    with h5py.File(scene.parent / "out" / "results.h5", "r") as h5:
+        return {"cold_s": seconds, "pressure": h5["fields/pressure"][-1],
+                "warm_s": float(h5["series/solve_time"][-1]),
+                "iterations": int(h5["series/applications"][-1])}
+
+
+def scene_runs(name: str, problem: pathlib.Path, folder: pathlib.Path, reference: pathlib.Path,
+               tolerances, bound: float, repeats: int) -> tuple[dict, list[dict]]:
+    """The scene row's search and timing: the first of ``tolerances`` whose ``petroll run`` pressure lies
+    within ``bound`` (relative L2) of the reference (the last if none), its pressure saved in
+    ``folder``/pressure.npy; then ``repeats`` timed runs at it. Returns (found: tol, difference,
+    iterations; the timed runs)."""
+    want = np.load(reference)
+    for tol in tolerances:
+        scene = write_scene(name, problem, folder, tol)
+        run = scene_process(scene)
+        difference = float(np.linalg.norm(run["pressure"] - want) / np.linalg.norm(want))
+        if difference <= bound:
+            break
+    np.save(folder / "pressure.npy", run["pressure"])
+    found = {"tol": tol, "difference": difference, "iterations": run["iterations"]}
+    timed = [scene_process(scene) for _ in range(repeats)]
+    for r in timed:
+        r["force_error"] = float(r.pop("pressure").sum() * float(np.load(problem)["cell"]) ** 2
+                                 / float(np.load(problem)["load"]) - 1)
+    return found, timed
 
 
 def peer_scripts() -> pathlib.Path:

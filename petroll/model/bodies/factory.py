@@ -7,8 +7,8 @@ import pathlib
 
 from petroll.errors import MISSING, SceneError
 from petroll.model.bodies.analytic import Cylinder, CylinderSection, Ellipsoid, Sphere
-from petroll.model.bodies.base import Body, cell_pair, type_name
-from petroll.model.bodies.maps import HeightMap, HeightProfile
+from petroll.model.bodies.base import Body, cell_pair, point_pair, type_name
+from petroll.model.bodies.maps import CellMap, HeightMap, HeightProfile, on_cells
 from petroll.model.bodies.mesh import mesh_height_map
 from petroll.model.bodies.rough import PeriodicSurface, RoughBody, grid_surface, samples_surface
 from petroll.model.grid import Grid
@@ -162,10 +162,11 @@ def make_body(table: dict, base_dir: pathlib.Path, source: str, line: bool = Fal
     """Build the body of a scene's ``[body]`` table (``shape`` plus that shape's keys, see BODY_KEYS).
 
     ``line``: a line-contact (plane-strain) scene: only the shapes of LINE_BODY_KEYS, as profiles Z(x).
-    ``grid``: the scene's grid (a generated roughness takes its cells and size).
+    ``grid``: the scene's grid (a generated roughness takes its cells and size; a height map whose samples
+    sit on its cells' centres with the body at the table's ``position``, m, is a :class:`CellMap`).
 
-    ``position`` may be present and is ignored here.  Relative file paths are resolved against
-    ``base_dir``.  Raises SceneError for an unknown shape or key, a missing key, a wrong type or a bad value.
+    Relative file paths are resolved against ``base_dir``.  Raises SceneError for an unknown shape or key,
+    a missing key, a wrong type or a bad value.
     """
     values = _keys(table, LINE_BODY_KEYS if line else BODY_KEYS, line, source)
     shape = table["shape"]
@@ -178,6 +179,9 @@ def make_body(table: dict, base_dir: pathlib.Path, source: str, line: bool = Fal
         surface = None if grid is None else samples_surface(topography.heights, topography.cell, grid)
         if surface is not None:
             return surface
+        position = point_pair(source, "[body] position", table.get("position", (0.0, 0.0)))
+        if grid is not None and on_cells(topography.heights, topography.cell, grid, position):
+            return CellMap(topography.heights, topography.cell, source=source)
         return HeightMap(topography.heights, topography.cell, source=source)
     if shape == "rough":
         if grid is None:

@@ -14,6 +14,10 @@ from petroll.model.bodies.base import PYTHON_SOURCE, Body, cell_pair, point_pair
 from petroll.model.limits import heights_out_of_scale
 from petroll.model.topography import read_npy
 
+ON_SAMPLE = 1e-9
+"""A point within this many cells of a sample along each axis is on that sample: a height map's height there
+is the sample's (no spline), and its cell is counted as inside the map."""
+
 
 def check_heights(source: str, label: object, heights: object) -> np.ndarray:
     """Heights as a 2-D float array (own copy) within petroll.model.limits.MAGNITUDES, or SceneError on
@@ -59,14 +63,19 @@ class HeightMap(Body):
 
     Z = S - min S, S the interpolating tensor-product cubic spline of the samples (scipy's
     RectBivariateSpline with s = 0: not-a-knot ends; quadratic or linear along an axis of 3 or 2 samples),
-    min S its lowest point (found by a bounded minimisation around the lowest samples, so that Z >= 0
-    wherever the samples fall); the slope is S's derivative.  S is twice continuously differentiable, so
-    heights and slopes do not depend on where the points they are evaluated at fall between the samples
-    (cubic polynomials are reproduced exactly; on a smooth surface heights are accurate to O(h^4) and slopes
-    to O(h^3)).  +inf outside the extent.  Entries equal to +inf mean "no surface there" (as produced by
-    :func:`mesh_height_map` where no triangle covers a point): Z is +inf in every grid cell with such a
-    corner (the spline is fitted with them replaced by their nearest finite sample).  NaN and -inf are
-    refused.
+    min S its lowest point (found by a bounded minimisation around the lowest samples on the spline's local
+    pieces, so that Z >= 0 wherever the samples fall); the slope is S's derivative.  S is twice continuously
+    differentiable, so heights and slopes do not depend on where the points they are evaluated at fall
+    between the samples (cubic polynomials are reproduced exactly; on a smooth surface heights are accurate
+    to O(h^4) and slopes to O(h^3)).  +inf outside the extent.  Entries equal to +inf mean "no surface there"
+    (as produced by :func:`mesh_height_map` where no triangle covers a point): Z is +inf in every grid cell
+    with such a corner (the spline is fitted with them replaced by their nearest finite sample).  NaN and
+    -inf are refused.
+
+    Cost: heights asked for at the samples themselves (within :data:`ON_SAMPLE` of a cell) are the samples
+    (less the lowest point); the spline is fitted on first use elsewhere (FITPACK, O(samples) once), its
+    derivatives' splines on the first slopes asked for, and every evaluation after that is local (each point
+    reads its 4 x 4 coefficients).
     """
 
     heights: np.ndarray
@@ -74,16 +83,13 @@ class HeightMap(Body):
     center: tuple[float, float] = (0.0, 0.0)
     _: KW_ONLY
     source: InitVar[str] = PYTHON_SOURCE
-    _spline: object = field(init=False, repr=False)  # scipy.interpolate.RectBivariateSpline
+    _splines: dict = field(init=False, repr=False)  # (dx, dy): S's spline or its derivative's, once made
     _lowest: float = field(init=False, repr=False)
     _ok: np.ndarray = field(init=False, repr=False)
     _origin: tuple[float, float] = field(init=False, repr=False)
     _radius_hint: float = field(init=False, repr=False)
 
     def __post_init__(self, source: str) -> None:
-        from scipy import ndimage  # here, not at the top: a scene without a map never imports them
-        from scipy.interpolate import RectBivariateSpline
-
         shape = getattr(self.heights, "shape", None)
         if shape is not None:
             label = f"<heights array of shape {tuple(shape)}>"
@@ -96,19 +102,14 @@ class HeightMap(Body):
         finite = np.isfinite(heights)
         nx, ny = heights.shape
         origin = (center[0] - 0.5 * (nx - 1) * cell[0], center[1] - 0.5 * (ny - 1) * cell[1])
-        # the spline on coordinates from the first sample; a missing sample takes its nearest finite one's
-        nearest = ndimage.distance_transform_edt(~finite, return_distances=False, return_indices=True)
-        filled = heights[tuple(nearest)]
-        spline = RectBivariateSpline(np.arange(nx) * cell[0], np.arange(ny) * cell[1], filled,
-                                     kx=min(3, nx - 1), ky=min(3, ny - 1), s=0)
         set_ = object.__setattr__
         set_(self, "heights", heights)
         set_(self, "cell", cell)
         set_(self, "center", center)
-        set_(self, "_spline", spline)
+        set_(self, "_splines", {})
         set_(self, "_ok", finite[:-1, :-1] & finite[1:, :-1] & finite[:-1, 1:] & finite[1:, 1:])
         set_(self, "_origin", origin)
-        set_(self, "_lowest", self._spline_minimum())
+        set_(self, "_lowest", self._lowest_point())
         set_(self, "_radius_hint", self._estimate_radius())
 
     @classmethod
@@ -130,16 +131,16 @@ class HeightMap(Body):
         """Along one axis, for coordinates ``u`` (m) from the first sample: the sample interval's index, the
         coordinate clipped to the samples' span, and the inside mask."""
         n, h = self.heights.shape[axis], self.cell[axis]
-        tol = 1e-9  # in cells: the sample points themselves count as inside despite rounding
-        f = u / h
-        inside = (f >= -tol) & (f <= (n - 1) + tol)
+        f = u / h  # the sample points themselves count as inside despite rounding
+        inside = (f >= -ON_SAMPLE) & (f <= (n - 1) + ON_SAMPLE)
         clipped = np.clip(np.where(inside, u, 0.0), 0.0, (n - 1) * h)
         return np.clip(np.floor(clipped / h).astype(np.intp), 0, n - 2), clipped, inside
 
     def _evaluate(self, x, y, dx: int, dy: int) -> tuple[np.ndarray, np.ndarray]:
         """S's derivative of orders (dx, dy) at (x, y) m from the reference point (broadcast; 0 where the
-        map has no surface) and where it has one. Points on a grid (x a column, y a row, both sorted) are
-        evaluated as a tensor product, about 30 times faster than point by point."""
+        map has no surface) and where it has one. Heights at the samples themselves are the samples. Points
+        on a grid (x a column, y a row, both sorted where inside the map) are evaluated as a tensor
+        product, about 30 times faster than point by point."""
         u = np.asarray(x, dtype=float) - self._origin[0]
         v = np.asarray(y, dtype=float) - self._origin[1]
         i, uc, in_x = self._cells(u, 0)
@@ -148,8 +149,10 @@ class HeightMap(Body):
         values = np.zeros(valid.shape)
         if not valid.any():
             return values, valid
+        if not (dx or dy) and (at := self._at_samples(uc, vc, in_x, in_y)) is not None:
+            return np.where(valid, self.heights[at], 0.0), valid
         if (u.ndim == 2 and v.ndim == 2 and u.shape[1] == 1 and v.shape[0] == 1
-                and np.all(np.diff(uc[:, 0]) >= 0) and np.all(np.diff(vc[0]) >= 0)):
+                and np.all(np.diff(uc[in_x[:, 0], 0]) >= 0) and np.all(np.diff(vc[0, in_y[0]]) >= 0)):
             rows, cols = in_x[:, 0], in_y[0]
             values[np.ix_(rows, cols)] = self._spline_at(uc[rows, 0], vc[0, cols], dx, dy, grid=True)
             values[~valid] = 0.0
@@ -158,17 +161,57 @@ class HeightMap(Body):
             values[valid] = self._spline_at(uc[valid], vc[valid], dx, dy, grid=False)
         return values, valid
 
+    def _at_samples(self, uc: np.ndarray, vc: np.ndarray, in_x: np.ndarray, in_y: np.ndarray) -> tuple | None:
+        """The samples' indices (a pair of arrays that broadcast like the points) where every coordinate
+        (``uc``, ``vc``) from the first sample inside the map along its axis (``in_x``, ``in_y``) lies on a
+        sample (within :data:`ON_SAMPLE` of a cell), else None."""
+        index = []
+        for w, inside, h, axis in ((uc, in_x, self.cell[0], 0), (vc, in_y, self.cell[1], 1)):
+            f = w / h
+            nearest = np.rint(f)
+            if (np.abs(f - nearest) > ON_SAMPLE)[inside].any():
+                return None
+            index.append(np.clip(nearest.astype(np.intp), 0, self.heights.shape[axis] - 1))
+        return tuple(index)
+
+    def _spline(self, dx: int, dy: int):
+        """S's spline (scipy's RectBivariateSpline, on coordinates from the first sample; a missing sample
+        takes its nearest finite one's), or its derivative's of orders (dx, dy) (equal degrees along both
+        axes): made on first use and kept."""
+        if (dx, dy) in self._splines:
+            return self._splines[dx, dy]
+        if (dx, dy) != (0, 0):
+            made = self._spline(0, 0).partial_derivative(dx, dy)
+        else:
+            from scipy import ndimage  # here, not at the top: a scene without a map never imports them
+            from scipy.interpolate import RectBivariateSpline
+
+            heights, (hx, hy) = self.heights, self.cell
+            nx, ny = heights.shape
+            finite = np.isfinite(heights)
+            if not finite.all():
+                nearest = ndimage.distance_transform_edt(~finite, return_distances=False, return_indices=True)
+                heights = heights[tuple(nearest)]
+            made = RectBivariateSpline(np.arange(nx) * hx, np.arange(ny) * hy, heights,
+                                       kx=min(3, nx - 1), ky=min(3, ny - 1), s=0)
+        self._splines[dx, dy] = made
+        return made
+
     def _spline_at(self, u, v, dx: int, dy: int, grid: bool) -> np.ndarray:
         """S's derivative of orders (dx, dy) <= 1 at coordinates (u, v) from the first sample; along an axis
         of two samples (S linear there, which FITPACK cannot differentiate) the difference of its ends."""
-        spline, (kx, ky) = self._spline, self._spline.degrees
+        kx, ky = self._spline(0, 0).degrees
         if dx and kx == 1:
             end = (self.heights.shape[0] - 1) * self.cell[0]
-            return (spline(end, v, 0, dy, grid=grid) - spline(0.0, v, 0, dy, grid=grid)) / end
+            spline = self._spline(0, dy)
+            return (spline(end, v, grid=grid) - spline(0.0, v, grid=grid)) / end
         if dy and ky == 1:
             end = (self.heights.shape[1] - 1) * self.cell[1]
-            return (spline(u, end, dx, 0, grid=grid) - spline(u, 0.0, dx, 0, grid=grid)) / end
-        return spline(u, v, dx, dy, grid=grid)
+            spline = self._spline(dx, 0)
+            return (spline(u, end, grid=grid) - spline(u, 0.0, grid=grid)) / end
+        if kx != ky:  # scipy's derivative splines need equal degrees: FITPACK's derivative, O(samples) a call
+            return self._spline(0, 0)(u, v, dx, dy, grid=grid)
+        return self._spline(dx, dy)(u, v, grid=grid)
 
     def height(self, x, y):
         values, valid = self._evaluate(x, y, 0, 0)
@@ -177,19 +220,35 @@ class HeightMap(Body):
     def slope(self, x, y):
         return self._evaluate(x, y, 1, 0)[0], self._evaluate(x, y, 0, 1)[0]
 
+    def _lowest_point(self) -> float:
+        """min S: :meth:`_spline_minimum`."""
+        return self._spline_minimum()
+
+    def _corners(self) -> np.ndarray:
+        """Where a sample is a corner of a cell with a surface."""
+        nx, ny = self.heights.shape
+        corner = np.zeros(self.heights.shape, dtype=bool)
+        for di in (0, 1):
+            for dj in (0, 1):
+                corner[di : nx - 1 + di, dj : ny - 1 + dj] |= self._ok
+        return corner
+
     def _spline_minimum(self, candidates: int = 8) -> float:
         """min S over the cells with a surface: a bounded minimisation (L-BFGS-B, in cell units, heights
         scaled by their spread around the start) from each of the lowest ``candidates`` samples that are
-        corners of such a cell, within the cells around it; the lowest sample if lower."""
+        corners of such a cell (equal ones in the order of their places), within the cells around it, on the
+        spline's local piece there (:meth:`_patch`: each evaluation reads 4 x 4 coefficients); the lowest
+        sample if lower."""
         from scipy import optimize
 
         heights, (hx, hy) = self.heights, self.cell
         nx, ny = heights.shape
-        corner = np.zeros(heights.shape, dtype=bool)
-        for di in (0, 1):
-            for dj in (0, 1):
-                corner[di : nx - 1 + di, dj : ny - 1 + dj] |= self._ok
-        order = np.argsort(np.where(corner, heights, np.inf), axis=None)[:candidates]
+        corner = self._corners()
+        masked = np.where(corner, heights, np.inf)
+        count = min(candidates, masked.size)
+        # the lowest ``count`` in the order of a stable sort (ties: by place), without sorting them all
+        lowest = np.flatnonzero(masked <= np.partition(masked, count - 1, axis=None)[count - 1])
+        order = lowest[np.argsort(masked.flat[lowest], kind="stable")][:count]
         best = float(heights.flat[order[0]])
         for i, j in zip(*np.unravel_index(order, heights.shape)):
             if not corner[i, j]:
@@ -199,15 +258,13 @@ class HeightMap(Body):
             scale = float(np.max(near[np.isfinite(near)]) - z0)
             if scale <= 0.0:
                 continue
-
-            def scaled(point, z0=z0, scale=scale):
-                a, b = np.array([point[0] * hx]), np.array([point[1] * hy])
-                value = (float(self._spline_at(a, b, 0, 0, False)[0]) - z0) / scale
-                grad = np.array([float(self._spline_at(a, b, 1, 0, False)[0]) * hx,
-                                 float(self._spline_at(a, b, 0, 1, False)[0]) * hy]) / scale
-                return value, grad
-
             bounds = [(max(i - 1, 0), min(i + 1, nx - 1)), (max(j - 1, 0), min(j + 1, ny - 1))]
+            piece = self._patch(bounds)
+
+            def scaled(point, z0=z0, scale=scale, piece=piece):
+                value, gx, gy = piece(point[0] * hx, point[1] * hy)
+                return (value - z0) / scale, np.array([gx * hx, gy * hy]) / scale
+
             found = optimize.minimize(scaled, [i, j], jac=True, method="L-BFGS-B", bounds=bounds,
                                       options={"ftol": 1e-15, "gtol": 1e-12})
             a, b = found.x
@@ -215,6 +272,43 @@ class HeightMap(Body):
             if self._ok[ci, cj]:
                 best = min(best, z0 + scale * float(found.fun))
         return best
+
+    def _patch(self, bounds):
+        """S on the box ``bounds`` ((i0, i1), (j0, j1), in samples) from its local piece: the knots and
+        coefficients of the spline's polynomial pieces over the box only, the same polynomials. Returns
+        (u, v) -> (S, dS/du, dS/dv) at a point of the box (coordinates from the first sample); along an
+        axis of two samples (S linear) the derivative is the difference of its ends."""
+        from scipy.interpolate import bisplev
+
+        spline = self._spline(0, 0)
+        knots, (kx, ky) = spline.get_knots(), spline.degrees  # the whole knot vectors, ends repeated
+        c = spline.get_coeffs().reshape(len(knots[0]) - kx - 1, len(knots[1]) - ky - 1)
+        local, ends = [], []
+        for (lo, hi), t, k, h in zip(bounds, knots, (kx, ky), self.cell):
+            # the pieces [t_l, t_l+1] that meet the box, l from first to last; each uses coefficients l-k..l
+            first = int(np.clip(np.searchsorted(t, lo * h, "right") - 1, k, len(t) - k - 2))
+            last = int(np.clip(np.searchsorted(t, hi * h, "left") - 1, k, len(t) - k - 2))
+            local.append((first, last))
+            ends.append((t[first], t[last + 1]))
+        (fx, lx), (fy, ly) = local
+        tck = [knots[0][fx - kx : lx + kx + 2], knots[1][fy - ky : ly + ky + 2],
+               c[fx - kx : lx + 1, fy - ky : ly + 1].ravel(), kx, ky]
+
+        def piece(u: float, v: float) -> tuple[float, float, float]:
+            value = float(bisplev(u, v, tck))
+            if kx > 1:
+                gx = float(bisplev(u, v, tck, 1, 0))
+            else:
+                gx = (float(bisplev(ends[0][1], v, tck)) - float(bisplev(ends[0][0], v, tck))) / (
+                    ends[0][1] - ends[0][0])
+            if ky > 1:
+                gy = float(bisplev(u, v, tck, 0, 1))
+            else:
+                gy = (float(bisplev(u, ends[1][1], tck)) - float(bisplev(u, ends[1][0], tck))) / (
+                    ends[1][1] - ends[1][0])
+            return value, gx, gy
+
+        return piece
 
     def _estimate_radius(self) -> float:
         z = self.heights - self.heights[np.isfinite(self.heights)].min()
@@ -244,6 +338,44 @@ class HeightMap(Body):
         lowest sample (the one radius if only one is positive); half the larger extent if neither is."""
         return self._radius_hint
 
+
+
+LOCAL_FIT = 8
+"""A map on the cells (:class:`CellMap`) refines its lowest sample with the spline through the samples up to
+this many away along each axis."""
+
+
+class CellMap(HeightMap):
+    """A height map whose samples sit on the centres of a grid's cells (:func:`on_cells`): what a run asks
+    for at the cell centres is the samples, so no spline is fitted and no minimum searched to set it up.
+
+    As :class:`HeightMap` (the same spline S between the samples, fitted on first use there; its slopes),
+    but Z = S - m with m the lowest sample refined by a small local fit: the lowest point of the spline
+    through the samples up to :data:`LOCAL_FIT` away from it (the lowest sample itself where the spline
+    does not dip below it). The local and the whole map's splines differ there by a small fraction of the
+    samples' deviation from a cubic (the influence of a sample on a not-a-knot cubic spline decays by
+    2 - sqrt(3) per sample)."""
+
+    def _lowest_point(self) -> float:
+        heights, k = self.heights, LOCAL_FIT
+        i, j = np.unravel_index(np.argmin(np.where(self._corners(), heights, np.inf)), heights.shape)
+        window = heights[max(i - k, 0) : i + k + 1, max(j - k, 0) : j + k + 1]
+        return min(float(heights[i, j]), HeightMap(window, self.cell)._lowest)
+
+
+def on_cells(heights: np.ndarray, cell: tuple[float, float], grid, position: tuple[float, float]) -> bool:
+    """Whether the samples ``heights`` (spacing ``cell``, m; their extent's midpoint on the body's reference
+    point), the body at ``position`` (m), sit on the centres of ``grid``'s cells: the grid's spacing (to
+    1e-9 relative) and an offset of a whole number of cells (to :data:`ON_SAMPLE` of a cell) along each
+    axis."""
+    if heights.ndim != 2 or not np.allclose(cell, (grid.dx, grid.dy), rtol=1e-9, atol=0.0):
+        return False
+    for n, h, start, at in ((heights.shape[0], grid.dx, grid.x0, position[0]),
+                            (heights.shape[1], grid.dy, grid.y0, position[1])):
+        first = (at - 0.5 * (n - 1) * h - start) / h - 0.5  # the first sample's place, in cells
+        if abs(first - round(first)) > ON_SAMPLE:
+            return False
+    return True
 
 
 @dataclass(frozen=True, eq=False)

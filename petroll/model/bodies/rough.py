@@ -37,19 +37,20 @@ CHUNK_BYTES = 1 << 25
 """Size of the columns' spectra transformed at once while rows' coefficients are made (bytes)."""
 
 
-def _spectral_slopes(heights: np.ndarray, cell: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
-    """(dh/dx, dh/dy) of the trigonometric interpolant of periodic samples, at the samples (Nyquist
-    frequencies, whose derivative a real lattice cannot carry, left out)."""
-    nx, ny = heights.shape
+def _spectral_slopes(spectrum: np.ndarray, shape: tuple[int, int],
+                     cell: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
+    """(dh/dx, dh/dy) of the trigonometric interpolant of periodic samples of ``shape``, given their
+    ``spectrum`` (scipy.fft.rfft2), at the samples (Nyquist frequencies, whose derivative a real lattice
+    cannot carry, left out)."""
+    nx, ny = shape
     kx = 2.0 * np.pi * scipy.fft.fftfreq(nx, cell[0])
     ky = 2.0 * np.pi * scipy.fft.rfftfreq(ny, cell[1])
     if nx % 2 == 0:
         kx[nx // 2] = 0.0
     if ny % 2 == 0:
         ky[-1] = 0.0
-    spectrum = scipy.fft.rfft2(heights)
-    return (scipy.fft.irfft2(1j * kx[:, None] * spectrum, s=heights.shape),
-            scipy.fft.irfft2(1j * ky[None, :] * spectrum, s=heights.shape))
+    return (scipy.fft.irfft2(1j * kx[:, None] * spectrum, s=shape),
+            scipy.fft.irfft2(1j * ky[None, :] * spectrum, s=shape))
 
 
 def _multipliers(n: int, h: float) -> tuple[np.ndarray, np.ndarray]:
@@ -96,10 +97,12 @@ class PeriodicSurface(Body):
     a lattice of 1/16 of a cell around the lowest samples (so Z >= 0 to within S's variation over 1/32 of
     a cell).
 
-    Memory: the samples (8 bytes each) and the spline coefficients of the heights and slopes (24 bytes per
-    sample) of only the sample rows the last large query needed, :data:`ROWS_MARGIN` rows each side (and
-    those of smaller queries since): a rank that evaluates the surface on its rows of a grid holds those
-    rows' coefficients (after a whole-grid query, the whole grid's, until a rank's query replaces them).
+    Memory: the samples (8 bytes each), their half spectrum (8 bytes per sample, made once) and the spline
+    coefficients of the heights and slopes (24 bytes per sample) of only the sample rows the last large
+    query needed, :data:`ROWS_MARGIN` rows each side (and those of smaller queries since): a rank that
+    evaluates the surface on its rows of a grid holds those rows' coefficients (from its construction,
+    which finds the lowest point, and after a whole-grid query, the whole grid's, until a rank's query
+    replaces them).
     """
 
     heights: np.ndarray
@@ -126,16 +129,20 @@ class PeriodicSurface(Body):
         set_(self, "_lowest", 0.0)
         set_(self, "_lowest", self._spline_minimum())
         # the summits' radius of curvature ~ 1 / rms curvature (first guesses only)
-        slopes = _spectral_slopes(heights, cell)
+        slopes = _spectral_slopes(self._spectrum, heights.shape, cell)
         curvature = np.gradient(slopes[0], cell[0], axis=0) + np.gradient(slopes[1], cell[1], axis=1)
         rms = math.sqrt(float(np.mean(curvature**2)))
         set_(self, "_radius_hint", 1.0 / rms if rms > 0.0 else max(heights.shape) * max(cell))
 
     def _spline_minimum(self, candidates: int = 8) -> float:
         """The lowest value of S on a lattice of 1/16 of a cell within a cell of each of the ``candidates``
-        lowest samples (the lowest sample if lower)."""
+        lowest samples (the lowest sample if lower). Every sample row's coefficients are prepared for it:
+        they cost one pass of the columns' transforms whichever rows are kept, and the pre-flight's
+        queries that follow (over the whole grid) need them all."""
         samples = self.heights
-        lowest = np.unravel_index(np.argsort(samples, axis=None)[:candidates], samples.shape)
+        self._prepare(np.arange(samples.shape[0]), False)
+        count = min(candidates, samples.size)
+        lowest = np.unravel_index(np.argpartition(samples, count - 1, axis=None)[:count], samples.shape)
         offsets = np.linspace(-1.0, 1.0, 33)
         u, v = np.broadcast_arrays(lowest[0][:, None, None] + offsets[None, :, None],
                                    lowest[1][:, None, None] + offsets[None, None, :])
@@ -157,21 +164,25 @@ class PeriodicSurface(Body):
         """How many sample rows' spline coefficients the surface holds now (of nx)."""
         return len(self._prepared["rows"])
 
-    def _prepare(self, needed: np.ndarray) -> dict:
+    def _prepare(self, needed: np.ndarray, every_column: bool) -> dict:
         """The prepared rows, holding the sample rows ``needed`` (sorted, within 0 ... nx - 1). A query of
-        at least an eighth of the rows (a rank's rows of a grid) keeps those held only if they hold the
-        needed rows and not more than those and :data:`ROWS_MARGIN` around each, else prepares just those;
-        a smaller query (a probe of a few points) keeps what is held, adding its rows if missing."""
+        at least an eighth of the rows whose stencils take ``every_column`` of the samples (a rank's rows
+        of a grid) keeps only the needed rows and :data:`ROWS_MARGIN` around each (cut from those held
+        where they hold them, else made); any other query (a probe, a lattice over part of the surface) keeps what is
+        held, adding its rows if missing. Coefficients are made only for rows not held: a row's do not
+        depend on which other rows are made with it."""
         nx = self.heights.shape[0]
         wanted = np.unique((needed[:, None] + np.arange(-ROWS_MARGIN, ROWS_MARGIN + 1)) % nx)
         prepared = self._prepared
         held = np.isin(needed, prepared["rows"]).all()
-        if 8 * len(needed) >= nx and (not held or len(prepared["rows"]) > len(wanted)):
-            rows = wanted
-        elif not held:
-            rows = np.union1d(prepared["rows"], wanted)
-        else:
+        big = every_column and 8 * len(needed) >= nx
+        if held and not (big and len(prepared["rows"]) > len(wanted)):
             return prepared
+        if big and np.isin(wanted, prepared["rows"]).all():  # held, with more: keep these only
+            prepared["values"] = prepared["values"][:, np.searchsorted(prepared["rows"], wanted)]
+            prepared["rows"] = wanted
+            return prepared
+        rows = wanted if big else np.union1d(prepared["rows"], wanted)
         prepared["values"] = None  # the old rows go before the new ones come
         prepared["values"] = _row_coefficients(self.heights, self.cell, rows)
         prepared["rows"] = rows
@@ -187,12 +198,15 @@ class PeriodicSurface(Body):
         u = u - nx * np.floor(u / nx)  # in [0, nx]
         base = np.floor(u).astype(np.intp)
         stencil = np.unique(np.unique(base)[:, None] + np.arange(-1, 3))  # rows -1 ... nx + 2, unwrapped
-        prepared = self._prepare(np.unique(stencil % nx))
+        ny = self.heights.shape[1]
+        v = (np.asarray(y, dtype=float) - self.origin[1]) / self.cell[1]
+        columns = np.unique((np.unique(np.floor(v))[:, None] + np.arange(-1, 3)) % ny)  # the stencils'
+        prepared = self._prepare(np.unique(stencil % nx), columns.size == ny)
         whole = len(prepared["rows"]) == nx  # all rows: the spline wraps around by itself
         if not whole:  # the stencils' rows in order, each point's row numbered among them
             index = np.searchsorted(prepared["rows"], stencil % nx)
             u = u - (base - np.searchsorted(stencil, base))
-        u, v = np.broadcast_arrays(u, (np.asarray(y, dtype=float) - self.origin[1]) / self.cell[1])
+        u, v = np.broadcast_arrays(u, v)
         coordinates = np.stack([u, v]).reshape(2, -1)
         out = []
         for w in np.atleast_1d(which):
@@ -211,6 +225,11 @@ class PeriodicSurface(Body):
     def radius_hint(self) -> float:
         """1 / (rms curvature of the samples): a summit's radius, for first guesses only."""
         return self._radius_hint
+
+    @functools.cached_property
+    def _spectrum(self) -> np.ndarray:
+        """scipy.fft.rfft2 of the samples, made once (the radius hint, :meth:`spectrum`)."""
+        return scipy.fft.rfft2(self.heights)
 
     @functools.cached_property
     def contact_scale(self) -> float:
@@ -234,7 +253,7 @@ class PeriodicSurface(Body):
         weight[0] = 1.0
         if ny % 2 == 0:
             weight[-1] = 1.0
-        power = np.abs(scipy.fft.rfft2(self.heights)) ** 2 * weight / (nx * ny) ** 2
+        power = np.abs(self._spectrum) ** 2 * weight / (nx * ny) ** 2
         power[0, 0] = 0.0
         return np.hypot(qx[:, None], qy[None, :]).ravel(), power.ravel()
 
