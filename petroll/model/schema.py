@@ -515,8 +515,9 @@ SCHEMA: dict[str, dict[str, Key]] = {
                    "of the largest interference (gap) and its pressure (p)", _tolerance, default=1e-8),
         "history_cutoff": Key("number", "history fields below this fraction of their largest value are "
                               "left out of the preceding displacement (the fading wake behind a rolling "
-                              "body); changes it by at most this fraction of its scale; 0: keep all "
-                              "(docs/design.md)", _cutoff, default=1e-9),
+                              "body; with [friction] on a viscoelastic body the tangential history's too); "
+                              "changes it by at most this fraction of its scale; 0: keep all "
+                              "(docs/design.md, docs/friction.md)", _cutoff, default=1e-9),
     },
     "friction": {
         "coefficient": Key("number > 0", "Coulomb's friction coefficient mu: tangential tractions |q| <= mu p, "

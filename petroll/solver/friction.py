@@ -44,6 +44,7 @@ from mpi4py import MPI
 from petroll.errors import SolverError
 from petroll.solver.steady_friction import SteadyNewton
 from petroll.solver.tangential import TangentialSolution, TangentialSolver
+from petroll.solver.wake import TangentialWake
 from petroll.solver.warm import TractionWarmStart
 
 
@@ -101,12 +102,17 @@ class Stepping:
 
     ``memory``: a viscoelastic material's :class:`ShearMemory` (None: elastic, c the solver's): each step
     then takes its compliance and history displacement from it at the step's length ``dt`` (s), and the
-    displacement sources s of the last two steps (u = K s) are kept beside the tractions."""
+    displacement sources s of the last two steps (u = K s) are kept beside the tractions. Their field spans
+    the track rolled so far (the material relaxes behind the body): ``wake`` (a
+    petroll.solver.wake.TangentialWake) computes its displacement on the box of the contact and of the
+    sources above the history cut-off, so that a step's cost stops growing with the track (None: on every
+    non-zero cell)."""
 
-    def __init__(self, solver: TangentialSolver, order: int = 2, memory: ShearMemory | None = None):
+    def __init__(self, solver: TangentialSolver, order: int = 2, memory: ShearMemory | None = None,
+                 wake: TangentialWake | None = None):
         if order not in (1, 2):
             raise ValueError(f"order {order}: 1 or 2")
-        self.solver, self.order, self.memory = solver, order, memory
+        self.solver, self.order, self.memory, self.wake = solver, order, memory, wake
         self.traction = solver.zeros()  # q^(n-1), Pa
         self.older = None  # q^(n-2) when the last step was a rolling one (with its distance)
         self.source = solver.zeros() if memory is not None else None  # viscoelastic: s^(n-1), u = K s (m)
@@ -123,8 +129,8 @@ class Stepping:
         solver's), the history's v or None) of a step of length ``dt`` (s), from w0 X^(n-1) - w1 X^(n-2)
         (``weights``; w1 = 0: X^(n-1) alone), X the last steps' tractions (elastic: u' = c K X, left to the
         QP's gradient) or displacement sources (viscoelastic: u' = K (X - v), the history's displacement
-        moved to the right-hand side, computed here on the box of the new contact and the field: the
-        history reaches along the wake)."""
+        moved to the right-hand side, computed here on the box of the new contact and of the field: the
+        history reaches along the wake, cut off by ``wake``)."""
         newer, older = (self.traction, self.older) if self.memory is None else (self.source, self.source_older)
         field = newer if weights[1] == 0 else weights[0] * newer - weights[1] * older
         if self.memory is None:
@@ -132,6 +138,8 @@ class Stepping:
         compliance, v = self.memory.compliance(dt), self.memory.preceding(dt)
         if v is not None:
             field = field - v
+        if self.wake is not None:
+            return self.wake.displacement(field, bound), None, compliance, v
         cells = (bound > 0) | np.any(field != 0, axis=0)
         return self.solver.displacement(field, self.solver.box(cells), 1.0), None, compliance, v
 

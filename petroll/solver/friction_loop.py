@@ -23,6 +23,7 @@ from petroll.records import FrictionRecord
 from petroll.solver.friction import ShearMemory, Stepping, SteadyRolling
 from petroll.solver.history import make_history, state_space
 from petroll.solver.tangential import TangentialSolution, TangentialSolver
+from petroll.solver.wake import TangentialWake
 
 
 def friction_loop(scene, comm: MPI.Comm):
@@ -74,11 +75,13 @@ class FrictionLoop:
         self.scene, self.friction, self.comm = scene, scene.friction, comm
         f = scene.friction
         self.solver = TangentialSolver(scene.grid, comm, f.nu, f.compliance, tol=scene.solver.tol)
-        memory = None
-        if f.memory is not None:  # viscoelastic: the scene's creep function through its integrator
+        memory, wake = None, None
+        if f.memory is not None:  # viscoelastic: the scene's creep function through its integrator, its
+            # displacement on the box of the contact and of the sources above the history cut-off
             history = make_history(scene.material, scene.solver.integrator, (self.solver.m, *self.solver.local_shape))
             memory = ShearMemory(history, f.memory)
-        self.stepping = Stepping(self.solver, memory=memory)
+            wake = TangentialWake(self.solver, scene.solver.history_cutoff)
+        self.stepping = Stepping(self.solver, memory=memory, wake=wake)
         self.records: list[FrictionRecord] = []
         self.fields: dict[str, np.ndarray] = {}
 

@@ -20,6 +20,10 @@ u is computed on the bounding box of both (its sides rounded up to multiples of 
 that few kernel shapes are built) and is zero outside it, where no cell can touch. On a periodic grid
 (a kernel with negative coefficients everywhere but at its centre, every cell a candidate) u is computed
 on the whole grid.
+
+The tangential history of a viscoelastic body with friction (petroll.solver.friction) spans the track too;
+:class:`TangentialWake` gives its step's displacement the same cut-off (:func:`sources`,
+:func:`bounding_box`).
 """
 
 from __future__ import annotations
@@ -56,27 +60,62 @@ class Wake:
             return np.zeros_like(v)
         with np.errstate(invalid="ignore"):  # inf - inf where a body has no surface: never needed there
             lowest = -self.row_sum * negative - self.lift * positive  # the least u can be
-            needed = (np.abs(v) > self.cutoff * largest) | (reach - profile > lowest)
-        box = self._box(needed)
+            needed = sources(v, self.cutoff, largest) | (reach - profile > lowest)
+        box = bounding_box(needed, self.solver.r0, g.nx, g.ny, comm)
         if box == (0, g.nx, 0, g.ny):
             return self.solver.influence.window(g.nx, g.ny)(v)
         self.boxes += 1
         return self.solver.convolve_box(v, box)
 
-    def _box(self, needed: np.ndarray) -> tuple[int, int, int, int]:
-        """The bounding box over all ranks of the needed cells, sides rounded up to QUANTUM cells."""
+
+class TangentialWake:
+    """The tangential history's displacement of a step, u' = K X (petroll.solver.friction.Stepping: X the
+    last steps' displacement sources combined, minus the history's v; (m, rows, ny), K the Cerruti or strip
+    kernel of petroll.solver.tangential, m per unit source) on a box of one TangentialSolver's grid, by the
+    normal history's rule (module docstring): the sources are the cells where a component of X exceeds
+    ``cutoff`` x max|X|; the targets the cells with a traction bound (the step's QP reads u' there only:
+    exact). Dropping the other sources changes u' there by at most cutoff x max|X| x S_K, S_K the largest
+    row sum of |K| (both components) on the grid: K_xx + |K_xy| <= (1 + (sqrt 2 - 1) nu/2)/r pointwise, so
+    S_K is at most 1.21 times the normal problem's S (line contact: K_xx = (1 - nu) x the strip kernel,
+    S_K = (1 - nu) S). ``boxes`` counts the steps that used a box smaller than the grid."""
+
+    def __init__(self, solver, cutoff: float):
+        self.solver, self.cutoff = solver, cutoff
+        self.boxes = 0
+
+    def displacement(self, field: np.ndarray, bound: np.ndarray) -> np.ndarray:
+        """u' = K ``field`` (m; this rank's rows, zero outside the box) where the traction bound ``bound``
+        (Pa, this rank's rows) is positive; see the class docstring for the error bound."""
         solver, g = self.solver, self.solver.grid
-        rows = np.flatnonzero(needed.any(axis=1)) + solver.r0
-        cols = np.flatnonzero(needed.any(axis=0))
-        lo = np.array([rows.min(initial=g.nx), cols.min(initial=g.ny)])
-        hi = np.array([rows.max(initial=-1), cols.max(initial=-1)]) + 1
-        solver.comm.Allreduce(MPI.IN_PLACE, lo, op=MPI.MIN)
-        solver.comm.Allreduce(MPI.IN_PLACE, hi, op=MPI.MAX)
-        if hi[0] <= lo[0]:
-            lo, hi = np.zeros(2, int), np.ones(2, int)
-        i0, i1 = _rounded(int(lo[0]), int(hi[0]), g.nx)
-        j0, j1 = _rounded(int(lo[1]), int(hi[1]), g.ny)
-        return i0, i1, j0, j1
+        largest = solver.comm.allreduce(float(np.abs(field).max(initial=0.0)), op=MPI.MAX)
+        needed = (bound > 0) | sources(field, self.cutoff, largest)
+        box = bounding_box(needed, solver.r0, g.nx, g.ny, solver.comm)
+        if box != (0, g.nx, 0, g.ny):
+            self.boxes += 1
+        return solver.displacement(field, box, 1.0)
+
+
+def sources(v: np.ndarray, cutoff: float, largest: float) -> np.ndarray:
+    """The cells (this rank's rows x ny) a history field ``v`` (rows, ny), or (components, rows, ny), keeps
+    as sources: some component's magnitude above ``cutoff`` x ``largest`` (max|v| over all ranks)."""
+    kept = np.abs(v) > cutoff * largest
+    return kept if kept.ndim == 2 else kept.any(axis=0)
+
+
+def bounding_box(needed: np.ndarray, r0: int, nx: int, ny: int, comm) -> tuple[int, int, int, int]:
+    """The bounding box over all ranks of the ``needed`` cells (this rank's rows from grid row ``r0``, of an
+    nx x ny grid), sides rounded up to QUANTUM cells (a single cell's box when none is needed)."""
+    rows = np.flatnonzero(needed.any(axis=1)) + r0
+    cols = np.flatnonzero(needed.any(axis=0))
+    lo = np.array([rows.min(initial=nx), cols.min(initial=ny)])
+    hi = np.array([rows.max(initial=-1), cols.max(initial=-1)]) + 1
+    comm.Allreduce(MPI.IN_PLACE, lo, op=MPI.MIN)
+    comm.Allreduce(MPI.IN_PLACE, hi, op=MPI.MAX)
+    if hi[0] <= lo[0]:
+        lo, hi = np.zeros(2, int), np.ones(2, int)
+    i0, i1 = _rounded(int(lo[0]), int(hi[0]), nx)
+    j0, j1 = _rounded(int(lo[1]), int(hi[1]), ny)
+    return i0, i1, j0, j1
 
 
 def _rounded(a: int, b: int, n: int) -> tuple[int, int]:
