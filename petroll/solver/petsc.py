@@ -153,6 +153,26 @@ class WindowQP:
             self.gap.axpy(1.0, self.rhs)
         return self.x.array_r.copy(), self.gap.array_r.copy(), multiplier, its, context.applications - before
 
+    def error_estimate(self, x: np.ndarray, gap: np.ndarray, inverse: Convolution) -> float:
+        """The relative L2 error of a solution ``x`` (p_hat, this rank's window entries) whose scaled gap is
+        ``gap``, estimated from its natural residual min(x, gap): on the cells where that is the gap (those
+        that carry pressure and should), the error x - x* solves H_FF e = gap, estimated with the
+        preconditioner, e ~ R (scale C)^-1 R^T gap (``inverse``: the window's inverse circulant C^-1; R the
+        restriction to those cells); elsewhere the error is the residual itself (pressure on a cell that
+        should leave the contact, or a cell that should enter it). Returns |e|_2 / |x|_2 (0 where x = 0).
+        Measured against references solved to 1e-12 (rough periodic and wavy sphere, 64^2 and 128^2, tol
+        1e-4 ... 1e-8): 1.2-1.7 times the true error (tests/test_pressure_tol.py)."""
+        from mpi4py import MPI
+
+        context = self.hessian.getPythonContext()
+        ny = context.conv.ny
+        free = (x > 0) & (gap < x)
+        inverted = inverse(np.where(free, gap, 0.0).reshape(-1, ny)).ravel() / context.scale
+        error = np.where(free, inverted, np.minimum(x, gap))
+        sums = np.array([np.dot(error, error), np.dot(x, x)])
+        self.hessian.getComm().tompi4py().Allreduce(MPI.IN_PLACE, sums, op=MPI.SUM)
+        return float(np.sqrt(sums[0] / sums[1])) if sums[1] > 0 else 0.0
+
     def destroy(self) -> None:
         for obj in (self.tao, self.hessian, self.x, self.rhs, self.grad, self.gap, *self._vecs):
             obj.destroy()
