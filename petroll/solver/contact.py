@@ -374,11 +374,10 @@ class ContactSolver:
     def _solve_window(self, interference: np.ndarray, compliance: float, warm: np.ndarray | None,
                       candidates: np.ndarray, load: float | None):
         grid, comm = self.grid, self.comm
-        pressure = np.zeros(self.local_shape)
         window = self.topology.window(None if candidates is None else self._box(candidates),
                                       not self.influence.positive)
         if window is None:
-            return pressure, 0, 0, 0.0, (0, 0, 0, 0), 0.0
+            return np.zeros(self.local_shape), 0, 0, 0.0, (0, 0, 0, 0), 0.0
         i0, i1, j0, j1 = window
         grid_ranges, window_ranges = self._box_ranges(i0, i1)
         target = move_rows(interference[:, j0:j1], grid_ranges, window_ranges, comm)
@@ -391,12 +390,15 @@ class ContactSolver:
         if warm is not None:
             start = move_rows(warm[:, j0:j1], grid_ranges, window_ranges, comm).ravel() / to_pressure
         total = None if load is None else load / (grid.cell_area * to_pressure)
-        # a cell without surface (Z = +inf, a hole in a height map) inside the window: a gap it cannot close
-        gaps = np.minimum(-target.ravel() / w_ref, self.NO_SURFACE_GAP)
+        # the scaled gap, written straight into the QP's right-hand side; a cell without surface (Z = +inf, a
+        # hole in a height map) inside the window: a gap it cannot close
+        with qp.rhs as gaps:
+            np.divide(target.reshape(-1), -w_ref, out=gaps)
+            np.minimum(gaps, self.NO_SURFACE_GAP, out=gaps)
         tol = self.tol if self.pressure_tol is None else self.pressure_tol
-        x, gap, multiplier, its, applications = qp.solve(gaps, start, total, tol)
+        x, gap, multiplier, its, applications = qp.solve(start, total, tol)
         if self.pressure_tol is not None:
-            x, gap, multiplier, its, applications, tol = self._to_pressure_tol(qp, (i1 - i0, j1 - j0), gaps, total,
+            x, gap, multiplier, its, applications, tol = self._to_pressure_tol(qp, (i1 - i0, j1 - j0), total,
                                                                               (x, gap, multiplier, its,
                                                                                applications), tol)
         natural = np.minimum(x, gap)
@@ -408,6 +410,7 @@ class ContactSolver:
             raise SolverError(f"TAO ({self.tao_type}) stopped with the contact conditions violated by "
                               f"{residual:.3g} (relative; [solver] tol = {tol:g}); try another "
                               f"-{self.prefix}tao_type or a larger [solver] tol")
+        pressure = np.zeros(self.local_shape)
         self._put_box(pressure, p_window, window)
         return pressure, its, applications, residual, window, multiplier * w_ref
 
@@ -415,9 +418,9 @@ class ContactSolver:
     """Most re-solves of one QP on the way to ``pressure_tol`` (each scales the residual tolerance by the
     estimated error's excess, and at least by 0.5: far more than the 1-2 that a 10^-12 target needs)."""
 
-    def _to_pressure_tol(self, qp: WindowQP, shape: tuple[int, int], gaps: np.ndarray, total: float | None,
-                         solved: tuple, tol: float):
-        """Solve the QP on from its answer ``solved`` (x, gap, multiplier, iterations, applications) at the
+    def _to_pressure_tol(self, qp: WindowQP, shape: tuple[int, int], total: float | None, solved: tuple,
+                         tol: float):
+        """Solve the QP (its right-hand side set) on from its answer ``solved`` (x, gap, multiplier, iterations, applications) at the
         residual tolerance ``tol`` until its estimated relative L2 error is <= ``pressure_tol``; returns the
         same five (work summed) and the final residual tolerance."""
         x, gap, multiplier, its, applications = solved
@@ -427,7 +430,7 @@ class ContactSolver:
             if estimate <= self.pressure_tol:
                 return x, gap, multiplier, its, applications, tol
             tol *= min(0.5, 0.5 * self.pressure_tol / estimate)
-            x, gap, multiplier, n, apps = qp.solve(gaps, x, total, tol)
+            x, gap, multiplier, n, apps = qp.solve(x, total, tol)
             its, applications = its + n, applications + apps
         raise SolverError(f"the pressure's estimated error {estimate:.3g} stays above [solver] pressure_tol = "
                           f"{self.pressure_tol:g} at the residual tolerance {tol:.3g}; try a larger pressure_tol")

@@ -121,19 +121,20 @@ class WindowQP:
         grad.axpy(1.0, self.rhs)
         return 0.5 * (p.dot(grad) + p.dot(self.rhs))
 
-    def solve(self, rhs: np.ndarray, start: np.ndarray | None, total: float | None, tol: float):
+    def solve(self, start: np.ndarray | None, total: float | None, tol: float):
         """Solve from ``start`` (p_hat, this rank's window entries; None: 0) to the tolerance ``tol`` (TAO's
-        gatol). ``total`` (pk only): hold sum p_hat = total (load control). Returns p_hat, the gap H p_hat + rhs - lambda (local arrays; lambda
-        the load constraint's multiplier, 0 without it), lambda, TAO's iterations and the operator
-        applications."""
+        gatol), on the right-hand side the caller wrote in ``rhs`` (this rank's window entries: no copy).
+        ``total`` (pk only): hold sum p_hat = total (load control). Returns p_hat, the gap H p_hat + rhs -
+        lambda (local arrays; lambda the load constraint's multiplier, 0 without it), lambda, TAO's
+        iterations and the operator applications."""
         self.tao.setTolerances(gatol=tol, grtol=0.0, gttol=0.0)  # the solver's tol may change between solves
         context = self.hessian.getPythonContext()
         before = context.applications
-        self.rhs.setArray(rhs)
         if start is None:
             self.x.set(0.0)
         else:
-            self.x.setArray(np.maximum(start, 0.0))
+            with self.x as x:
+                np.maximum(start, 0.0, out=x)
         if self.pk:
             self.tao.getPythonContext().total = total
         self.tao.solve(self.x)
