@@ -386,9 +386,13 @@ class ContactSolver:
         to_pressure = w_ref / (compliance * diagonal)  # p = to_pressure * p_hat
 
         qp = self.window_qp(i1 - i0, j1 - j0)
-        start = None
-        if warm is not None:
-            start = move_rows(warm[:, j0:j1], grid_ranges, window_ranges, comm).ravel() / to_pressure
+        with qp.x as start:  # the start, p_hat >= 0 (0 without a warm one), written straight into the solution
+            if warm is None:
+                start.fill(0.0)
+            else:
+                np.divide(move_rows(warm[:, j0:j1], grid_ranges, window_ranges, comm).reshape(-1), to_pressure,
+                          out=start)
+                np.maximum(start, 0.0, out=start)
         total = None if load is None else load / (grid.cell_area * to_pressure)
         # the scaled gap, written straight into the QP's right-hand side; a cell without surface (Z = +inf, a
         # hole in a height map) inside the window: a gap it cannot close
@@ -396,7 +400,7 @@ class ContactSolver:
             np.divide(target.reshape(-1), -w_ref, out=gaps)
             np.minimum(gaps, self.NO_SURFACE_GAP, out=gaps)
         tol = self.tol if self.pressure_tol is None else self.pressure_tol
-        x, gap, multiplier, its, applications = qp.solve(start, total, tol)
+        x, gap, multiplier, its, applications = qp.solve(total, tol)
         if self.pressure_tol is not None:
             x, gap, multiplier, its, applications, tol = self._to_pressure_tol(qp, (i1 - i0, j1 - j0), total,
                                                                               (x, gap, multiplier, its,
@@ -420,7 +424,7 @@ class ContactSolver:
 
     def _to_pressure_tol(self, qp: WindowQP, shape: tuple[int, int], total: float | None, solved: tuple,
                          tol: float):
-        """Solve the QP (its right-hand side set) on from its answer ``solved`` (x, gap, multiplier, iterations, applications) at the
+        """Solve the QP (its right-hand side set) on from its answer, held in its solution vector, ``solved`` (x, gap, multiplier, iterations, applications) at the
         residual tolerance ``tol`` until its estimated relative L2 error is <= ``pressure_tol``; returns the
         same five (work summed) and the final residual tolerance."""
         x, gap, multiplier, its, applications = solved
@@ -430,7 +434,7 @@ class ContactSolver:
             if estimate <= self.pressure_tol:
                 return x, gap, multiplier, its, applications, tol
             tol *= min(0.5, 0.5 * self.pressure_tol / estimate)
-            x, gap, multiplier, n, apps = qp.solve(x, total, tol)
+            x, gap, multiplier, n, apps = qp.solve(total, tol)
             its, applications = its + n, applications + apps
         raise SolverError(f"the pressure's estimated error {estimate:.3g} stays above [solver] pressure_tol = "
                           f"{self.pressure_tol:g} at the residual tolerance {tol:.3g}; try a larger pressure_tol")

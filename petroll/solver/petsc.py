@@ -121,20 +121,16 @@ class WindowQP:
         grad.axpy(1.0, self.rhs)
         return 0.5 * (p.dot(grad) + p.dot(self.rhs))
 
-    def solve(self, start: np.ndarray | None, total: float | None, tol: float):
-        """Solve from ``start`` (p_hat, this rank's window entries; None: 0) to the tolerance ``tol`` (TAO's
-        gatol), on the right-hand side the caller wrote in ``rhs`` (this rank's window entries: no copy).
+    def solve(self, total: float | None, tol: float):
+        """Solve to the tolerance ``tol`` (TAO's gatol) from the start the caller wrote in ``x`` (p_hat >= 0)
+        on the right-hand side it wrote in ``rhs`` (this rank's window entries, written in place: no copies;
+        after a solve ``x`` holds its answer, a start for a tighter solve).
         ``total`` (pk only): hold sum p_hat = total (load control). Returns p_hat, the gap H p_hat + rhs -
         lambda (local arrays; lambda the load constraint's multiplier, 0 without it), lambda, TAO's
         iterations and the operator applications."""
         self.tao.setTolerances(gatol=tol, grtol=0.0, gttol=0.0)  # the solver's tol may change between solves
         context = self.hessian.getPythonContext()
         before = context.applications
-        if start is None:
-            self.x.set(0.0)
-        else:
-            with self.x as x:
-                np.maximum(start, 0.0, out=x)
         if self.pk:
             self.tao.getPythonContext().total = total
         self.tao.solve(self.x)
