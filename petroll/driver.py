@@ -31,6 +31,7 @@ from petroll.model.scene import Scene
 from petroll.records import StepRecord, series_rows
 from petroll.solver.rough import BINS
 from petroll.solver.simulation import Simulation
+from petroll.studies.target import asks_target, targeted
 
 
 def run(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, out: str | pathlib.Path | None = None,
@@ -60,6 +61,8 @@ def run(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, out: str | pathlib.Path |
     ``estimate_error``: after the run, solve the scene again on grids 2x (and 4x) coarser and write the
     discretisation error of the last step's force, mu_r, p_max, area, lead and trail to results.h5's group
     error_estimate (petroll.studies.estimate; ``Results.error_estimate``; docs/accuracy.md).
+    A scene with ``[grid] target_error`` is first sized for it (petroll.studies.target.targeted: a pilot
+    on coarser grids, then the scene on the grid chosen; SceneError where it needs too fine a grid).
     A step that fails (SolverError, e.g. a contact reaching the grid's edge; SceneError, [time] max_steps)
     raises :class:`RunFailed` naming the scene file, the step, its time and the distance rolled, after
     every step solved before it is written to results.h5 (complete = false).
@@ -71,6 +74,8 @@ def run(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, out: str | pathlib.Path |
     OutputError unless ``overwrite``. A results file that cannot be written stops the run with OutputError
     on every rank, results.h5 holding the steps of its last complete append.
     """
+    if restart is None and asks_target(scene):  # the cells its [grid] target_error needs, from a pilot
+        scene = targeted(scene, comm)
     out = pathlib.Path(out) if out is not None else scene.output_dir
     # before anything is written: touching, path, resolution (petroll.model.preflight); kept for the estimate
     preflight = check_run(scene) if restart is None else None

@@ -319,7 +319,7 @@ def test_petroll_bench_friction_quick_writes_its_table(tmp_path, cli_main):
     assert code == 0, err
     rows = list(csv.DictReader(open(tmp_path / "friction.csv", encoding="utf-8")))
     assert [r["case"].split(",")[0] for r in rows][:3] == ["normal QP", "normal QP", "shift Q = mu P/2"]
-    assert len(rows) == 9 and rows[-1]["case"].startswith("creep curve, 3 points")
+    assert len(rows) == 11 and rows[-1]["case"].startswith("creep curve, 3 points")
     for row in rows[2:]:
         assert float(row["fft_pairs"]) == pytest.approx(2 * float(row["applications"]), rel=1e-12)
         assert float(row["applications"]) > 0

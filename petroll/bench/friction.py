@@ -8,16 +8,20 @@ half-width, a margin of 4 cells), nu = 0.3, two bodies of one material (complian
 - normal: the normal QP of the same sphere under load control (pk from Hertz's pressure, the default
   solver's cold start): the reference of the "3 x the normal solve" target;
 - shift: Cattaneo's shift by Q = mu P/2 in one step (force control), and the same load in 4 steps;
-- transient: rolling one cell a step at that force after the shift, over three contact lengths (per step:
-  the first contact length, and the last, once steady);
+- transient: rolling one cell a step at that force after the shift, over five contact lengths (per step:
+  the first, third and fifth contact length: the transient fades by about 0.15 a contact length), and
+  half a cell a step (2 steps per cell: the third contact length);
 - steady: the steady state at that force solved directly (cold; and on bodies of an SLS at V tau/a = 1,
   the wake 2 radii behind), and a 30-point creep-force curve (creepage
   up to 3 times the linear theory's saturation, each point started from the last) at 16 cells per radius
   (32 x 32 cells in the contact).
 
-Applications count the tangential operator (u = c K q on a window: two FFT pairs in 3-D, one in line
-contact), the normal's its own (one pair); ``fft pairs`` counts both alike. Times are wall times on this
-rank (the machine's load matters: say it where quoted).
+Applications count each problem's own operator, the preconditioner's transforms left out in both: the
+normal QP's K p (one zero-padded FFT pair on its window), the tangential one's u = c K q (two components:
+two FFT pairs on its window in 3-D, one in line contact; the displacement u' of the last steps' tractions
+enters its gradient, H (q - q') + W, so a step has no convolution besides its QP's); ``fft pairs`` counts
+both alike (LEGEND, printed under the table). Times are wall times on this rank (the machine's load
+matters: say it where quoted).
 """
 
 from __future__ import annotations
@@ -35,6 +39,9 @@ from petroll.solver.tangential import DiskPCG, TangentialSolver, project
 from petroll.studies.tables import write_table
 
 NU, MU = 0.3, 0.3
+
+LEGEND = ("applications: the normal QP's K p (1 FFT pair) / the tangential QP's u = c K q (2 FFT pairs in "
+          "3-D: one per traction component), preconditioners not counted; fft_pairs counts both alike")
 
 
 def hertz_case(n: int, comm: MPI.Comm, line: bool = False, length: float = 0.0, tol: float = 1e-8):
@@ -97,7 +104,7 @@ def normal_reference(n: int, comm: MPI.Comm) -> list[tuple[int, float]]:
 def bench_friction(out: pathlib.Path | None = None, quick: bool = False, comm: MPI.Comm = MPI.COMM_WORLD,
                    n: int = 16) -> list[dict]:
     """The table of the module docstring (rows: case, applications, fft pairs, seconds, iterations, note)
-    at ``n`` cells per radius (``quick``: 4, a contact length of rolling, a 3-point curve: it runs and
+    at ``n`` cells per radius (``quick``: 4, a 3-point curve: it runs and
     measures nothing). Rank 0 prints it and writes DIR/friction.csv when ``out`` is given."""
     if quick:
         n = 4
@@ -107,8 +114,7 @@ def bench_friction(out: pathlib.Path | None = None, quick: bool = False, comm: M
                      seconds=seconds, iterations="", note="pk from Hertz's pressure"))
     rows.append(dict(case="normal QP, rolling step (reference)", applications=moved, fft_pairs=moved,
                      seconds=moved_seconds, iterations="", note="from the last pressure, moved"))
-    lengths = 1 if quick else 3
-    grid, solver, bound = hertz_case(n, comm, length=2 * lengths)
+    grid, solver, bound = hertz_case(n, comm, length=10.0)  # five contact lengths of track
     force = np.array([-0.5 * _force(comm, bound(), grid), 0.0])
     stepping = Stepping(solver)
     solution, seconds = _timed(lambda: stepping.shift(bound(), force=force))
@@ -118,10 +124,13 @@ def bench_friction(out: pathlib.Path | None = None, quick: bool = False, comm: M
     steps = Stepping(solver)
     start, total = time.perf_counter(), 0
     for k in range(1, 5):
-        total += steps.shift(bound(), force=force * k / 4).applications + 1
+        total += steps.shift(bound(), force=force * k / 4).applications
     rows.append(dict(case="shift Q = mu P/2, 4 steps (per step)", applications=total / 4, fft_pairs=total / 2,
-                     seconds=(time.perf_counter() - start) / 4, iterations="", note="+1 a step: u'"))
-    rows += _transient(stepping, bound, force, n, lengths)
+                     seconds=(time.perf_counter() - start) / 4, iterations="", note="from the last two, extrapolated"))
+    rows += _transient(stepping, bound, force, n, (1, 3, 5))
+    halves = Stepping(solver)
+    halves.shift(bound(), force=force)
+    rows += _transient(halves, bound, force, n, (3,), per_cell=2)
     steady = SteadyRolling(solver, 0, 1)
     result, seconds = _timed(lambda: steady.solve(bound(), force=force))
     rows.append(dict(case="steady, force control, cold", applications=result.applications,
@@ -132,6 +141,7 @@ def bench_friction(out: pathlib.Path | None = None, quick: bool = False, comm: M
     if out is not None and comm.rank == 0:
         out.mkdir(parents=True, exist_ok=True)
         write_table(rows, out / "friction.csv")
+        print(LEGEND)
     return rows
 
 
@@ -152,19 +162,23 @@ def steady_viscoelastic(n: int, comm: MPI.Comm, force: np.ndarray) -> dict:
                 iterations=result.iterations, note=f"creepage {result.creepage[0]:.6g}")
 
 
-def _transient(stepping: Stepping, bound, force, n: int, lengths: int) -> list[dict]:
-    """Rolling one cell a step after the shift: per step over the first contact length and the last."""
-    dx = 1.0 / n
+def _transient(stepping: Stepping, bound, force, n: int, lengths, per_cell: int = 1) -> list[dict]:
+    """Rolling 1/``per_cell`` of a cell a step after the shift: per step over each contact length of
+    ``lengths`` (counted from 1)."""
+    dx = 1.0 / (n * per_cell)
     records = []
-    for k in range(1, 2 * lengths * n + 1):
+    for k in range(1, 2 * max(lengths) * n * per_cell + 1):
         solution, seconds = _timed(lambda: stepping.roll(bound(k * dx), (k * dx, 0.0), dx, (1.0, 0.0), force=force))
-        records.append((solution.applications + 1, seconds, solution.iterations))
-    rows = []
-    for name, part in (("first contact length", records[: 2 * n]), ("last contact length", records[-2 * n :])):
+        records.append((solution.applications, seconds, solution.iterations))
+    rows, steps = [], 2 * n * per_cell
+    for length in lengths:
+        part = records[steps * (length - 1) : steps * length]
         apps = sum(r[0] for r in part) / len(part)
-        rows.append(dict(case=f"transient rolling, {name} (per step)", applications=apps, fft_pairs=2 * apps,
-                         seconds=sum(r[1] for r in part) / len(part),
-                         iterations=sum(r[2] for r in part) / len(part), note="+1 a step: u'"))
+        every = "" if per_cell == 1 else f", {per_cell} steps per cell"
+        rows.append(dict(case=f"transient rolling{every}, contact length {length} (per step)", applications=apps,
+                         fft_pairs=2 * apps, seconds=sum(r[1] for r in part) / len(part),
+                         iterations=sum(r[2] for r in part) / len(part),
+                         note=f"from {per_cell} and {2 * per_cell} steps back, carried"))
     return rows
 
 

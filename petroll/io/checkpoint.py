@@ -22,8 +22,9 @@ step N exactly as if it had never stopped (format version 2, readable with plain
     /state/recent        (k, nx, ny)   the last k <= 12 solutions, Pa (3 per lag, petroll.solver.warm), and
                                        /state/recent_position (k, 2) the body's positions, m: the first
                                        guess of the next step
-    /state/traction      (m, nx, ny)   [friction]: last tractions, Pa; traction_older, friction (a viscoelastic
-                                       material: source, source_older, shear): FrictionLoop.state
+    /state/traction      (m, nx, ny)   [friction]: last tractions, Pa; traction_older, traction_recent (the
+                                       next step's first guess), friction (a viscoelastic material: source,
+                                       source_older, shear): FrictionLoop.state
     /series/<name>       (N + 1,)      the per-step series so far (as in results.h5)
     /fields/step         (n_saved,)    the steps of the fields saved so far (the fields are in results.h5)
 
@@ -247,7 +248,8 @@ def fingerprint(scene) -> str:
 
 # -- reading ----------------------------------------------------------------------------------------------
 FIELDS = ("state/pressure", "state/displacement", "state/q", "state/recent", "state/increments",
-          "state/traction", "state/traction_older", "state/source", "state/source_older", "state/shear")
+          "state/traction", "state/traction_older", "state/traction_recent", "state/source", "state/source_older",
+          "state/shear")
 """The checkpoint's grid fields: (nx, ny) or (k, nx, ny), each rank reading and writing its own rows."""
 
 

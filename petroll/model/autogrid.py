@@ -1,5 +1,5 @@
-"""Grids petroll sizes itself: a scene without [grid], or with only ``[grid] cells_per_half_width``
-(docs/accuracy.md#grids-petroll-sizes).
+"""Grids petroll sizes itself: a scene without [grid], or with only ``[grid] cells_per_half_width`` or
+``[grid] target_error`` (docs/accuracy.md#grids-petroll-sizes).
 
 A smooth body (sphere, ellipsoid, 3-D cylinder; a measured roughness may ride on it) gets square cells of
 the contact half-width over ``cells_per_half_width`` (default :data:`DEFAULT_CELLS`), the half-width
@@ -18,6 +18,9 @@ wavelengths (``rolloff`` and ``cutoff`` must be given) with cells of its cut-off
 
 The contact is estimated on a provisional scene (the same keys on a coarse grid around the body, large
 enough for any contact the body can make); the scene is then validated on the chosen grid.
+
+``target_error`` is sized here as :data:`DEFAULT_CELLS`, the pilot's grid: the run chooses the cells per
+half-width from a pilot on it (petroll.studies.target, which solves; this package does not).
 """
 
 from __future__ import annotations
@@ -57,7 +60,7 @@ ROUGH_CELLS = 2 * GOOD_CUTOFF_CELLS
 SIZED_SHAPES = ("sphere", "ellipsoid", "cylinder", "rough")
 """The [body] shapes whose grid petroll can size."""
 
-REQUEST_KEYS = ("cells_per_half_width",)
+REQUEST_KEYS = ("cells_per_half_width", "target_error")
 """The [grid] keys of a grid petroll sizes."""
 
 
@@ -81,6 +84,9 @@ def provisional(raw: dict, source: str, base_dir) -> dict:
     cells on each side, 4 body radii (a cylinder: its width too) around [body] position. SceneError for a
     body petroll cannot size a grid for."""
     request = raw.get("grid") or {}
+    if len(request) > 1:  # both REQUEST_KEYS
+        raise SceneError(source, "[grid] target_error / cells_per_half_width", request,
+                         "give one: target_error chooses the cells per half-width")
     body = raw.get("body", {})
     shape = body.get("shape") if isinstance(body, dict) else None
     if shape not in SIZED_SHAPES:
@@ -107,10 +113,10 @@ def provisional(raw: dict, source: str, base_dir) -> dict:
 def _rough_table(body: dict, request: dict, source: str) -> dict:
     """The periodic cell of a generated rough surface: ROUGH_PERIODS rolloff wavelengths, cells of the
     cut-off over ROUGH_CELLS (a fast FFT length)."""
-    if "cells_per_half_width" in request:
-        raise SceneError(source, "[grid] cells_per_half_width", request["cells_per_half_width"],
-                         'not for [body] shape = "rough": its grid has cells of its cutoff / '
-                         f"{ROUGH_CELLS}; give [grid] nx, ny, x, y for another")
+    for key in REQUEST_KEYS:
+        if key in request:
+            raise SceneError(source, f"[grid] {key}", request[key], 'not for [body] shape = "rough": its grid '
+                             f"has cells of its cutoff / {ROUGH_CELLS}; give [grid] nx, ny, x, y for another")
     for key in ("rolloff", "cutoff"):
         value = body.get(key)
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 0:
@@ -158,5 +164,7 @@ def choose(scene, request: dict) -> GridChoice:
     note = (f"[grid] sized by petroll: {nx} x {ny} square cells of {h:.4g} m over x [{x[0]:.4g}, {x[1]:.4g}], "
             f"y [{y[0]:.4g}, {y[1]:.4g}] m: {cells:g} cells per contact half-width {width:.4g} m ({what}), the "
             "region the body can press into over its "
-            + ("path" if len(walked.t) > 1 else "contact") + f" and {MARGIN:.0%} more")
+            + ("path" if len(walked.t) > 1 else "contact") + f" and {MARGIN:.0%} more"
+            + (f"; the pilot grid of target_error = {request['target_error']:g}" if "target_error" in request
+               else ""))
     return GridChoice(request, table, note)

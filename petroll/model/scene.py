@@ -155,9 +155,10 @@ def parse_scene(raw: dict, source: str = "<python>", base_dir: str | pathlib.Pat
     values = {name: _read_section(checked, name, source) for name in SCHEMA}
 
     g = values["grid"]
-    if g["cells_per_half_width"] is not None:
-        raise SceneError(source, "[grid] cells_per_half_width", raw["grid"]["cells_per_half_width"],
-                         "sizes a grid petroll chooses: give it without [grid] nx, ny, x, y (or leave it out)")
+    for key in REQUEST_KEYS:  # they ask petroll to choose the grid
+        if g[key] is not None:
+            raise SceneError(source, f"[grid] {key}", raw["grid"][key], "sizes a grid petroll chooses: give "
+                             "it without [grid] nx, ny, x, y (or leave it out)")
     if line:
         if g["periodic"] == (False, True):
             raise SceneError(source, "[grid] periodic", raw["grid"]["periodic"],

@@ -359,6 +359,13 @@ def _cells_per_half_width(value: Any) -> float:
     return float(value)
 
 
+def _target_error(value: Any) -> float:
+    number = not isinstance(value, bool) and isinstance(value, (int, float))
+    if not number or not 0 < value <= 0.5:
+        raise Invalid("must be a number > 0 and <= 0.5 (a relative error, e.g. 0.01)")
+    return float(value)
+
+
 SCHEMA: dict[str, dict[str, Key]] = {
     "grid": {
         "nx": Key("integer", "number of cells along X, 1 ... 2^24 (nx ny at most 2^31 - 1); a scene without "
@@ -379,6 +386,12 @@ SCHEMA: dict[str, dict[str, Key]] = {
                                     "generated rough surface: docs/rough.md), prints it and stores it in "
                                     "results.h5; a scene without [grid] gets 16 (docs/accuracy.md)",
                                     _cells_per_half_width, default=None),
+        "target_error": Key("number", "without nx, ny, x, y and cells_per_half_width: petroll sizes the grid "
+                            "as for cells_per_half_width, choosing the cells per half-width (8 to 256) so that "
+                            "the estimated relative error of the force, the penetration, mu_r and the peak "
+                            "pressure is at most this (a pilot at 16 and 8 cells per half-width and the "
+                            "integrator's order), prints it and stores it in results.h5 (docs/accuracy.md)",
+                            _target_error, default=None),
         "allow_coarse": Key("boolean", "run even with fewer than 2 cells per estimated contact half-width "
                             "(refused otherwise; below 8 a run warns: docs/accuracy.md)", _flag, default=False),
     },

@@ -42,9 +42,9 @@ import numpy as np
 from mpi4py import MPI
 
 from petroll.errors import SolverError
-from petroll.solver.partition import shift_field
 from petroll.solver.steady_friction import SteadyNewton
 from petroll.solver.tangential import TangentialSolution, TangentialSolver
+from petroll.solver.warm import TractionWarmStart
 
 
 def rigid_slip(x: np.ndarray, y: np.ndarray, creepage, spin: float, distance: float,
@@ -84,8 +84,10 @@ class ShearMemory:
 
 class Stepping:
     """Shift and transient rolling step by step in the grid's frame (module docstring), with the tangential
-    ``solver``: the tractions of the last steps kept (this rank's rows), u' = c K q' recomputed on the box
-    that holds both the new contact and the old tractions (one convolution a step).
+    ``solver``: the tractions of the last steps kept (this rank's rows), u' = c K q' left to the QP's
+    gradient (elastic; viscoelastic: u' computed on the box of the new contact and the sources). Each
+    step starts from the tractions of the last steps carried along with the body (``warm``,
+    petroll.solver.warm.TractionWarmStart: at k steps per cell, those k and 2k steps back, extrapolated).
 
     :meth:`shift`: a quasi-static step (rate-independent: first order, u' = the last step's u), the
     body's rigid tangential displacement changed by ``increment`` or found from the force; ``shift``
@@ -114,23 +116,24 @@ class Stepping:
         self.creepage = np.zeros(solver.m)  # the last rolling step's (given or found)
         self.scale = 0.0  # the last rolling step's rolled distance in the QP's form (m): its slip is the
         # slip velocity over the rolling speed times it (order 2: distance/a0)
+        self.warm = TractionWarmStart(solver.grid, solver.rows, solver.comm)  # the steps' first guesses
 
     def _previous(self, bound: np.ndarray, weights=(1.0, 0.0), dt: float = 0.0):
-        """(u' (m, this rank's rows), the step's compliance c (1/Pa; None: the solver's), the history's v or
-        None) of a step of length ``dt`` (s): u' the displacement of w0 X^(n-1) - w1 X^(n-2) (``weights``;
-        w1 = 0: X^(n-1) alone), X the last steps' tractions (elastic: u' = c K X) or displacement sources
-        (viscoelastic: u' = K (X - v), the history's displacement moved to the right-hand side), on the
-        box of the new contact and the field."""
+        """(u' (m, this rank's rows) or None, its source X or None, the step's compliance c (1/Pa; None: the
+        solver's), the history's v or None) of a step of length ``dt`` (s), from w0 X^(n-1) - w1 X^(n-2)
+        (``weights``; w1 = 0: X^(n-1) alone), X the last steps' tractions (elastic: u' = c K X, left to the
+        QP's gradient) or displacement sources (viscoelastic: u' = K (X - v), the history's displacement
+        moved to the right-hand side, computed here on the box of the new contact and the field: the
+        history reaches along the wake)."""
         newer, older = (self.traction, self.older) if self.memory is None else (self.source, self.source_older)
         field = newer if weights[1] == 0 else weights[0] * newer - weights[1] * older
-        compliance, v = None, None
-        if self.memory is not None:
-            compliance, v = self.memory.compliance(dt), self.memory.preceding(dt)
-            if v is not None:
-                field = field - v
+        if self.memory is None:
+            return None, field, None, None
+        compliance, v = self.memory.compliance(dt), self.memory.preceding(dt)
+        if v is not None:
+            field = field - v
         cells = (bound > 0) | np.any(field != 0, axis=0)
-        unit = None if self.memory is None else 1.0
-        return self.solver.displacement(field, self.solver.box(cells), unit), compliance, v
+        return self.solver.displacement(field, self.solver.box(cells), 1.0), None, compliance, v
 
     def _remember(self, solution: TangentialSolution, compliance, v, dt: float, rolled: bool) -> None:
         """Keep a viscoelastic step's sources (s = c q + v) and advance the history by the step."""
@@ -141,29 +144,22 @@ class Stepping:
         self.source = source
         self.memory.advance(solution.traction, dt)
 
-    def _moved(self, field: np.ndarray, distance: float, direction) -> np.ndarray:
-        """A tangential field moved with the body by ``distance`` along ``direction``, rounded to whole
-        cells (a warm start: steady rolling is stationary in the body's frame)."""
-        grid, solver = self.solver.grid, self.solver
-        di = int(round(distance * direction[0] / grid.dx))
-        dj = 0 if grid.line else int(round(distance * direction[1] / grid.dy))
-        if di == 0 and dj == 0:
-            return field
-        return np.stack([shift_field(f, di, dj, solver.rows, solver.comm) for f in field])
-
     def shift(self, bound: np.ndarray, increment=None, force=None, tol: float | None = None,
-              dt: float = 0.0) -> TangentialSolution:
+              dt: float = 0.0, centre=(0.0, 0.0)) -> TangentialSolution:
         """One quasi-static step on the traction bound ``bound`` (Pa, this rank's rows): the body shifted by
         ``increment`` (m, an m-vector) relative to the half-space, or by the amount that makes the total
         traction ``force`` (N; N/m in line contact; the force the half-space exerts on the body: it
-        opposes the shift); ``dt`` the step's length (s; a viscoelastic history's step, 0: a jump)."""
+        opposes the shift); ``dt`` the step's length (s; a viscoelastic history's step, 0: a jump);
+        ``centre`` the body's reference point (m; where the first guesses of later steps are carried
+        from)."""
         solver = self.solver
-        previous, compliance, v = self._previous(bound, dt=dt)
+        previous, earlier, compliance, v = self._previous(bound, dt=dt)
         rigid = None
         if force is None:
             increment = np.zeros(solver.m) if increment is None else np.asarray(increment, dtype=float)
             rigid = np.broadcast_to(increment[:, None, None], (solver.m, *solver.local_shape))
-        solution = solver.solve(bound, rigid, previous, self.traction, force, tol, compliance)
+        solution = solver.solve(bound, rigid, previous, self.warm.guess(*centre), force, tol, compliance, earlier)
+        self.warm.record(solution.traction, *centre)
         self._remember(solution, compliance, v, dt, rolled=False)
         self.shift_total = self.shift_total + (solution.shift if force is not None else increment)
         self.traction, self.older, self.last_distance = solution.traction, None, None
@@ -191,11 +187,11 @@ class Stepping:
             weights = (1.0, 0.0)
             rigid = rigid_slip(x, y, given, spin, distance, direction)[: solver.m]
             scale = distance
-        warm = self._moved(self.traction, distance, direction)
-        if self.older is not None and self.last_distance == distance:  # the body frame's trend, extrapolated
-            warm = 2 * warm - self._moved(self.older, 2 * distance, direction)
-        previous, compliance, v = self._previous(bound, weights, dt)
-        solution = solver.solve(bound, rigid, previous, warm, force, tol, compliance)
+        if self.last_distance is None:  # after a shift: its trend is not the rolling's
+            self.warm.forget()
+        previous, earlier, compliance, v = self._previous(bound, weights, dt)
+        solution = solver.solve(bound, rigid, previous, self.warm.guess(*centre), force, tol, compliance, earlier)
+        self.warm.record(solution.traction, *centre)
         self._remember(solution, compliance, v, dt, rolled=True)
         self.creepage = (np.asarray(creepage, dtype=float)[: solver.m] if force is None
                          else solution.shift / scale)
@@ -284,12 +280,7 @@ class SteadyRolling:
         stick = (g > 0) & (np.sqrt((q * q).sum(axis=0)) < g - tol * q_ref)
         sums = np.array(q.sum(axis=(1, 2)), dtype=float)
         self.comm.Allreduce(MPI.IN_PLACE, sums, op=MPI.SUM)
-        traction = solver.from_box(q, box)
-        if elastic:
-            displacement = solver.displacement(traction, box)
-        else:  # u = K L q, L's sources on the window
-            displacement = solver.displacement(solver.from_box(memory[0] * newton.hereditary(q), box), box, 1.0)
-        solution = TangentialSolution(traction, solver.from_box(slip, box), displacement,
+        solution = TangentialSolution(solver.from_box(q, box), solver.from_box(slip, box),
                                       solver.from_box(stick, box, False), at.w * s_ref, sums * solver.grid.cell_area,
                                       iterations, newton.applications, at.largest, box)
         return SteadySolution(solution, found, iterations, newton.applications)

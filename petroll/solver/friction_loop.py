@@ -38,7 +38,8 @@ class FullSlip:
     speed V at every cell in contact (the surface's tangential strain rate, of the order of the strain
     times V, is left out, as the linear theory leaves it out). The bodies being quasi-identical, q moves no
     surface normally: the steady pressure is the frictionless one, and the force resisting the sliding is
-    mu P (the tractions') plus the pressure's hysteresis force mu_r P (the StepRecord's force_x, force_y).
+    mu P (the tractions') plus the pressure's hysteresis force mu_r P (the StepRecord's mu_r: the
+    dissipated power's, petroll.solver.sliding).
     :meth:`steady` records it; :attr:`records`, :attr:`fields` as :class:`FrictionLoop`'s."""
 
     def __init__(self, scene, comm: MPI.Comm):
@@ -100,7 +101,7 @@ class FrictionLoop:
             creepage, rate = stepping.creepage, distance / (dt * stepping.scale)
         else:
             increment = None if force is not None else np.zeros(self.solver.m)
-            solution = stepping.shift(bound, increment, force, dt=dt)
+            solution = stepping.shift(bound, increment, force, dt=dt, centre=(record.sx, record.sy))
             creepage, rate = np.full(self.solver.m, math.nan), (1 / dt if dt > 0 else math.nan)
         return self._record(solution, bound, creepage, rate)
 
@@ -143,10 +144,12 @@ class FrictionLoop:
     # -- the checkpoint's state -------------------------------------------------------------------------
     def state(self) -> tuple[dict[str, list[np.ndarray]], np.ndarray]:
         """(fields: name -> this rank's rows of each component, small: [last rolled distance (m; NaN: the
-        last step was a shift), its distance in the QP's form (m), shift (m), creepage]) of the stepping
-        state a restart needs."""
+        last step was a shift), its distance in the QP's form (m), shift (m), creepage, then the body's
+        position (x, y) of each of the first guesses' kept tractions]) of the stepping state a restart
+        needs."""
         st = self.stepping
-        parts = {"traction": list(st.traction)}
+        parts = {"traction": list(st.traction),
+                 "traction_recent": [c for field, _, _ in st.warm.recent for c in field]}
         if st.older is not None:
             parts["traction_older"] = list(st.older)
         if st.memory is not None:  # viscoelastic: the sources and the history's fields, component by component
@@ -155,11 +158,12 @@ class FrictionLoop:
                 parts["source_older"] = list(st.source_older)
             parts["shear"] = [c for f in st.memory.history.state() for c in f]
         last = math.nan if st.last_distance is None else st.last_distance
-        return parts, np.array([last, st.scale, *st.shift_total, *st.creepage], dtype=float)
+        positions = [v for _, x, y in st.warm.recent for v in (x, y)]
+        return parts, np.array([last, st.scale, *st.shift_total, *st.creepage, *positions], dtype=float)
 
     def restore(self, state: dict, series: dict[str, np.ndarray]) -> None:
-        """Put a checkpoint's state (this rank's rows: "traction", "traction_older" as :meth:`state` gave
-        them, "friction" its small array) and ``series`` (name: values) back."""
+        """Put a checkpoint's state (this rank's rows: "traction", "traction_older", "traction_recent" as
+        :meth:`state` gave them, "friction" its small array) and ``series`` (name: values) back."""
         st, m, small = self.stepping, self.solver.m, state["friction"]
         st.traction = np.stack(state["traction"])
         st.older = np.stack(state["traction_older"]) if "traction_older" in state else None
@@ -173,4 +177,8 @@ class FrictionLoop:
         st.shift_total, st.creepage = np.array(small[2 : 2 + m]), np.array(small[2 + m : 2 + 2 * m])
         n = len(series["step"])
         self.records = [FrictionRecord.from_series(series, i) for i in range(n)]
+        positions = np.reshape(small[2 + 2 * m :], (-1, 2))
+        # none in a checkpoint written before they were kept: the next step then starts from zero
+        recent = np.reshape(state.get("traction_recent", []), (len(positions), m, *st.traction.shape[1:]))
+        st.warm.recent = [(field, float(x), float(y)) for field, (x, y) in zip(recent, positions)]
 

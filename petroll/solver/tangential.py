@@ -173,6 +173,9 @@ class TangentialOperator:
 EDGE = 1e-12
 """A cell whose |q| is within this fraction of its bound counts as on the bound (slip)."""
 
+SAFE = 2.0
+"""An updated gradient's error bound counts SAFE times in the residual (a disk's projection: <= sqrt 2)."""
+
 
 @dataclass
 class DiskResult:
@@ -216,14 +219,13 @@ class DiskPCG:
     interval [-g, g]); g (n,) >= 0 (a cell with g = 0 holds q = 0). ``apply(d)``: H d for (m, n) d;
     ``precondition(r)``: an approximation of H^-1 r (symmetric positive definite); ``norm``: a bound of
     |H|_inf (the largest row sum of |H|). :meth:`solve` stops when the natural residual max |q - P(q - s)|
-    <= tol (and under force control |sum q - total| <= tol sum g), judged on a freshly computed
-    gradient; SolverError after ``max_iterations`` iterations or for a direction of non-positive
-    curvature.
+    <= tol (and under force control |sum q - total| <= tol sum g), plus SAFE x the bound of an updated
+    gradient's error; SolverError after ``max_iterations`` iterations or for non-positive curvature.
 
     The gradient is updated from H d between fresh evaluations; a slip cell's turn along its edge's arc
     moves it off the straight step by e (second order in the turn), which leaves the updated gradient off
-    by at most |H|_inf max|e|: it is computed afresh once those errors add up to a tenth of the residual,
-    after any projection of a stick cell, and at least every ``refresh`` iterations. The reductions over
+    by at most |H|_inf max|e|: it is computed afresh once those errors add up to the residual, after any
+    projection of a stick cell, and at least every ``refresh`` iterations. The reductions over
     the ranks are batched: about five a iteration besides the convolution's."""
 
     def __init__(self, apply, precondition, g: np.ndarray, comm: MPI.Comm, tol: float, max_iterations: int,
@@ -254,7 +256,7 @@ class DiskPCG:
 
     def gradient(self, q: np.ndarray, b: np.ndarray) -> np.ndarray:
         self.applications += 1
-        return self.apply(q) + b
+        return self.apply(q if self.source is None else q - self.source) + b
 
     def state(self, q: np.ndarray, r: np.ndarray, previous_slip) -> _State:
         """The sets at q (slip cells whose slip points along their traction released), the multiplier,
@@ -281,34 +283,34 @@ class DiskPCG:
         return _State(slip, stick, t, tau, multiplier, s, _restrict(s, stick, slip, tau), residual, force_error,
                       changed > 0)
 
-    def solve(self, q: np.ndarray, b: np.ndarray) -> DiskResult:
-        g, total = self.g, self.total
+    def solve(self, q: np.ndarray, b: np.ndarray, source: np.ndarray | None = None) -> DiskResult:
+        """The minimiser from the first guess q, the linear term b - H ``source`` (None: 0)."""
+        g, total, self.source = self.g, self.total, source
         q = project(np.where(self.inside, q, 0.0), g)
         if total is not None:
             q = self.restore(q)
         r = self.gradient(q, b)
-        stale, drift, fresh = 0, 0.0, True  # fresh: r = H q + b up to the round-off of exact updates
+        stale, drift = 0, 0.0  # drift: a bound of |r - (H q + b)|_inf (round-off of exact updates aside)
         d = z_prev = pgz_prev = previous_slip = None
         for iteration in range(self.max_iterations + 1):
             st = self.state(q, r, previous_slip)
             if self.monitor is not None:
-                self.monitor(iteration, st, 0.5 * float(self.sums(np.vdot(q, r + b))[0]))
+                y = q if source is None else q - source  # the objective less 1/2 f.H f - b.f: a constant
+                self.monitor(iteration, st, 0.5 * float(self.sums(np.vdot(y, r + b))[0]))
             if st.residual <= self.tol and st.force_error <= self.tol * max(self.capacity, 1e-300):
-                if fresh:
+                if st.residual + SAFE * drift <= self.tol:
                     return DiskResult(q, st.s, st.multiplier, iteration, self.applications, st.residual,
                                       st.force_error)
-                r, stale, drift, fresh = self.gradient(q, b), 0, 0.0, True
+                r, stale, drift = self.gradient(q, b), 0, 0.0
                 continue
             if iteration == self.max_iterations:
                 break
             previous_slip = st.slip
             d, z_prev, pgz_prev, kappa = self.direction(st, d, z_prev, pgz_prev)
-            q, r, moved, clipped, error = self.step(q, r, st, d, kappa)
+            q, r, clipped, error = self.step(q, r, st, d, kappa)
             stale, drift = stale + 1, drift + self.norm * error
-            if clipped or stale >= self.refresh or drift > 0.1 * st.residual:
-                r, stale, drift, fresh = self.gradient(q, b), 0, 0.0, True
-            else:
-                fresh = fresh and not moved
+            if clipped or stale >= self.refresh or drift > st.residual:
+                r, stale, drift = self.gradient(q, b), 0, 0.0
         raise SolverError(f"the tangential QP did not converge within {self.max_iterations} iterations "
                           f"(natural residual {st.residual:.3g}, tolerance {self.tol:g}); try a larger "
                           "[solver] tol")
@@ -363,7 +365,7 @@ class DiskPCG:
         if self.total is not None:
             q = self.restore(q)
         clipped, error = self.largest(clipped, float(np.abs(q - straight).max(initial=0.0)))
-        return q, r + alpha * hd, error > 0, clipped > 0, error
+        return q, r + alpha * hd, clipped > 0, error
 
     def restore(self, q: np.ndarray, rounds: int = 20) -> np.ndarray:
         """q moved on its free directions (and projected) until sum q = total, as far as the disks allow."""
@@ -411,14 +413,12 @@ def _solve_small(matrix: np.ndarray, rhs: np.ndarray) -> np.ndarray:
 class TangentialSolution:
     """A solved tangential problem. Fields hold this rank's grid rows, shape (m, local rows, ny), m the
     traction components (2; line contact 1): ``traction`` q (Pa, on the body), ``slip`` S (m, over the
-    step: W + u - u'), ``displacement`` u = c K q (m, relative: body minus half-space; on the window, 0
-    outside it), ``stick`` (bool, local rows x ny: p > 0 and |q| < g - tol max g). Global values:
-    ``shift`` the uniform part of W found under force control (m; 0 without), ``force`` sum q dA (N;
-    N/m in line contact), the work and residual of the solve, the window [i0, i1) x [j0, j1)."""
+    step: W + u - u', u = c K q: ``TangentialSolver.displacement``), ``stick`` (bool, local rows x ny: p > 0
+    and |q| < g - tol max g). Global values: ``shift`` the uniform part of W found under force control (m;
+    0 without), ``force`` sum q dA (N), the work and residual of the solve, the window [i0, i1) x [j0, j1)."""
 
     traction: np.ndarray
     slip: np.ndarray
-    displacement: np.ndarray
     stick: np.ndarray
     shift: np.ndarray
     force: np.ndarray
@@ -555,46 +555,46 @@ class TangentialSolver:
 
     # -- the QP ------------------------------------------------------------------------------------------
     def solve(self, bound: np.ndarray, rigid: np.ndarray | None = None, previous: np.ndarray | None = None,
-              warm: np.ndarray | None = None, force: np.ndarray | None = None,
-              tol: float | None = None, compliance: float | None = None) -> TangentialSolution:
+              warm: np.ndarray | None = None, force: np.ndarray | None = None, tol: float | None = None,
+              compliance: float | None = None, earlier: np.ndarray | None = None) -> TangentialSolution:
         """The tractions on the traction bound ``bound`` g = mu p (Pa, this rank's grid rows), the rigid
-        slip of the step ``rigid`` W (m; (m, rows, ny) or None: 0) and the relative displacement ``previous``
-        u' the material points at each cell had a step earlier (m, (m, rows, ny), or None: 0). ``force``
-        (N, an m-vector): hold sum q dA = force, a uniform slip added to W found (``shift``). ``warm``: a
-        first guess (Pa, (m, rows, ny)). ``compliance``: the step's c (1/Pa; default the solver's), u = c K q
-        the step's own displacement (a viscoelastic history's part is in ``previous``). The QP is posed on
-        the bounding box of g > 0. SolverError when the force exceeds what the bound allows, or when the
-        solve fails."""
+        slip of the step ``rigid`` W (m; (m, rows, ny) or None: 0) and the relative displacement u' the
+        material points at each cell had a step earlier: ``previous`` (m, (m, rows, ny), or None: 0) plus
+        c K X of ``earlier`` X (Pa, the last tractions; in the QP's gradient H (q - X c/c_s): no convolution
+        of its own). ``force`` (N, an m-vector): hold sum q dA = force, a uniform slip added to W found
+        (``shift``). ``warm``: a first guess (Pa). ``compliance``: the step's c_s (1/Pa; default the
+        solver's c), u = c_s K q. The QP is posed on the bounding box of g > 0 and X != 0. SolverError when
+        the force exceeds what the bound allows, or when the solve fails."""
         g_cells = bound > 0
-        box = self.box(g_cells)
         tol = self.tol if tol is None else tol
         zero = self.zeros()
-        if box is None:
+        if self.box(g_cells) is None:
             if force is not None and np.any(np.asarray(force) != 0):
                 raise SolverError("a tangential force with no contact to carry it")
-            return TangentialSolution(zero, zero.copy(), zero.copy(), np.zeros(self.local_shape, bool),
-                                      np.zeros(self.m), np.zeros(self.m), 0, 0, 0.0, (0, 0, 0, 0))
-        area = self.grid.cell_area
+            return TangentialSolution(zero, zero.copy(), np.zeros(self.local_shape, bool), np.zeros(self.m),
+                                      np.zeros(self.m), 0, 0, 0.0, (0, 0, 0, 0))
+        box = self.box(g_cells if earlier is None else g_cells | np.any(earlier != 0, axis=0))
         problem = self.scaled(bound, box, compliance)
         g, q_ref, s_ref, m, ny = problem.g, problem.q_ref, problem.s_ref, self.m, problem.ny
         b = zero.copy() if rigid is None else np.array(rigid, dtype=float)
         if previous is not None:
             b -= previous
-        b = self.to_box(b, box)
+        b = self.to_box(b, box).reshape(m, -1) / s_ref
+        ratio = self.compliance / (self.compliance if compliance is None else compliance) / q_ref
+        source = None if earlier is None else self.to_box(earlier, box).reshape(m, -1) * ratio
         total = None if force is None else self.scaled_force(force, problem)
         start = np.zeros((m, g.size)) if warm is None else self.to_box(warm, box).reshape(m, -1) / q_ref
         result = DiskPCG(lambda d: problem.apply(d.reshape(m, -1, ny)).reshape(m, -1),
                          lambda r: problem.precondition(r.reshape(m, -1, ny)).reshape(m, -1), g.ravel() / q_ref,
                          self.comm, tol, self.max_iterations, total, problem.norm,
-                         monitor=self.monitor).solve(start, b.reshape(m, -1) / s_ref)
+                         monitor=self.monitor).solve(start, b, source)
         self.work[0] += result.iterations
         self.work[1] += result.applications
         q = result.q.reshape(self.m, -1, ny) * q_ref
         slip = result.slip.reshape(self.m, -1, ny) * s_ref
-        u = slip - b - (result.multiplier * s_ref)[:, None, None]  # c K q
         stick = (g > 0) & (np.sqrt((q * q).sum(axis=0)) < g - tol * q_ref)
         sums = np.array(q.sum(axis=(1, 2)), dtype=float)
         self.comm.Allreduce(MPI.IN_PLACE, sums, op=MPI.SUM)
-        return TangentialSolution(self.from_box(q, box), self.from_box(slip, box), self.from_box(u, box),
-                                  self.from_box(stick, box, False), result.multiplier * s_ref, sums * area,
-                                  result.iterations, result.applications, result.residual, box)
+        return TangentialSolution(self.from_box(q, box), self.from_box(slip, box), self.from_box(stick, box, False),
+                                  result.multiplier * s_ref, sums * self.grid.cell_area, result.iterations,
+                                  result.applications, result.residual, box)

@@ -14,6 +14,11 @@ displacement is then the answer of step n + 1. The guess is built from the last 
 
 Negative values are clipped to zero. Only the first guess depends on this; the QP's tolerance decides
 the answer. 3k solutions are kept (k from the last step's move; 3 when no k fits).
+
+:class:`TractionWarmStart` does the same for the tangential tractions of friction (fields (m, rows, ny),
+signed: nothing clipped, the QP projects onto its friction disks), extrapolating linearly from the
+solutions k and 2k steps back (q0 + (q0 - q1): the tractions' transient does not fade by one ratio
+across the field; measured in docs/friction.md).
 """
 
 from __future__ import annotations
@@ -38,6 +43,8 @@ class WarmStart:
     step starts from p = 0; for benchmarks).
     """
 
+    needed = DEPTH  # solutions per lag the extrapolation takes
+
     def __init__(self, scene_grid, rows, comm, depth: int = DEPTH):
         self.grid, self.rows, self.comm, self.depth = scene_grid, rows, comm, depth
         self.recent: list[tuple[np.ndarray, float, float]] = []  # oldest first
@@ -54,19 +61,23 @@ class WarmStart:
             return None
         cells = [self._cells(sx - x, sy - y) for _, x, y in self.recent]
         lag = self._lag(self.recent)
-        if lag and len(self.recent) >= DEPTH * lag:
-            chosen = [len(self.recent) - j * lag for j in range(1, DEPTH + 1)]  # k, 2k, 3k steps back
+        if lag and len(self.recent) >= self.needed * lag:
+            chosen = [len(self.recent) - j * lag for j in range(1, self.needed + 1)]  # k, 2k, 3k steps back
             if all(cells[i] is not None for i in chosen):
-                q0, q1, q2 = (self._carry(self.recent[i][0], cells[i]) for i in chosen)
-                d1, d2 = q0 - q1, q1 - q2
-                dots = self.comm.allreduce(np.array([float((d1 * d2).sum()), float((d2 * d2).sum())]))
-                rho = min(max(dots[0] / dots[1], 0.0), 1.0) if dots[1] > 0 else 0.0
-                return np.maximum(q0 + rho * d1, 0.0)
+                return self.extrapolate([self._carry(self.recent[i][0], cells[i]) for i in chosen])
         for (p, _, _), c in zip(self.recent[::-1], cells[::-1]):
             if c is not None:
                 return self._carry(p, c)
         p, x, y = self.recent[-1]
         return self._carry(p, (int(round((sx - x) / self.grid.dx)), int(round((sy - y) / self.grid.dy))))
+
+    def extrapolate(self, carried: list[np.ndarray]) -> np.ndarray:
+        """The guess from the solutions k, 2k, 3k steps back carried along (module docstring)."""
+        q0, q1, q2 = carried
+        d1, d2 = q0 - q1, q1 - q2
+        dots = self.comm.allreduce(np.array([float((d1 * d2).sum()), float((d2 * d2).sum())]))
+        rho = min(max(dots[0] / dots[1], 0.0), 1.0) if dots[1] > 0 else 0.0
+        return np.maximum(q0 + rho * d1, 0.0)
 
     def _lag(self, kept) -> int | None:
         """k: the last step moved the body by 1/k of a whole number of cells (k <= MAX_LAG), else None."""
@@ -82,12 +93,33 @@ class WarmStart:
         return (di, dj) if abs(fx - di) <= _WHOLE and abs(fy - dj) <= _WHOLE else None
 
     def _carry(self, pressure: np.ndarray, cells: tuple[int, int]) -> np.ndarray:
-        """``pressure`` moved by ``cells``, around along a periodic grid's repeating axes."""
+        """``pressure`` moved by ``cells``, around along a periodic grid's repeating axes (a field of
+        components (m, rows, ny): each)."""
         if cells == (0, 0):
             return pressure
+        if pressure.ndim == 3:
+            return np.stack([self._carry(component, cells) for component in pressure])
         roll, cells = self.grid.topology.split_move(cells)
         if roll != (0, 0):  # wrap along the repeating axes first, then shift along the others
             pressure = roll_field(pressure, *roll, self.rows, self.comm)
         if cells == (0, 0):
             return pressure
         return shift_field(pressure, cells[0], cells[1], self.rows, self.comm)
+
+
+class TractionWarmStart(WarmStart):
+    """The last tangential tractions of a run ((m, rows, ny), Pa, with the body's position) and the first
+    guess of the next step's (module docstring): ``depth`` 2 extrapolates, 1 only carries."""
+
+    needed = 2
+
+    def __init__(self, scene_grid, rows, comm, depth: int = 2):
+        super().__init__(scene_grid, rows, comm, depth)
+
+    def extrapolate(self, carried: list[np.ndarray]) -> np.ndarray:
+        q0, q1 = carried
+        return 2 * q0 - q1
+
+    def forget(self) -> None:
+        """Keep only the newest solution (the motion changes: a shift's trend is no rolling step's)."""
+        self.recent = self.recent[-1:]

@@ -55,6 +55,7 @@ from petroll.model.clock import TimeMode
 from petroll.model.friction import creep_coefficient
 from petroll.model.schema import DEFAULT_STEADY, SCHEMA
 from petroll.model.scene import Scene
+from petroll.studies.target import asks_target, targeted
 
 """[time] steady given to every point of a sweep whose scene has a [time] table without one."""
 
@@ -74,7 +75,7 @@ EXCLUSIVE = {
 COLUMNS: dict[str, tuple[str, str]] = {
     "value": ("(of KEY)", "the varied value (a vector key: its magnitude)"),
     "force": ("N", "normal force at the last step"),
-    "mu_r": ("-", "rolling-resistance coefficient at the last step"),
+    "mu_r": ("-", "rolling-resistance coefficient at the last step (steady sliding: friction, dissipation's)"),
     "delta": ("m", "penetration at the last step"),
     "area": ("m^2", "contact area at the last step"),
     "area_fraction": ("-", "A/A0: contact area / the cell's area (a grid periodic along X and Y; else NaN)"),
@@ -365,6 +366,8 @@ def sweep(scene: Scene, vary: Vary | str, out: str | pathlib.Path | None = None,
         if signum:
             raise SweepInterrupted(signum, index, total, label)
         directory = out / "points" / name
+        if asks_target(point):  # its grid chosen here: the point's text as run, to resume it by
+            point = targeted(point, comm)
         results = _finished(directory, point, comm, estimate_error)
         if results is None:
             try:
