@@ -494,7 +494,8 @@ class Preflight:
                             "its contact region stays inside the grid"
                             + (f", but as it grows it may not: {self.creeping[1]}" if self.creeping else "")),
                 f"memory: about {self.memory_mib:.0f} MiB per rank on {self.ranks} rank{'s' * (self.ranks != 1)}"
-                f" ({g.nx * g.ny} cells)"]
+                f" ({g.nx * g.ny} cells at {BYTES_PER_CELL} bytes per cell, a rolling run's, plus {FIXED_MIB} MiB "
+                "per rank)"]
 
 
 def check(scene, ranks: int = 1) -> Preflight:

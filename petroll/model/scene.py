@@ -40,6 +40,7 @@ class Solver:
     tol: float
     integrator: str  # "relaxation", "exponential" or "paper"
     history_cutoff: float = 1e-9  # relative; see petroll/wake.py
+    pressure_tol: float | None = None  # bound on each QP's relative L2 pressure error (None: tol alone)
 
 
 
@@ -197,7 +198,7 @@ def parse_scene(raw: dict, source: str = "<python>", base_dir: str | pathlib.Pat
                   material=material, body=body, position=values["body"]["position"],
                   velocity=m["velocity"], penetration=m["penetration"], load=m["load"], time=time,
                   solver=Solver(values["solver"]["tao_type"], values["solver"]["tol"], integrator,
-                                values["solver"]["history_cutoff"]),
+                                values["solver"]["history_cutoff"], values["solver"]["pressure_tol"]),
                   output_dir=output_dir, every=values["output"]["every"], base_dir=base_dir,
                   checkpoint_every=values["output"]["checkpoint_every"], keep=values["output"]["keep"],
                   fields=values["output"]["fields"] + (saved_fields(line) if friction else ()), friction=friction,

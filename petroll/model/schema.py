@@ -512,7 +512,12 @@ SCHEMA: dict[str, dict[str, Key]] = {
                           '(docs/stability.md)',
                           _choice("relaxation", "exponential", "paper"), default=None),
         "tol": Key("number", "relative tolerance on the contact conditions: max |min(p, gap)| in units "
-                   "of the largest interference (gap) and its pressure (p)", _tolerance, default=1e-8),
+                   "of the largest interference (gap) and its pressure (p); the pressure's relative L2 "
+                   "error is 0.4-4 times it (docs/accuracy.md)", _tolerance, default=1e-8),
+        "pressure_tol": Key("number", "bound on the relative L2 error of each contact QP's pressure (rolling "
+                            "and steady runs): the QP is solved until its error, estimated with the "
+                            "preconditioner, is at most this; tol is then not used for the QPs; absent: "
+                            "tol alone (docs/accuracy.md)", _tolerance, default=None),
         "history_cutoff": Key("number", "history fields below this fraction of their largest value are "
                               "left out of the preceding displacement (the fading wake behind a rolling "
                               "body; with [friction] on a viscoelastic body the tangential history's too); "

@@ -121,19 +121,16 @@ class WindowQP:
         grad.axpy(1.0, self.rhs)
         return 0.5 * (p.dot(grad) + p.dot(self.rhs))
 
-    def solve(self, rhs: np.ndarray, start: np.ndarray | None, total: float | None, tol: float):
-        """Solve from ``start`` (p_hat, this rank's window entries; None: 0) to the tolerance ``tol`` (TAO's
-        gatol). ``total`` (pk only): hold sum p_hat = total (load control). Returns p_hat, the gap H p_hat + rhs - lambda (local arrays; lambda
-        the load constraint's multiplier, 0 without it), lambda, TAO's iterations and the operator
-        applications."""
+    def solve(self, total: float | None, tol: float):
+        """Solve to the tolerance ``tol`` (TAO's gatol) from the start the caller wrote in ``x`` (p_hat >= 0)
+        on the right-hand side it wrote in ``rhs`` (this rank's window entries, written in place: no copies;
+        after a solve ``x`` holds its answer, a start for a tighter solve).
+        ``total`` (pk only): hold sum p_hat = total (load control). Returns p_hat, the gap H p_hat + rhs -
+        lambda (local arrays; lambda the load constraint's multiplier, 0 without it), lambda, TAO's
+        iterations and the operator applications."""
         self.tao.setTolerances(gatol=tol, grtol=0.0, gttol=0.0)  # the solver's tol may change between solves
         context = self.hessian.getPythonContext()
         before = context.applications
-        self.rhs.setArray(rhs)
-        if start is None:
-            self.x.set(0.0)
-        else:
-            self.x.setArray(np.maximum(start, 0.0))
         if self.pk:
             self.tao.getPythonContext().total = total
         self.tao.solve(self.x)
@@ -152,6 +149,26 @@ class WindowQP:
             self.hessian.mult(self.x, self.gap)
             self.gap.axpy(1.0, self.rhs)
         return self.x.array_r.copy(), self.gap.array_r.copy(), multiplier, its, context.applications - before
+
+    def error_estimate(self, x: np.ndarray, gap: np.ndarray, inverse: Convolution) -> float:
+        """The relative L2 error of a solution ``x`` (p_hat, this rank's window entries) whose scaled gap is
+        ``gap``, estimated from its natural residual min(x, gap): on the cells where that is the gap (those
+        that carry pressure and should), the error x - x* solves H_FF e = gap, estimated with the
+        preconditioner, e ~ R (scale C)^-1 R^T gap (``inverse``: the window's inverse circulant C^-1; R the
+        restriction to those cells); elsewhere the error is the residual itself (pressure on a cell that
+        should leave the contact, or a cell that should enter it). Returns |e|_2 / |x|_2 (0 where x = 0).
+        Measured against references solved to 1e-12 (rough periodic and wavy sphere, 64^2 and 128^2, tol
+        1e-4 ... 1e-8): 1.2-1.7 times the true error (tests/test_pressure_tol.py)."""
+        from mpi4py import MPI
+
+        context = self.hessian.getPythonContext()
+        ny = context.conv.ny
+        free = (x > 0) & (gap < x)
+        inverted = inverse(np.where(free, gap, 0.0).reshape(-1, ny)).ravel() / context.scale
+        error = np.where(free, inverted, np.minimum(x, gap))
+        sums = np.array([np.dot(error, error), np.dot(x, x)])
+        self.hessian.getComm().tompi4py().Allreduce(MPI.IN_PLACE, sums, op=MPI.SUM)
+        return float(np.sqrt(sums[0] / sums[1])) if sums[1] > 0 else 0.0
 
     def destroy(self) -> None:
         for obj in (self.tao, self.hessian, self.x, self.rhs, self.grad, self.gap, *self._vecs):

@@ -40,7 +40,7 @@ class Simulation:
     def __init__(self, scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD):
         self.scene, self.comm = scene, comm
         self.solver = ContactSolver(scene.grid, comm, tao_type=scene.solver.tao_type, tol=scene.solver.tol,
-                                    layer=scene.layer)
+                                    layer=scene.layer, pressure_tol=scene.solver.pressure_tol)
         self.history = make_history(scene.material, scene.solver.integrator, self.solver.local_shape)
         g = scene.grid
         self.x = g.x[self.solver.r0 : self.solver.r1, None]
