@@ -319,7 +319,33 @@ def test_petroll_bench_friction_quick_writes_its_table(tmp_path, cli_main):
     assert code == 0, err
     rows = list(csv.DictReader(open(tmp_path / "friction.csv", encoding="utf-8")))
     assert [r["case"].split(",")[0] for r in rows][:3] == ["normal QP", "normal QP", "shift Q = mu P/2"]
-    assert len(rows) == 11 and rows[-1]["case"].startswith("creep curve, 3 points")
-    for row in rows[2:]:
+    assert len(rows) == 13 and rows[-1]["case"].startswith("creep curve, 3 points")
+    plain, both = rows[-3], rows[-2]  # the steady scenes: frictionless, then under mu P/2
+    assert plain["case"].startswith("steady scene, frictionless") and both["case"].startswith("steady scene, force")
+    ratio = float(both["note"].split()[1])
+    assert ratio == pytest.approx(float(both["seconds"]) / float(plain["seconds"]), rel=1e-2)
+    # the friction run: the frictionless one's normal QPs (1 FFT pair each) and its tangential ones (2 each)
+    tangential = float(both["applications"]) - float(plain["applications"])
+    assert tangential > 0 and float(both["fft_pairs"]) == pytest.approx(
+        float(plain["fft_pairs"]) + 2 * tangential, rel=1e-12)
+    for row in rows[2:-3] + rows[-1:]:
         assert float(row["fft_pairs"]) == pytest.approx(2 * float(row["applications"]), rel=1e-12)
         assert float(row["applications"]) > 0
+
+
+def test_the_steady_scenes_of_bench_friction_solve_one_normal_problem(comm):
+    """The frictionless steady scene of `petroll bench friction` and the same under the tangential force
+    mu P/2 (two SLS bodies of one material: no normal-tangential coupling) at 4 cells per relaxed radius:
+    the same steady pressure to 1e-10, the tangential force the one held (-mu P/2, to the QP's tolerance),
+    both times positive and finite."""
+    from petroll.bench.friction import steady_scenes
+
+    (plain, plain_record, plain_s), (both, both_record, both_s) = steady_scenes(4, comm)
+    largest = comm.allreduce(float(plain.pressure.max(initial=0.0)), op=MPI.MAX)
+    difference = comm.allreduce(float(np.abs(both.pressure - plain.pressure).max(initial=0.0)), op=MPI.MAX)
+    assert largest > 0 and difference <= 1e-10 * largest
+    assert both_record.force == pytest.approx(plain_record.force, rel=1e-10)
+    held = both.friction.records[-1]
+    assert held.traction_x == pytest.approx(-0.5 * MU * both_record.force, rel=1e-6)
+    assert plain.friction is None
+    assert 0 < plain_s < math.inf and 0 < both_s < math.inf

@@ -14,7 +14,12 @@ half-width, a margin of 4 cells), nu = 0.3, two bodies of one material (complian
 - steady: the steady state at that force solved directly (cold; and on bodies of an SLS at V tau/a = 1,
   the wake 2 radii behind), and a 30-point creep-force curve (creepage
   up to 3 times the linear theory's saturation, each point started from the last) at 16 cells per radius
-  (32 x 32 cells in the contact).
+  (32 x 32 cells in the contact);
+- steady scenes: two SLS spheres of one material at V tau/a = 1 with ``[time] mode = "steady"``, 32 cells
+  per relaxed radius (64 x 64 cells in the relaxed contact), solved as ``petroll run`` solves them
+  (Simulation.solve_steady): frictionless, and under the tangential force mu P/2 (the normal steady
+  solve, then the tangential one on its pressure): the reference and the subject of the "under 3 x the
+  frictionless steady solve" target, their ratio in the second row's note.
 
 Applications count each problem's own operator, the preconditioner's transforms left out in both: the
 normal QP's K p (one zero-padded FFT pair on its window), the tangential one's u = c K q (two components:
@@ -102,12 +107,13 @@ def normal_reference(n: int, comm: MPI.Comm) -> list[tuple[int, float]]:
 
 
 def bench_friction(out: pathlib.Path | None = None, quick: bool = False, comm: MPI.Comm = MPI.COMM_WORLD,
-                   n: int = 16) -> list[dict]:
+                   n: int = 16, scene_n: int = 32) -> list[dict]:
     """The table of the module docstring (rows: case, applications, fft pairs, seconds, iterations, note)
-    at ``n`` cells per radius (``quick``: 4, a 3-point curve: it runs and
-    measures nothing). Rank 0 prints it and writes DIR/friction.csv when ``out`` is given."""
+    at ``n`` cells per radius, the steady scenes' at ``scene_n`` per relaxed radius (``quick``: 4 both, a
+    3-point curve: it runs and measures nothing). Rank 0 prints it and writes DIR/friction.csv when ``out``
+    is given."""
     if quick:
-        n = 4
+        n = scene_n = 4
     rows = []
     (apps, seconds), (moved, moved_seconds) = normal_reference(n, comm)
     rows.append(dict(case="normal QP, load control (reference)", applications=apps, fft_pairs=apps,
@@ -137,6 +143,7 @@ def bench_friction(out: pathlib.Path | None = None, quick: bool = False, comm: M
                      fft_pairs=2 * result.applications, seconds=seconds, iterations=result.iterations,
                      note=f"creepage {result.creepage[0]:.6g}"))
     rows.append(steady_viscoelastic(n, comm, force))
+    rows += steady_scene_rows(scene_n, comm)
     rows.append(creep_curve(n, comm, 3 if quick else 30))
     if out is not None and comm.rank == 0:
         out.mkdir(parents=True, exist_ok=True)
@@ -160,6 +167,63 @@ def steady_viscoelastic(n: int, comm: MPI.Comm, force: np.ndarray) -> dict:
     return dict(case="steady, viscoelastic (SLS, V tau/a = 1), force control, cold",
                 applications=result.applications, fft_pairs=2 * result.applications, seconds=seconds,
                 iterations=result.iterations, note=f"creepage {result.creepage[0]:.6g}")
+
+
+SLS_SCENE = {"model": "sls", "E0": 10e6, "Einf": 2e6, "nu": 0.3, "tau_creep": 0.05}
+"""The material of both bodies of :func:`steady_scenes` (E0/Einf = 5)."""
+
+
+def steady_scene(n: int, friction: bool) -> dict:
+    """Two SLS bodies of one material (:data:`SLS_SCENE`, a sphere R = 10 mm under 1 N) rolling along +X
+    at V tau/a = 1, ``[time] mode = "steady"``, ``n`` cells per relaxed Hertz radius a (2n x 2n cells in the
+    contact at most), the grid 5 a behind the body (the wake), 1.5 a ahead and to the sides; ``friction``:
+    mu = 0.3 and the tangential force mu P/2 (the scene's dict, for petroll.model.scene.parse_scene)."""
+    nu, radius, load = SLS_SCENE["nu"], 0.01, 1.0
+    a = (3 * load * radius * 2 * (1 - nu**2) / SLS_SCENE["Einf"] / 4) ** (1 / 3)
+    h = a / n
+    behind, ahead, side = 5 * n, round(1.5 * n), round(1.5 * n)
+    raw = {"grid": {"nx": behind + ahead, "ny": 2 * side, "x": [-behind * h, ahead * h], "y": [-side * h, side * h]},
+           "material": dict(SLS_SCENE),
+           "body": {"shape": "sphere", "radius": radius, "material": "same", "position": [0.0, 0.0]},
+           "motion": {"load": load, "velocity": [a / SLS_SCENE["tau_creep"], 0.0]},
+           "time": {"mode": "steady"}, "solver": {"tol": 1e-8}}
+    if friction:
+        raw["friction"] = {"coefficient": MU}
+        raw["motion"]["tangential_force"] = [-0.5 * MU * load, 0.0]
+    return raw
+
+
+def steady_scenes(n: int, comm: MPI.Comm):
+    """The steady state of :func:`steady_scene` without and with friction, each a new Simulation solved
+    directly (Simulation.solve_steady at the scene's tol, as ``petroll run`` does; the simulations' set-up,
+    their kernels, left out of the time; the same first guess): ((simulation, record, seconds) without,
+    the same with friction)."""
+    from petroll.model.scene import parse_scene
+    from petroll.solver.simulation import Simulation
+
+    out = []
+    for friction in (False, True):
+        sim = Simulation(parse_scene(steady_scene(n, friction), source="petroll bench friction"), comm)
+        comm.Barrier()
+        record, seconds = _timed(lambda: sim.solve_steady(tol=sim.scene.solver.tol))
+        out.append((sim, record, comm.allreduce(seconds, op=MPI.MAX)))
+    return out
+
+
+def steady_scene_rows(n: int, comm: MPI.Comm) -> list[dict]:
+    """The rows of :func:`steady_scenes`: the frictionless steady solve (the normal QPs' applications, one
+    FFT pair each), the same with friction (its tangential QPs' applications besides, two FFT pairs each;
+    note: the time's ratio to the frictionless one, the target under 3)."""
+    (_, plain, plain_s), (sim, both, both_s) = steady_scenes(n, comm)
+    tangential = sim.friction.records[-1]
+    where = f"two SLS spheres, V tau/a = 1, {n} cells per relaxed radius"
+    return [dict(case=f"steady scene, frictionless ({where})", applications=plain.applications,
+                 fft_pairs=plain.applications, seconds=plain_s, iterations="", note="Simulation.solve_steady"),
+            dict(case=f"steady scene, force mu P/2 ({where})",
+                 applications=both.applications + tangential.friction_applications,
+                 fft_pairs=both.applications + 2 * tangential.friction_applications, seconds=both_s,
+                 iterations=tangential.friction_iterations,
+                 note=f"time {both_s / plain_s:.3g} x frictionless; creepage {tangential.creepage_x:.6g}")]
 
 
 def _transient(stepping: Stepping, bound, force, n: int, lengths, per_cell: int = 1) -> list[dict]:
