@@ -766,23 +766,6 @@ def test_time_constants_at_the_ends_of_the_range_run_without_a_warning_to_their_
 
 
 # -- messages ---------------------------------------------------------------------------------------------
-def test_a_restart_that_would_change_the_saved_fields_is_refused_saying_which_output_keys_may(comm, shared_dir):
-    from petroll.errors import SceneError
-
-    raw = raw_scene()
-    run(make_scene(raw), comm, shared_dir / "run")
-    new = {**raw, "output": {**raw["output"], "fields": THREE}}
-    if comm.rank == 0:
-        write_toml(shared_dir / "new.toml", new)
-    comm.Barrier()
-    check = read_checkpoint(shared_dir / "run" / "checkpoints" / "step-00000004.h5", comm)
-    with pytest.raises(SceneError) as info:
-        restart_scene(check, shared_dir / "new.toml")
-    assert info.value.key == "[output] fields"
-    assert str(info.value).endswith("a restart may change only [time] end, distance, steady, max_steps and "
-                                    "[output] dir, every, checkpoint_every, keep")
-
-
 def test_a_results_xdmf_that_cannot_be_written_is_named(comm, shared_dir):
     out = shared_dir / "run"
     if comm.rank == 0:
