@@ -270,14 +270,13 @@ def test_a_surface_sampled_coarser_keeps_its_modes():
     assert np.abs(truncated(surface(64), 16) - surface(16)).max() < 1e-12
 
 
-def test_the_resolution_benches_measure_against_their_reference(tmp_path):
-    """bench cutoff and bench sized at tiny sizes: the reference row is the reference, the coarser one the
-    same surface (penetration within 3 %), the sized grid within a few per cent of the fine one."""
-    from petroll.bench.sizing import cutoff, sized
-
-    rows = cutoff(tmp_path, cells=(2,), reference=4, side=0.5e-3)
-    assert [r["cells_per_cutoff"] for r in rows] == [4, 2] and rows[0]["mu_change"] == "+0.00%"
+@pytest.mark.slow
+def test_the_resolution_benches_measure_against_their_reference(tmp_path_factory):
+    """``petroll bench cutoff --quick`` and ``bench sized --quick`` (docs/benchmarks.md): the reference row is
+    the reference, the coarser one the same surface (penetration within 3 %), the sized grid within a few
+    per cent of the fine one."""
+    rows = _bench_docs(tmp_path_factory, "cutoff.csv")
+    assert [r["cells_per_cutoff"] for r in rows] == ["4", "2"] and rows[0]["mu_change"] == "+0.00%"
     assert abs(float(rows[1]["penetration_change"].rstrip("%"))) < 3
-    (row,) = sized(tmp_path, speeds="0.01", fine=80)
+    row = next(r for r in _bench_docs(tmp_path_factory, "sized.csv") if r["speed"] == "0.01")
     assert all(abs(float(row[f"{q}_change"].rstrip("%"))) < 3 for q in ("mu_r", "delta", "area", "p_max")), row
-    assert (tmp_path / "cutoff.csv").is_file() and (tmp_path / "sized.csv").is_file()
