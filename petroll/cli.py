@@ -12,8 +12,8 @@
                             run directory or its results.h5, a sweep directory, or a stress.h5
     petroll info DIR        what a run directory holds: scene, steps, last values, fields, checkpoints
     petroll export DIR --csv [--field NAME [--step N]] [--out FILE]   the series (or one saved field) as CSV
-    petroll sweep SCENE.toml --vary KEY=SPEC [--out DIR] [--estimate-error]   one scene over values of a
-                            key (docs/sweep.md)
+    petroll sweep SCENE.toml --vary KEY=SPEC [--vary KEY2=SPEC2] [--out DIR] [--estimate-error]   one
+                            scene over values of a key; with KEY2 a curve per value of it (docs/sweep.md)
     petroll stress DIR [--step N] [--depth z1,z2,... | --depths auto] [--nu NU]   stresses below a saved
                             pressure field: DIR/stress.h5 and DIR/stress.png
     petroll bench tao|warm|skips|peers|precision|growth|mpi|memory|append|layer|steady|steady-growth|
@@ -333,7 +333,7 @@ def _main(args: argparse.Namespace, comm) -> int:
         bench(args.which, pathlib.Path(args.out), comm, args.quick, args.ranks, args.sides, args.steady)
         return 0
     if args.verb == "sweep":
-        from petroll.studies.sweep import command
+        from petroll.studies.family import command
 
         return command(args.scene, args.vary, args.out, args.quiet, comm, args.transient, args.estimate_error)
     if args.verb == "stress":

@@ -124,7 +124,8 @@ def _study_verbs(verbs) -> None:
                        "(docs/accuracy.md)")
     sweep.add_argument("--vary", action="append", required=True, metavar="KEY=SPEC",
                        help="KEY=V1,V2,... or KEY=START..STOP:log:N or KEY=START..STOP:lin:N, e.g. "
-                       "motion.velocity=1e-4..1e-1:log:7 (a vector key varies its magnitude)")
+                       "motion.velocity=1e-4..1e-1:log:7 (a vector key varies its magnitude); given twice: "
+                       "a family of curves, one sweep of the first key per value of the second")
     sweep.add_argument("--transient", action="store_true", help="run every point from rest to steady state, "
                        "even where its steady state can be solved directly (the default there)")
 

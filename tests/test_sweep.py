@@ -240,8 +240,13 @@ def test_the_sweep_command_runs_and_refuses_bad_specs_in_one_line(comm, capsys, 
         (["--vary", "motion.velocity=1..2:log:0"], "petroll: error: --vary 'motion.velocity=1..2:log:0': a "
                                                    "range needs N >= 2"),
         (["--vary", "material.E0=1e6,-1"], "petroll: error: "),  # the scene refuses the value
-        (["--vary", "motion.velocity=1,2", "--vary", "material.E0=1,2"], "petroll: error: --vary given 2 "
-                                                                         "times"),
+        (["--vary", "motion.velocity=1,2", "--vary", "material.E0=1,2", "--vary", "motion.load=1,2"],
+         "petroll: error: --vary given 3 times"),
+        (["--vary", "motion.velocity=1,2", "--vary", "motion.velocity=3,4"], "petroll: error: --vary "
+                                                                            "motion.velocity given twice"),
+        (["--vary", "motion.velocity=1,2", "--vary", "material.E0=1e6,-1"], "petroll: error: "),
+        (["--vary", "motion.velocity=1,2", "--vary", "material.E0=1e6,2e6", "--estimate-error"],
+         "petroll: error: --estimate-error: with one --vary only"),
         ([], "petroll: error: the following arguments are required: --vary"),
     ]:
         code, out, err = cli_main(["sweep", scene, "--out", str(shared_dir / "bad"), *argv])
@@ -250,6 +255,31 @@ def test_the_sweep_command_runs_and_refuses_bad_specs_in_one_line(comm, capsys, 
             lines = [line for line in err.splitlines() if line.strip()]
             assert len(lines) == 1 and lines[0].startswith(expected), (argv, lines)
         assert not (shared_dir / "bad" / "points").exists()
+
+
+def test_a_family_is_one_sweep_per_value_of_its_second_key(comm, shared_dir):
+    """petroll.studies.family.family: a curve over the speed at two penetrations, the second the sweep of
+    the scene with that penetration (to round-off), family.csv their rows with the penetration first; the
+    same key twice is refused in one line."""
+    from petroll.studies.family import family
+
+    scene = petroll.parse_scene(RAW_X)
+    found = family(scene, "motion.velocity=0.002,0.01", "motion.penetration=1.5e-5,2e-5", shared_dir / "family",
+                   comm, plot=False)
+    assert found.values == (1.5e-5, 2e-5) and found.computed == 4
+    alone = sweep(scene.replace("motion.penetration", 2e-5), "motion.velocity=0.002,0.01", shared_dir / "alone",
+                  comm, plot=False)
+    for name in ("force", "mu_r", "value"):
+        a, b = found.tables[1].columns[name], alone.columns[name]
+        assert np.abs(a - b).max() <= 1e-12 * np.abs(b).max(), name
+    assert found.tables[1].columns["force"][0] > 1.3 * found.tables[0].columns["force"][0]
+    if comm.rank == 0:
+        rows = found.csv.read_text().splitlines()
+        assert rows[0].startswith("motion.penetration (m),motion.velocity (m/s),force (N)") and len(rows) == 5
+        assert [float(r.split(",")[0]) for r in rows[1:]] == [1.5e-5, 1.5e-5, 2e-5, 2e-5]
+        assert float(rows[3].split(",")[2]) == pytest.approx(found.tables[1].columns["force"][0], rel=1e-9)
+    with pytest.raises(SweepError, match=r"^--vary motion.velocity given twice; a family varies two different"):
+        family(scene, "motion.velocity=1,2", "motion.velocity=3,4", shared_dir / "bad", comm)
 
 
 def test_the_docs_name_every_table_column_and_steady_field():

@@ -20,6 +20,9 @@ material doubles J(t)), so ``memory`` = 1/(1 - nu) and ``compliance`` the relaxe
 runs through the scene's integrator: petroll.solver.friction.ShearMemory). Tabulated creep functions, a
 layer and an elastic body on a viscoelastic half-space are refused in one line.
 
+On a periodic grid friction is steady sliding's (:class:`Sliding`; [time] mode = "steady" only): full
+slip, no tangential problem, the bodies quasi-identical.
+
 Modes, from the motion: a body at rest is a quasi-static shift under ``force`` (applied from zero to its
 value over the clock's steps, or in one step without [time]); a rolling body runs at the ``creepage`` (and
 ``spin``) or at the tangential ``force``, its creepage then found.
@@ -33,6 +36,7 @@ import numpy as np
 
 from petroll.errors import MISSING, SceneError
 from petroll.model import materials, motion
+from petroll.model.clock import TimeMode
 
 FIELDS = ("traction_x", "traction_y", "slip")
 """The fields a run with friction saves beside the pressure (units in petroll.io.results.FIELD_UNITS); line
@@ -74,11 +78,22 @@ class Friction:
         return scale * np.asarray(self.force, dtype=float)
 
 
+@dataclass(frozen=True)
+class Sliding:
+    """A scene's friction in steady sliding ([time] mode = "steady" on a periodic grid, where the body
+    slides at its velocity): full slip, the traction mu p opposing the sliding velocity at every cell in
+    contact (petroll.solver.friction_loop.FullSlip). The bodies are quasi-identical (a rigid body on a
+    half-space of nu = 1/2, or elastic bodies as :func:`_pair` allows), so the traction moves no surface
+    normally and the pressure is the frictionless steady sliding one."""
+
+    coefficient: float
+
+
 def friction_of(values: dict, raw: dict, material, line: bool, periodic: bool, source: str):
-    """(material, Friction or None) of a scene: ``values`` its sections read by the schema, ``raw`` its
-    TOML, ``material`` the half-space's J (petroll.model.materials.Prony), to which a deformable body's
-    compliance is added. SceneError (one line) for friction's keys without [friction] or with what it
-    does not model."""
+    """(material, Friction, Sliding or None) of a scene: ``values`` its sections read by the schema,
+    ``raw`` its TOML, ``material`` the half-space's J (petroll.model.materials.Prony), to which a
+    deformable body's compliance is added. A periodic grid's friction is steady sliding's (:class:`Sliding`).
+    SceneError (one line) for friction's keys without [friction] or with what it does not model."""
     table, motion_values, body = raw.get("friction"), values["motion"], values["body"]["material"]
     if table is None:
         for key in MOTION_KEYS:
@@ -92,6 +107,8 @@ def friction_of(values: dict, raw: dict, material, line: bool, periodic: bool, s
         raise SceneError(source, key, value, 'needs a half-space of an elastic, SLS or Prony material '
                          "([material] model = \"elastic\", \"sls\" or \"prony\", without layer): "
                          "tabulated creep functions and layers are not modelled with friction or a body")
+    if periodic and table is not None:
+        _sliding_checks(values, raw, body, source)
     if body is not None and not elastic and body != "same":
         raise SceneError(source, "[body] material", raw["body"]["material"], "on a viscoelastic half-space: "
                          "\"same\" (a body of its material) or none (a rigid body); an elastic body on it "
@@ -105,10 +122,10 @@ def friction_of(values: dict, raw: dict, material, line: bool, periodic: bool, s
     if values["friction"]["coefficient"] is None:
         raise SceneError(source, "[friction] coefficient", MISSING, "required in [friction]: Coulomb's "
                          "friction coefficient mu (a number > 0)")
-    if periodic:
-        raise SceneError(source, "[friction]", table, "not on a periodic grid (rough contacts): friction "
-                         "needs the contact to lie inside a non-periodic grid")
     written = raw.get("body", {}).get("material", MISSING)
+    if periodic:  # steady sliding: the bodies quasi-identical, so that the traction leaves the pressure alone
+        _pair(m["E"] / (2 * (1 + m["nu"])) if elastic else 1.0, m["nu"], body, written, source)
+        return material, Sliding(values["friction"]["coefficient"])
     if elastic:
         pair, memory = _pair(m["E"] / (2 * (1 + m["nu"])), m["nu"], body, written, source), None
     else:
@@ -118,6 +135,23 @@ def friction_of(values: dict, raw: dict, material, line: bool, periodic: bool, s
     return material, Friction(values["friction"]["coefficient"], *pair[:2], body=pair[2], memory=memory,
                               **_motion(motion_values, raw.get("motion", {}), values["time"], line,
                                        values["friction"]["coefficient"], source))
+
+
+def _sliding_checks(values: dict, raw: dict, body, source: str) -> None:
+    """SceneError (one line) for what steady sliding with friction does not take: another mode than
+    [time] mode = "steady" on a periodic grid, a creepage or tangential force (full slip), a body of the
+    same viscoelastic material (its own material does not stream through the contact)."""
+    if TimeMode(values["time"]["mode"]) is not TimeMode.STEADY:
+        raise SceneError(source, "[friction]", raw["friction"], 'on a periodic grid only in steady sliding '
+                         '([time] mode = "steady": full slip); transient friction needs a non-periodic grid')
+    for key in MOTION_KEYS:
+        if key in raw.get("motion", {}):
+            raise SceneError(source, f"[motion] {key}", raw["motion"][key], "not in steady sliding (a periodic "
+                             "grid): the body slides at its velocity, full slip, the traction mu p")
+    if body == "same" and values["material"]["model"] != "elastic":
+        raise SceneError(source, "[body] material", raw["body"]["material"], "not in steady sliding on a "
+                         "viscoelastic half-space: the sliding body's own material does not stream through "
+                         "the contact (not modelled); give a rigid body ([material] nu = 0.5)")
 
 
 def _pair(G: float, nu: float, body, written, source: str) -> tuple[float, float, str]:
@@ -176,3 +210,25 @@ def _motion(m: dict, table: dict, time: dict, line: bool, coefficient: float, so
         if rest and time["end"] is not None:
             out["ramp"] = time["end"]
     return out
+
+
+def creep_coefficient(scene, force: float, delta: float, traction) -> float:
+    """Kalker's creep coefficient of a steady rolling run of ``scene`` as its traction curve's secant
+    (docs/friction.md#traction-against-speed-and-temperature): the tangential force ``traction`` (N,
+    (Fx, Fy)) against the scene's creepage xi, -F.xi / (G c^2 |xi|^2), G = 1/(the bodies' summed relaxed
+    shear compliance) and c the Hertz radius: sqrt(R delta) under displacement control (any modulus's),
+    (3 F R Jinf/4)^(1/3) the relaxed one at the normal ``force`` F (N) under load control (``delta`` the
+    penetration, m). At a small creepage the initial slope: Kalker's C11 for an elastic pair rolling along
+    X. NaN but for a sphere on a Prony (SLS, elastic) material under a non-zero creepage without spin."""
+    from petroll.model.bodies import Sphere
+
+    f = scene.friction
+    if (not isinstance(f, Friction) or not isinstance(scene.body, Sphere) or f.force is not None or f.spin
+            or not any(f.creepage) or not isinstance(scene.material, materials.Prony) or not force > 0):
+        return float("nan")
+    xi = np.asarray(f.creepage, dtype=float)
+    if scene.load is None:  # Hertz's radius at the penetration, whatever the modulus
+        c = np.sqrt(scene.body.radius * delta)
+    else:
+        c = (0.75 * force * scene.body.radius * scene.material.Jinf) ** (1 / 3)
+    return float(-np.asarray(traction, dtype=float) @ xi / (c * c * (xi @ xi)) * f.compliance)

@@ -508,7 +508,8 @@ SCHEMA: dict[str, dict[str, Key]] = {
     "friction": {
         "coefficient": Key("number > 0", "Coulomb's friction coefficient mu: tangential tractions |q| <= mu p, "
                            "stick and slip (docs/friction.md); [friction] absent: frictionless; needs an "
-                           "elastic half-space, a non-periodic grid (required in [friction]); at most 100",
+                           "elastic, SLS or Prony half-space; on a periodic grid steady sliding only, full slip "
+                           "(required in [friction]); at most 100",
                            _coefficient,
                            default=None),
     },

@@ -10,6 +10,6 @@ passed in).
 from petroll.plot.fit import plot_fit, plot_shifts
 from petroll.plot.runs import field_times, plot_results, select_fields
 from petroll.plot.stress import plot_stress
-from petroll.plot.sweep import plot_sweep
+from petroll.plot.sweep import plot_family, plot_sweep
 
-__all__ = ["field_times", "plot_fit", "plot_results", "plot_shifts", "plot_stress", "plot_sweep", "select_fields"]
+__all__ = ["field_times", "plot_fit", "plot_results", "plot_shifts", "plot_family", "plot_stress", "plot_sweep", "select_fields"]

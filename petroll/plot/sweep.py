@@ -86,7 +86,9 @@ def plot_sweep(table, path: str | pathlib.Path) -> pathlib.Path:
     top_title = dict(TITLE, pad=40 if d.secondary is not None else 6)  # above the V tau/a axis
     (mu_ax, log_ax), (force_ax, area_ax), (edge_ax, conv_ax) = axes
     mu_panel(mu_ax, d, top_title)
-    if np.any(np.isfinite(d.c.get("traction_x", np.nan))):  # a sweep with friction: its creep-force curve
+    if table.key not in CREEPAGES and np.any(np.isfinite(d.c.get("creep_coefficient", np.nan))):
+        coefficient_panel(log_ax, d, top_title)  # friction at one creepage: the creep coefficient
+    elif np.any(np.isfinite(d.c.get("traction_x", np.nan))):  # a sweep with friction: its creep-force curve
         creep_panel(log_ax, d, top_title, table.scene_text)
     else:
         log_mu_panel(log_ax, d, top_title)
@@ -100,15 +102,84 @@ def plot_sweep(table, path: str | pathlib.Path) -> pathlib.Path:
     return write_figure(figure, path, dpi=110)
 
 
-def creep_panel(ax, d: SweepData, title: dict, scene_text: str) -> None:
-    """A sweep with [friction]: the tangential force over mu x the normal force (the creep-force curve)
-    and the stick area's fraction of the contact area, against the varied value."""
+CREEPAGES = ("motion.creepage", "motion.tangential_force")
+"""The keys whose sweep with friction is a traction (creep-force) curve."""
+COEFFICIENT = r"creep coefficient $-F \cdot \xi / (G_\infty c^2 |\xi|^2)$"
+
+
+def coefficient_panel(ax, d: SweepData, title: dict) -> None:
+    """A sweep with [friction] at one creepage: the creep coefficient (petroll.studies.sweep's column,
+    Kalker's normalisation with the relaxed modulus) against the varied value."""
+    ax.plot(d.x, d.c["creep_coefficient"], color="tab:purple", label="petroll, steady", **STYLE)
+    ax.set_ylabel(COEFFICIENT)
+    ax.set_title(r"creep coefficient (relaxed $G_\infty$, $c$)", **title)
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3)
+
+
+def traction_ratio(c: dict[str, np.ndarray], scene_text: str) -> np.ndarray:
+    """|F_t| / (mu F) of a friction sweep's columns ``c`` (mu the scene's [friction] coefficient)."""
     import tomllib
 
     mu = float(tomllib.loads(scene_text)["friction"]["coefficient"])
+    return np.hypot(c["traction_x"], np.nan_to_num(c.get("traction_y", 0.0 * c["traction_x"]))) / (mu * c["force"])
+
+
+def plot_family(family, path: str | pathlib.Path) -> pathlib.Path:
+    """One figure of a family of sweeps (a :class:`petroll.studies.sweep.Family`), one line per value of
+    the family's key: each curve's traction ratio |F_t|/(mu F) and stick area's share against the
+    creepage (a family of traction curves); or its creep coefficient and mu_r against V tau/a (friction at
+    one creepage: the master curve, V tau/a including the temperature's shift); else mu_r and the force
+    against the varied value."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    figure = Figure(figsize=(12.0, 5.0))
+    FigureCanvasAgg(figure)
+    left, right = figure.subplots(1, 2)
+    figure.subplots_adjust(left=0.07, right=0.98, bottom=0.12, top=0.88, wspace=0.25)
+    first = family.tables[0]
+    traction = first.key in CREEPAGES and bool(np.any(np.isfinite(first.columns.get("traction_x", np.nan))))
+    coefficient = not traction and bool(np.any(np.isfinite(first.columns.get("creep_coefficient", np.nan))))
+    logs, xlabel = [], ""
+    for value, table in zip(family.values, family.tables):
+        d = SweepData.of(table)
+        c = d.c
+        master = not traction and bool(np.all(np.isfinite(c["v_tau_a"])) and np.all(c["v_tau_a"] > 0))
+        x = c["v_tau_a"] if master else d.x
+        xlabel = "V tau / a" if master else d.xlabel
+        logs.append(bool(np.all(x > 0) and x.max() >= 10 * x.min()))
+        label = f"{family.key} = {value:.4g}" + ("" if family.unit == "-" else f" {family.unit}")
+        if traction and np.all(np.isfinite(c["v_tau_a"])):
+            label += f" (V tau/a = {float(np.median(c['v_tau_a'])):.3g})"
+        if traction:
+            ys = (traction_ratio(c, table.scene_text), c["stick_area"] / c["area"])
+        elif coefficient:
+            ys = (c["creep_coefficient"], c["mu_r"])
+        else:
+            ys = (c["mu_r"], c["force"])
+        for ax, y in zip((left, right), ys):
+            ax.plot(x, y, label=label, **STYLE)
+    names = ((r"$|F_t| / (\mu F)$", "stick area / contact area") if traction else
+             (COEFFICIENT, r"$\mu_r$") if coefficient else (r"$\mu_r$", "force (N)"))
+    for ax, name in zip((left, right), names):
+        ax.set_xlabel(xlabel)
+        ax.set_ylabel(name)
+        if all(logs) and not traction:  # a traction curve on linear axes: its slope at the origin
+            ax.set_xscale("log")
+        ax.grid(alpha=0.3)
+    left.legend(fontsize=8)
+    what = "traction curves" if traction else "creep coefficient" if coefficient else "curves"
+    label = pathlib.Path(family.directory).resolve().name
+    figure.suptitle(f"{label}: {what}, {first.key} at {len(family.values)} values of {family.key}")
+    return write_figure(figure, path, dpi=110)
+
+
+def creep_panel(ax, d: SweepData, title: dict, scene_text: str) -> None:
+    """A sweep with [friction]: the tangential force over mu x the normal force (the creep-force curve)
+    and the stick area's fraction of the contact area, against the varied value."""
     c = d.c
-    tangential = np.hypot(c["traction_x"], np.nan_to_num(c.get("traction_y", 0.0 * c["traction_x"])))
-    ax.plot(d.x, tangential / (mu * c["force"]), color="tab:blue", label=r"$|F_t| / (\mu F)$", **STYLE)
+    ax.plot(d.x, traction_ratio(c, scene_text), color="tab:blue", label=r"$|F_t| / (\mu F)$", **STYLE)
     ax.plot(d.x, c["stick_area"] / c["area"], color="tab:orange", label="stick area / contact area", **STYLE)
     ax.set_ylim(-0.02, 1.05)
     ax.set_title("creep-force curve", **title)

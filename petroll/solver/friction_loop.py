@@ -7,6 +7,8 @@ tangential problem (petroll.solver.friction.Stepping: a quasi-static shift while
 over the step, Kalker's transient rolling otherwise) on the traction bound mu p, and :meth:`steady` the
 steady rolling state (SteadyRolling) on the steady pressure. Each step's :class:`FrictionRecord` holds its
 global values (the series of results.h5); :attr:`FrictionLoop.fields` the newest step's fields.
+:class:`FullSlip` is steady sliding's instead (a periodic grid, petroll.model.friction.Sliding): no
+tangential problem, the traction mu p; :func:`friction_loop` picks the one of a scene.
 """
 
 from __future__ import annotations
@@ -16,10 +18,51 @@ import math
 import numpy as np
 from mpi4py import MPI
 
+from petroll.model.friction import Sliding
 from petroll.records import FrictionRecord
 from petroll.solver.friction import ShearMemory, Stepping, SteadyRolling
 from petroll.solver.history import make_history, state_space
 from petroll.solver.tangential import TangentialSolution, TangentialSolver
+
+
+def friction_loop(scene, comm: MPI.Comm):
+    """What a run of ``scene`` (with [friction]) solves beside the normal problem on ``comm``: steady
+    sliding's :class:`FullSlip`, or the tangential problems of :class:`FrictionLoop`."""
+    return FullSlip(scene, comm) if isinstance(scene.friction, Sliding) else FrictionLoop(scene, comm)
+
+
+class FullSlip:
+    """Steady sliding with friction ([time] mode = "steady" on a periodic grid; docs/friction.md#steady-
+    sliding): the body slides over the whole contact, so the traction is q = -mu p d at every cell (d the
+    direction of sliding: it opposes the body's slip), stick area 0, and the slip velocity is the sliding
+    speed V at every cell in contact (the surface's tangential strain rate, of the order of the strain
+    times V, is left out, as the linear theory leaves it out). The bodies being quasi-identical, q moves no
+    surface normally: the steady pressure is the frictionless one, and the force resisting the sliding is
+    mu P (the tractions') plus the pressure's hysteresis force mu_r P (the StepRecord's force_x, force_y).
+    :meth:`steady` records it; :attr:`records`, :attr:`fields` as :class:`FrictionLoop`'s."""
+
+    def __init__(self, scene, comm: MPI.Comm):
+        self.scene, self.comm = scene, comm
+        self.records: list[FrictionRecord] = []
+        self.fields: dict[str, np.ndarray] = {}
+
+    def steady(self, record, pressure: np.ndarray, direction, speed: float) -> FrictionRecord:
+        """The full slip of the steady ``pressure`` (Pa, this rank's rows; ``record`` its StepRecord), the
+        body sliding along ``direction`` (a unit vector) at ``speed`` (m/s)."""
+        mu, line = self.scene.friction.coefficient, self.scene.grid.line
+        area = self.scene.grid.cell_area
+        traction = [-mu * d * pressure for d in direction]
+        sums = np.array([t.sum() for t in traction])
+        self.comm.Allreduce(MPI.IN_PLACE, sums, op=MPI.SUM)
+        self.fields = {"traction_x": traction[0], "slip": np.where(pressure > 0, speed, 0.0)}
+        if not line:
+            self.fields["traction_y"] = traction[1]
+        force = sums * area * np.array([1.0, 0.0 if line else 1.0])
+        nan = math.nan
+        out = FrictionRecord(float(force[0]), float(force[1]), nan, 0.0 if line else nan, 0.0, 0.0, 0.0,
+                             mu * record.force * speed, 0, 0)
+        self.records.append(out)
+        return out
 
 
 class FrictionLoop:

@@ -19,7 +19,7 @@ from mpi4py import MPI
 
 from petroll.solver.contact import BeyondReach, ContactSolver
 from petroll.errors import SceneError
-from petroll.solver.friction_loop import FrictionLoop
+from petroll.solver.friction_loop import friction_loop
 from petroll.solver.history import make_history
 from petroll.records import RoughOutputs, StepRecord
 from petroll.solver.rough import radial_spectrum, spectrum_edges
@@ -54,7 +54,7 @@ class Simulation:
         self.steady_start = None  # a first guess for solve_steady: (whole-grid pressure in Pa, penetration in m)
         self.fixed_point_iterations = 0  # the last solve_steady's fixed-point iterations
         self.window = None  # the newest step's QP window, cells [i0, i1) x [j0, j1)
-        self.friction = FrictionLoop(scene, comm) if scene.friction is not None else None  # [friction]
+        self.friction = friction_loop(scene, comm) if scene.friction is not None else None  # [friction]
         self._newest = None  # the newest step's (profile, v, J_eff, delta): what surface() needs (a steady
         # solve: (profile, w, None, delta))
 
@@ -203,7 +203,7 @@ class Simulation:
         self._newest = (solve.profile, w, None, solution.delta)
         sx, sy = self.scene.position
         record = self._diagnose(0, 0.0, sx, sy, solution, solve.velocity, 0.0, clock.perf_counter() - began)
-        if self.friction is not None:  # steady rolling with friction on the steady pressure
+        if self.friction is not None:  # steady rolling or sliding with friction on the steady pressure
             self.friction.steady(record, self.pressure, solve.direction, solve.speed)
         self.records.append(record)
         return record

@@ -2,15 +2,11 @@
 
     petroll sweep SCENE.toml --vary KEY=SPEC [--out DIR]
 
-SPEC is one of (docs/sweep.md)::
-
-    V1,V2,...            the listed values                  material.tau_relax=0.001,0.01,0.1
-    START..STOP:log:N    N values evenly spaced in log      motion.velocity=1e-5..10:log:25
-    START..STOP:lin:N    N values evenly spaced             motion.penetration=10e-6..30e-6:lin:5
-
-KEY is a scene key ``section.key`` holding a number. A vector key (``motion.velocity``, ``body.position``)
-varies its magnitude along the scene's own direction: the scene's ``velocity = [0.01, 0]`` with the value
-0.5 runs ``velocity = [0.5, 0]``. Varying one key of an exclusive pair drops the other (penetration/load,
+SPEC (docs/sweep.md): ``V1,V2,...`` (the listed values), ``START..STOP:log:N`` (N values evenly spaced in
+log) or ``START..STOP:lin:N`` (evenly spaced), e.g. ``motion.velocity=1e-5..10:log:25``. KEY is a scene
+key ``section.key`` holding a number. A vector key (``motion.velocity``, ``body.position``) varies its
+magnitude along the scene's own direction: the scene's ``velocity = [0.01, 0]`` with the value 0.5 runs
+``velocity = [0.5, 0]``. Varying one key of an exclusive pair drops the other (penetration/load,
 tau_creep/tau_relax, dt/steps_per_cell, end/distance).
 
 Each point is the scene with that value, at steady state. Where the steady state can be solved directly
@@ -23,19 +19,13 @@ scene's ``distance`` (or ``end``) must leave room to reach it, and a point that 
 (column ``steady`` = 0, a warning). A scene without [time] gives one instantaneous step per point (a
 static sweep, e.g. force against penetration).
 
-Output in DIR (default: the scene's output directory + ``-sweep``)::
-
-    points/KEY=VALUE/results.h5   each point's run (docs/results.md), checkpoints as the scene asks
-    sweep.csv, sweep.h5           one row per point: the steady values and the derived ones (COLUMNS)
-    sweep.png                     mu_r, force or penetration, area, patch edges, convergence against
-                                  the value, with V tau/a on a second axis where it applies
-
-A point whose complete results.h5 holds the same scene is not run again, so an interrupted sweep (or
-one extended by more values) resumes where it stopped; a point interrupted by SIGTERM/SIGINT continues
-from its checkpoint.
-
-Reuse: every point builds its own contact solver (influence kernels), since petroll.driver.run
-does not take one; measured, kernels cost about 1-3 % of a point's run (docs/sweep.md).
+Output in DIR (default: the scene's output directory + ``-sweep``): points/KEY=VALUE/results.h5 (each
+point's run, docs/results.md; checkpoints as the scene asks), sweep.csv and sweep.h5 (one row per point:
+the steady values and the derived ones, COLUMNS), sweep.png (petroll.plot.sweep). A point whose complete
+results.h5 holds the same scene is not run again, so an interrupted sweep (or one extended by more values)
+resumes where it stopped; a point interrupted by SIGTERM/SIGINT continues from its checkpoint. Every
+point builds its own contact solver (kernels: about 1-3 % of a point's run, docs/sweep.md). A family of
+such sweeps over a second key, and the command: petroll.studies.family.
 
 All functions here are collective over ``comm`` (every rank calls them with the same arguments) and
 return the same values on every rank.
@@ -47,7 +37,7 @@ import math
 import pathlib
 import re
 import warnings
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import h5py
@@ -62,7 +52,7 @@ from petroll.io.hdf5 import atomic_hdf5
 from petroll.io.results import Results, atomic_write, results_identity
 from petroll.io.rundir import clean_temporaries
 from petroll.model.clock import TimeMode
-from petroll.model.limits import warnings_once
+from petroll.model.friction import creep_coefficient
 from petroll.model.schema import DEFAULT_STEADY, SCHEMA
 from petroll.model.scene import Scene
 
@@ -121,6 +111,9 @@ COLUMNS: dict[str, tuple[str, str]] = {
     "creepage_y": ("-", "with [friction]: along Y"),
     "stick_area": ("m^2", "with [friction]: the stick area at the last step"),
     "friction_power": ("W", "with [friction]: the slip's power at the last step"),
+    "creep_coefficient": ("-", "with [friction] on a sphere under a creepage (no spin): Kalker's creep "
+                          "coefficient as the traction curve's secant (petroll.model.friction.creep_coefficient); "
+                          "its initial slope at a small creepage (NaN otherwise)"),
     **{f"{name}_error": (unit, f"estimated discretisation error of {name} at the last step (only with "
                                "--estimate-error; NaN where the grids are not in the asymptotic range)")
        for name, unit in (("force", "N"), ("delta", "m"), ("mu_r", "-"), ("p_max", "Pa"), ("area", "m^2"),
@@ -238,7 +231,7 @@ STEADY_DROPPED = ("end", "distance", "steady", "max_steps")
 def point_scene(scene: Scene, key: str, value: float, transient: bool = False) -> Scene:
     """The scene of one sweep point: ``key`` set to ``value`` (module docstring); solved directly ([time]
     mode = "steady") where that applies and ``transient`` is False, else [time] steady added."""
-    point = _transient_point(scene, key, value)
+    point = valued_scene(scene, key, value)
     time = point.raw.get("time")
     if transient or not time or time.get("mode") == "steady":
         return point
@@ -250,7 +243,7 @@ def point_scene(scene: Scene, key: str, value: float, transient: bool = False) -
         return point
 
 
-def _transient_point(scene: Scene, key: str, value: float) -> Scene:
+def valued_scene(scene: Scene, key: str, value: float) -> Scene:
     """The scene with ``key`` set to ``value``, [time] steady added (run from rest to steady state)."""
     section, _, name = key.partition(".")
     current = scene.raw.get(section, {}).get(name)
@@ -403,9 +396,9 @@ def sweep(scene: Scene, vary: Vary | str, out: str | pathlib.Path | None = None,
                 + (f", grid {point.grid.nx} x {point.grid.ny} (sized)" if point.sizing is not None else ""))
     columns = {name: np.array([row[name] for row in rows], dtype=float) for name in COLUMNS if name in rows[0]}
     table = SweepTable(vary.key, unit, columns, scene.text, [f"points/{n}" for n in names], out, computed)
-    _on_rank0(comm, lambda: write_table(table))
+    on_rank0(comm, lambda: write_table(table))
     if plot:
-        _on_rank0(comm, lambda: _plot(table))
+        on_rank0(comm, lambda: _plot(table))
     return table
 
 
@@ -502,6 +495,8 @@ def table_row(scene: Scene, results: Results, value: float, estimate_error: bool
                 row[f"delta_{name}"] = (3 * J * st.force / (4 * math.sqrt(radius))) ** (2 / 3)
     for name in FRICTION_COLUMNS:  # a run with friction (line contact: no _y series)
         row[name] = float(s[name][-1]) if name in s else nan
+    row["creep_coefficient"] = creep_coefficient(scene, row["force"], row["delta"],
+                                                 (row["traction_x"], row["traction_y"]))
     if estimate_error:
         found = results.error_estimate or {}
         for name in COLUMNS:
@@ -510,15 +505,25 @@ def table_row(scene: Scene, results: Results, value: float, estimate_error: bool
     return row
 
 
+def csv_rows(table: SweepTable, before: tuple[str, str, float] | None = None) -> tuple[str, list[str]]:
+    """(header, rows) of a table's CSV (COLUMNS, in order; ``before``: a first column (name, unit, value)
+    of every row, a family's second key)."""
+    names = [n for n in COLUMNS if n in table.columns]
+    line = LINE_UNITS if table.line else {}  # a line-contact sweep: per unit length
+    units = [table.unit if n == "value" else line.get(n, COLUMNS[n][0]) for n in names]
+    header = ",".join(f"{table.key if n == 'value' else n} ({u})" for n, u in zip(names, units))
+    first = "" if before is None else f"{before[2]:.10g},"
+    rows = [first + ",".join(f"{table.columns[n][i]:.10g}" for n in names) for i in range(len(table.points))]
+    return (header if before is None else f"{before[0]} ({before[1]}),{header}"), rows
+
+
 def write_table(table: SweepTable) -> None:
     """Write sweep.csv and sweep.h5 (each atomically). Call on one rank."""
     names = [n for n in COLUMNS if n in table.columns]
     line = LINE_UNITS if table.line else {}  # a line-contact sweep: per unit length
     units = [table.unit if n == "value" else line.get(n, COLUMNS[n][0]) for n in names]
-    header = ",".join(f"{table.key if n == 'value' else n} ({u})" for n, u in zip(names, units))
-    lines = [header] + [",".join(f"{table.columns[n][i]:.10g}" for n in names)
-                        for i in range(len(table.points))]
-    text = "\n".join(lines) + "\n"
+    header, rows = csv_rows(table)
+    text = "\n".join([header, *rows]) + "\n"
     clean_temporaries(table.directory, [table.csv.name, table.h5.name])  # of a writer killed earlier
     atomic_write(table.csv, lambda tmp: tmp.write_text(text, encoding="utf-8"))
 
@@ -552,7 +557,7 @@ def _plot(table: SweepTable) -> None:
     plot_sweep(table, table.png)
 
 
-def _on_rank0(comm: MPI.Comm, action: Callable[[], None]) -> None:
+def on_rank0(comm: MPI.Comm, action: Callable[[], None]) -> None:
     """Run ``action`` on rank 0; an OSError or PetrollError there is raised on every rank (one line)."""
     message = None
     if comm.rank == 0:
@@ -565,36 +570,3 @@ def _on_rank0(comm: MPI.Comm, action: Callable[[], None]) -> None:
     message = comm.bcast(message, root=0)
     if message is not None:
         raise SweepError(message)
-
-
-def command(scene_path: str, vary_text: Sequence[str], out: str | None, quiet: bool, comm: MPI.Comm,
-            transient: bool = False, estimate_error: bool = False) -> int:
-    """``petroll sweep``: every rank; prints one line per point and a summary on rank 0."""
-    import sys
-    import time
-
-    from petroll.io.checkpoint import StopRequest
-    from petroll.model.scene import load_scene
-
-    if len(vary_text) != 1:
-        raise SweepError(f"--vary given {len(vary_text)} times; a sweep varies exactly one key "
-                         f"({FORMS})")
-    vary = parse_vary(vary_text[0])
-    start = time.perf_counter()
-    stop = StopRequest()
-    say = (lambda line: print(f"petroll: {line}", flush=True))
-    try:
-        with stop.handling(), warnings_once():
-            scene = load_scene(scene_path)
-            table = sweep(scene, vary, out, comm, progress=not quiet and sys.stderr.isatty(), stop=stop,
-                          log=say, transient=transient, estimate_error=estimate_error)
-    except SweepInterrupted as exc:
-        if comm.rank == 0:
-            print(f"petroll: {scene.source}: sweep {exc}", file=sys.stderr, flush=True)
-        return exc.exit_code
-    if comm.rank == 0:
-        n, ran = len(table.points), len(table.computed)
-        print(f"petroll: {scene.source}: sweep of {vary.key} over {n} values ({ran} run, {n - ran} kept from "
-              f"an earlier call; wall time {time.perf_counter() - start:.1f} s). Table: {table.csv}, "
-              f"{table.h5}; plot: {table.png}")
-    return 0
