@@ -546,9 +546,10 @@ def long_raw() -> dict:
 _LONG_REFERENCE: list = []
 
 
-def long_reference(tmp_path_factory):
-    """The uninterrupted serial run of long_raw(), made once a session: what the interrupted runs of it (here
-    and in tests/test_faults.py) end as."""
+def long_scene(tmp_path, tmp_path_factory):
+    """long_raw() written to tmp_path/long.toml; returns its uninterrupted serial run, made once a session:
+    what the interrupted runs of it (here and in tests/test_faults.py) end as."""
+    write_toml(tmp_path / "long.toml", long_raw())
     if not _LONG_REFERENCE:
         _LONG_REFERENCE.append(run(make_scene(long_raw()), MPI.COMM_SELF, tmp_path_factory.mktemp("long") / "run"))
     return _LONG_REFERENCE[0]
@@ -558,8 +559,7 @@ def long_reference(tmp_path_factory):
 @pytest.mark.serial
 def test_sigterm_during_a_cli_run_leaves_a_checkpoint_that_restart_finishes_identically(tmp_path, cli,
                                                                                        tmp_path_factory):
-    write_toml(tmp_path / "long.toml", long_raw())
-    reference = long_reference(tmp_path_factory)
+    reference = long_scene(tmp_path, tmp_path_factory)
     proc = cli.start("run", "long.toml", "--out", "stopped", "--quiet", cwd=tmp_path,
                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     wait_for(tmp_path / "stopped" / "checkpoints" / "step-00000005.h5", proc)

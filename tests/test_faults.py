@@ -342,10 +342,9 @@ def test_on_every_rank_run_returns_or_refuses_only_once_the_directory_is_free(co
 @pytest.mark.serial
 def test_a_second_run_or_restart_on_a_directory_in_use_is_refused_and_the_first_is_untouched(tmp_path, cli,
                                                                                               tmp_path_factory):
-    from test_checkpoint import long_raw, long_reference, wait_for
+    from test_checkpoint import long_scene, wait_for
 
-    write_toml(tmp_path / "long.toml", long_raw())
-    reference = long_reference(tmp_path_factory)
+    reference = long_scene(tmp_path, tmp_path_factory)
     first = cli.start("run", "long.toml", "--out", "shared", "--quiet", cwd=tmp_path, stdout=subprocess.PIPE,
                       stderr=subprocess.PIPE, text=True)
     wait_for(tmp_path / "shared" / "checkpoints" / "step-00000005.h5", first, limit=600)
@@ -584,10 +583,9 @@ def test_sigterm_and_sigint_to_petroll_launch_mpirun_end_the_run_with_a_checkpoi
     """``petroll launch mpirun -n 2 petroll run ...`` signalled as a batch system or Ctrl-C would: the ranks
     get the signal itself, write a checkpoint, name the signal, and the exit status is 128 + its number;
     the restart (on 2 ranks) finishes the run as the uninterrupted one (to round-off across rank counts)."""
-    from test_checkpoint import assert_close, long_raw, long_reference, wait_for
+    from test_checkpoint import assert_close, long_scene, wait_for
 
-    write_toml(tmp_path / "long.toml", long_raw())
-    reference = long_reference(tmp_path_factory)
+    reference = long_scene(tmp_path, tmp_path_factory)
     mpirun = ["mpirun", "-n", "2", *cli.argv]
     for signum, code in ((signal.SIGTERM, 143), (signal.SIGINT, 130)):
         out = f"out-{signum.name}"
