@@ -384,7 +384,8 @@ def estimate_lines(estimate: dict) -> list[str]:
     summary, ``petroll info`` indented): a heading naming the grids, the integrator and the order taken
     where none is observed; a line where no 4x grid checked the asymptotic range; then each quantity's value
     +- its discretisation error (with the order where it was observed; marked where its range was not
-    checked), or why it has none. Files written before the integrator's order was stored read as order 2."""
+    checked; a steady sliding solve's mu_r: how much of its error is |mu_r - mu_lateral|), or why it has
+    none. Files written before the integrator's order was stored read as order 2."""
     group = estimate[""]
     if group.get("failed"):
         return [f"no error estimate: {group['failed']}"]
@@ -405,9 +406,11 @@ def estimate_lines(estimate: dict) -> list[str]:
             observed = (f", observed order {q['order']:.2f}" if q["observed_order"] and math.isfinite(q["order"])
                         else "")
             unchecked = "" if q.get("range_checked", True) else ", asymptotic range not checked"
+            lateral = (f", {q['lateral_difference']:.1e} of it |mu_r - mu_lateral|"
+                       if q.get("lateral_difference", 0.0) > 0 else "")
             lines.append(f"  {name} {q['value']:.4e} " + (
                 "(the grids are not in the asymptotic range: no estimate)" if math.isnan(q["error"]) else
-                f"+- {q['error']:.1e} (discretisation{observed}{unchecked})"))
+                f"+- {q['error']:.1e} (discretisation{observed}{unchecked}{lateral})"))
     return lines
 
 
@@ -470,6 +473,8 @@ def summary(scene, results, wall: float, resumed=None) -> str:
     g = scene.grid
     if g.topology.statistics:  # a periodic cell: sliding friction, area fraction, no single patch
         resisting = f"friction mu {s['mu_r'][-1]:.4e}"
+        if results.solved_steady and "mu_lateral" in (results.rough or {}):  # mu_r: the dissipation's
+            resisting += f" (from the dissipation; the lateral force's {results.rough['mu_lateral'][-1]:.4e})"
         patch = f"area fraction A/A0 {s['area'][-1] / ((g.x1 - g.x0) * (g.y1 - g.y0)):.4g}"
     else:
         resisting = f"mu_r {s['mu_r'][-1]:.4e}"

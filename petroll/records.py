@@ -25,14 +25,14 @@ class StepRecord:
     force: float
     force_x: float  # rolling resistance along X: sum p dZ/dX dA, > 0 when it resists motion in +X
     force_y: float
-    mu_r: float  # resisting force along the motion / normal force
+    mu_r: float  # resisting force along the motion / normal force (steady sliding: dissipation / (F V))
     area: float
     p_max: float
     cop_x: float  # centre of pressure relative to the body
     cop_y: float
     lead: float  # leading and trailing patch edges along the motion, relative to the body
     trail: float
-    dissipation: float  # power of the resisting force, W
+    dissipation: float  # power of the resisting force, W (steady sliding: the material's dissipated power)
     distance: float  # rolled path length so far
     iterations: int
     applications: int
@@ -44,6 +44,15 @@ class StepRecord:
         """Step ``i`` of ``series`` ({name: sequence} holding every name of :data:`SERIES`), each value of
         its field's type (:data:`INTEGER_SERIES` as int, the others as float)."""
         return cls(**{name: (int if name in INTEGER_SERIES else float)(series[name][i]) for name in SERIES})
+
+
+def lateral_friction(record: StepRecord, direction) -> float:
+    """The lateral force's coefficient (force_x, force_y) . ``direction`` / force (a unit vector along the
+    motion; 0 without force): a record's mu_r, except for a steady sliding solve's, whose mu_r is from the
+    material's dissipated power and this its diagnostic (docs/rough.md)."""
+    if record.force == 0:
+        return 0.0
+    return (record.force_x * float(direction[0]) + record.force_y * float(direction[1])) / record.force
 
 
 SERIES = tuple(f.name for f in fields(StepRecord))
@@ -117,10 +126,12 @@ def series_rows(records: list[StepRecord], friction: list[FrictionRecord] | None
 class RoughOutputs:
     """One step's values: ``area_fraction`` (-), ``mean_gap`` (m; mean of Z + w - delta over the cell),
     the spectrum's bins: ``q`` (mean |k| of each bin's modes, rad/m; NaN for an empty bin), ``spectrum``
-    (mean C(q) of the pressure, Pa^2 m^2), ``modes`` (the independent modes in each bin)."""
+    (mean C(q) of the pressure, Pa^2 m^2), ``modes`` (the independent modes in each bin); ``mu_lateral``
+    (-): the lateral force's coefficient (:func:`lateral_friction`)."""
 
     area_fraction: float
     mean_gap: float
     q: np.ndarray
     spectrum: np.ndarray
     modes: np.ndarray
+    mu_lateral: float

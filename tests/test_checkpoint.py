@@ -699,3 +699,32 @@ def test_remove_foreign_checkpoints_removes_only_those_it_read_as_another_runs(t
     monkeypatch.setattr(module.h5py, "File", flaky)
     assert remove_foreign_checkpoints(found[0].parent, ours) == [foreign]
     assert [p for p in found if p.exists()] == [p for p in found if p != foreign]
+
+
+@pytest.mark.slow
+def test_a_restart_into_a_results_file_without_mu_lateral_adds_it(comm, shared_dir):
+    """A periodic run's results.h5 written before rough/mu_lateral (the dataset removed) continued from its
+    checkpoint: mu_lateral is added, NaN at the rows saved before, the lateral force's coefficient (a
+    transient's mu_r) at those after; the group's other datasets as the uninterrupted run's."""
+    raw = raw_scene()
+    raw["grid"]["periodic"] = True
+    scene = make_scene(raw)
+    reference = run(scene, comm, shared_dir / "reference")
+    stop, on_step = interrupter(5, comm)
+    with pytest.raises(RunInterrupted) as info:
+        run(scene, comm, shared_dir / "stopped", stop=stop, on_step=on_step)
+    on_root(comm, lambda: _drop_mu_lateral(shared_dir / "stopped" / "results.h5"))
+    restarted = run(scene, comm, shared_dir / "stopped", restart=read_checkpoint(info.value.checkpoint, comm))
+    lateral, saved = restarted.rough["mu_lateral"], list(restarted.field_steps)
+    assert saved == list(reference.field_steps) and saved[:2] == [0, 3] and len(saved) >= 4
+    assert np.all(np.isnan(lateral[:2]))
+    assert np.array_equal(lateral[2:], reference.rough["mu_lateral"][2:])
+    assert np.allclose(lateral[2:], reference.series["mu_r"][saved[2:]], rtol=1e-12, atol=0)
+    for name in ("area_fraction", "mean_gap", "spectrum", "q", "modes"):
+        assert np.array_equal(restarted.rough[name], reference.rough[name], equal_nan=True)
+
+
+def _drop_mu_lateral(path: pathlib.Path) -> None:
+    """Remove rough/mu_lateral from a results.h5, as a file written before it holds none."""
+    with h5py.File(path, "r+") as f:
+        del f["rough/mu_lateral"]

@@ -411,3 +411,53 @@ def test_the_run_s_wall_time_leaves_its_estimate_out(comm, shared_dir, monkeypat
     results = petroll.run(roller(), comm, shared_dir / "slow", estimate_error=True)
     elapsed = comm.allreduce(time.perf_counter() - began, op=MPI.MAX)
     assert 0 < results.error_estimate[""]["run_wall_s"] <= elapsed - 1.0
+
+
+@pytest.mark.slow
+def test_a_steady_sliding_friction_s_error_holds_its_difference_from_the_lateral_force_s(comm, shared_dir):
+    """runs/rough-rubber.toml on 32^2 cells (its cut-off at 4 cells as shipped) with its estimate: mu_r's
+    error includes the fine grid's |mu_r - mu_lateral| (attribute lateral_difference, the printed line),
+    mu_lateral being results.h5's rough/mu_lateral; the other quantities carry none; the run's summary
+    gives both."""
+    from petroll.cli import estimate_lines
+
+    scene = load_scene(shipped_scene("rough-rubber.toml"))
+    scene = scene.replace({"grid.nx": 32, "grid.ny": 32, "body.cutoff": 4 * scene.grid.dx * 256 / 32})
+    results = petroll.run(scene, comm, out=shared_dir / "rough", estimate_error=True)
+    mu, lateral = results.series["mu_r"][-1], results.rough["mu_lateral"][-1]
+    q = results.error_estimate["mu_r"]
+    assert q["lateral_difference"] == pytest.approx(abs(mu - lateral), rel=1e-12)
+    assert q["lateral_difference"] > 1e-4 * mu and q["error"] >= q["lateral_difference"]
+    assert "lateral_difference" not in results.error_estimate["force"]
+    line = next(text for text in estimate_lines(results.error_estimate) if text.startswith("  mu_r"))
+    assert f"{q['lateral_difference']:.1e} of it |mu_r - mu_lateral|" in line
+    from petroll.cli import summary
+
+    text = summary(scene, results, wall=1.0)  # the run's paragraph names both
+    assert f"friction mu {mu:.4e} (from the dissipation; the lateral force's {lateral:.4e})" in text
+
+
+def test_the_lateral_difference_is_added_to_a_sliding_friction_s_error_and_printed():
+    """petroll.studies.estimate.with_lateral on a steady sliding record: the error grows by |mu_r -
+    (force_x, force_y) . e / force| (e the scene's direction of motion, here along X and Y), an error of nan
+    stays nan; as_attributes stores it on mu_r alone and estimate_lines says how much of the error it is."""
+    from petroll.cli import estimate_lines
+    from petroll.records import StepRecord
+    from petroll.studies.estimate import ErrorEstimate, QuantityEstimate, as_attributes, with_lateral
+
+    scene = load_scene(shipped_scene("rough-rubber.toml")).replace({"motion.velocity": [0.006, 0.008]})
+    values = dict.fromkeys(StepRecord.__dataclass_fields__, 0)
+    fine = StepRecord(**{**values, "force": 2.0, "force_x": 0.05, "force_y": 0.02, "mu_r": 0.04})
+    lateral = abs(0.04 - (0.05 * 0.6 + 0.02 * 0.8) / 2.0)  # 0.017
+    q = with_lateral(QuantityEstimate(0.04, 0.041, 1e-3, 2.0, False, (0.039,)), fine, scene)
+    assert q.lateral == pytest.approx(lateral, rel=1e-12) and q.error == pytest.approx(1e-3 + lateral, rel=1e-12)
+    assert math.isnan(with_lateral(QuantityEstimate(0.04, math.nan, math.nan, math.nan, True, (0.03, 0.05)),
+                                   fine, scene).error)
+    force = QuantityEstimate(2.0, 2.0, 0.0, 2.0, False, (2.0,))
+    per, attrs = as_attributes(ErrorEstimate({"force": force, "mu_r": q}, [(32, 32), (16, 16)],
+                                             integrator="relaxation", orders={"force": 2.0, "mu_r": 2.0}))
+    assert per["mu_r"]["lateral_difference"] == q.lateral and "lateral_difference" not in per["force"]
+    lines = estimate_lines({**per, "": attrs})
+    assert any(line.startswith("  mu_r 4.0000e-02 +- 1.8e-02 (discretisation") and
+               line.endswith(", 1.7e-02 of it |mu_r - mu_lateral|)") for line in lines), lines
+    assert not any("mu_lateral" in line for line in lines if line.startswith("  force"))

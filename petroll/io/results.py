@@ -202,9 +202,14 @@ class Results:
         return steady_state(self.series, self.scene_text)
 
 
-ROUGH_UNITS = {"area_fraction": "-", "mean_gap": "m", "q": "rad/m", "spectrum": "Pa^2 m^2", "modes": "-"}
+ROUGH_UNITS = {"area_fraction": "-", "mean_gap": "m", "q": "rad/m", "spectrum": "Pa^2 m^2", "modes": "-",
+               "mu_lateral": "-"}
 """The group rough of a run on a grid periodic along every axis (petroll.records.RoughOutputs), one
-row per saved field: area_fraction and mean_gap (n_saved,); q, spectrum and modes (n_saved, bins)."""
+row per saved field: area_fraction, mean_gap and mu_lateral (n_saved,); q, spectrum and modes (n_saved,
+bins). Files written before mu_lateral lack it."""
+
+ROUGH_SCALARS = ("area_fraction", "mean_gap", "mu_lateral")
+"""The group rough's datasets of one value per saved field."""
 
 FIELD_UNITS = {"pressure": "Pa", "displacement": "m", "gap": "m", "traction_x": "Pa", "traction_y": "Pa",
                "slip": "m/s"}
@@ -279,7 +284,7 @@ class ResultsFile:
                 if self.rough is not None:
                     group = h.create_group("rough")
                     for name, unit in ROUGH_UNITS.items():
-                        shape = () if name in ("area_fraction", "mean_gap") else (self.rough,)
+                        shape = () if name in ROUGH_SCALARS else (self.rough,)
                         group.create_dataset(name, shape=(0, *shape), maxshape=(None, *shape),
                                              chunks=(64, *shape), dtype=np.int64 if name == "modes" else
                                              np.float64).attrs["units"] = unit
@@ -396,11 +401,16 @@ class ResultsFile:
 
     # -- helpers ----------------------------------------------------------------------------------------
     def _put_rough(self, f: RowFile, k: int, rough, mine: bool) -> None:
-        """Row k - 1 of the group rough: the saved step's RoughOutputs (rank 0 writes)."""
+        """Row k - 1 of the group rough: the saved step's RoughOutputs (rank 0 writes). A file written before
+        mu_lateral (a restart) gets it, NaN at its earlier rows."""
         if f.writer:
+            group = f.file["rough"]
+            for name in set(ROUGH_SCALARS) - set(group):
+                group.create_dataset(name, shape=(0,), maxshape=(None,), chunks=(64,), dtype=np.float64,
+                                     fillvalue=np.nan).attrs["units"] = ROUGH_UNITS[name]
             for name in ROUGH_UNITS:
                 f.file["rough"][name].resize(k, axis=0)
-        for name in ("area_fraction", "mean_gap"):
+        for name in ROUGH_SCALARS:
             value = [getattr(rough, name)] if mine else []
             f.put(f"rough/{name}", (), k - 1, np.array(value, dtype=np.float64))
         for name in ("q", "spectrum", "modes"):

@@ -159,7 +159,7 @@ def check_scene(scene) -> None:
 
 
 NEGATIVE_ROUND_OFF = 1e-12
-"""A resisting-force coefficient (mu_r, or the sliding friction) below -NEGATIVE_ROUND_OFF is negative
+"""A resisting-force coefficient (mu_r) below -NEGATIVE_ROUND_OFF is negative
 beyond round-off (a symmetric contact's mu_r is a sum of terms that cancel to about 1e-18)."""
 
 
@@ -170,7 +170,8 @@ def negative_friction(scene, mu_r: float) -> str | None:
     steadily over such a material loses energy to it, so the resisting force is > 0 and a negative one is
     numerical (a time step or grid too coarse for the contact, docs/accuracy.md). None otherwise (an
     elastic material, a body at rest, or a transient whose motion changes: energy stored earlier may push
-    the body on)."""
+    the body on). A steady sliding solve's mu_r, the dissipated power's (petroll.solver.sliding), is never
+    negative."""
     material = scene.material
     moving = bool(np.any(np.asarray(scene.velocity(0.0), dtype=float)))
     if not (mu_r < -NEGATIVE_ROUND_OFF and moving and material.Jinf > material.J0 * (1 + 1e-9)):
@@ -178,7 +179,6 @@ def negative_friction(scene, mu_r: float) -> str | None:
     held = [p for p in (scene.velocity, scene.penetration, scene.load) if p is not None]
     if scene.time.mode is not TimeMode.STEADY and not all(isinstance(p, motion.Constant) for p in held):
         return None
-    what = "sliding friction" if scene.time.mode is TimeMode.STEADY and scene.grid.topology.whole else "mu_r"
-    return (f"{scene.source}: {what} = {mu_r:.4g} < 0 from a dissipative material at a steady state: the "
+    return (f"{scene.source}: mu_r = {mu_r:.4g} < 0 from a dissipative material at a steady state: the "
             "material can only resist a steady motion, so this value is wrong (a time step or grid too "
             "coarse for the contact: petroll check SCENE, docs/accuracy.md)")

@@ -38,7 +38,8 @@ class FullSlip:
     speed V at every cell in contact (the surface's tangential strain rate, of the order of the strain
     times V, is left out, as the linear theory leaves it out). The bodies being quasi-identical, q moves no
     surface normally: the steady pressure is the frictionless one, and the force resisting the sliding is
-    mu P (the tractions') plus the pressure's hysteresis force mu_r P (the StepRecord's force_x, force_y).
+    mu P (the tractions') plus the pressure's hysteresis force mu_r P (the StepRecord's mu_r: the
+    dissipated power's, petroll.solver.sliding).
     :meth:`steady` records it; :attr:`records`, :attr:`fields` as :class:`FrictionLoop`'s."""
 
     def __init__(self, scene, comm: MPI.Comm):

@@ -21,7 +21,7 @@ from petroll.solver.contact import BeyondReach, ContactSolver
 from petroll.errors import SceneError
 from petroll.solver.friction_loop import friction_loop
 from petroll.solver.history import make_history
-from petroll.records import RoughOutputs, StepRecord
+from petroll.records import RoughOutputs, StepRecord, lateral_friction
 from petroll.solver.rough import radial_spectrum, spectrum_edges
 from petroll.solver.steady_state import steady_state
 from petroll.model.clock import TimeMode, step_length
@@ -202,15 +202,17 @@ class Simulation:
         self.pressure, self.window = solution.pressure, solution.window
         self._newest = (solve.profile, w, None, solution.delta)
         sx, sy = self.scene.position
-        record = self._diagnose(0, 0.0, sx, sy, solution, solve.velocity, 0.0, clock.perf_counter() - began)
+        record = self._diagnose(0, 0.0, sx, sy, solution, solve.velocity, 0.0, clock.perf_counter() - began,
+                                solve.dissipated(solution.pressure))
         if self.friction is not None:  # steady rolling or sliding with friction on the steady pressure
             self.friction.steady(record, self.pressure, solve.direction, solve.speed)
         self.records.append(record)
         return record
 
     def rough_outputs(self) -> RoughOutputs:
-        """The newest solved step's contact fraction, mean gap (m) and pressure spectrum on a 3-D grid
-        periodic along both axes (petroll.solver.rough). The mean displacement is the kernel's k = 0
+        """The newest solved step's contact fraction, mean gap (m), pressure spectrum and lateral force's
+        coefficient on a 3-D grid periodic along both axes (petroll.solver.rough,
+        petroll.records.lateral_friction). The mean displacement is the kernel's k = 0
         response to the mean of its source (0 on a half-space: displacements from the mean plane); a
         steady solve's w is averaged. Collective; RuntimeError for a restored step not solved since."""
         if self._newest is None:
@@ -227,7 +229,8 @@ class Simulation:
         cells = g.nx * g.ny
         conv = self.solver.influence.window(g.nx, g.ny)
         q, spectrum, modes = radial_spectrum(conv, p, g, spectrum_edges(g))
-        return RoughOutputs(sums[0] / cells, (sums[1] + scale * sums[2]) / cells - delta, q, spectrum, modes)
+        return RoughOutputs(sums[0] / cells, (sums[1] + scale * sums[2]) / cells - delta, q, spectrum, modes,
+                            lateral_friction(self.records[-1], self.direction))
 
     def surface(self) -> tuple[np.ndarray, np.ndarray]:
         """The newest solved step's surface displacement w (m, positive into the half-space) and gap
@@ -262,7 +265,12 @@ class Simulation:
         height = profile if v is None else profile + self.wake.displacement(v, profile, np.inf)
         return solver.solve_load(height, compliance, load, radius, previous, warm)
 
-    def _diagnose(self, n, t, sx, sy, solution, velocity, distance, elapsed) -> StepRecord:
+    def _diagnose(self, n, t, sx, sy, solution, velocity, distance, elapsed, power=None) -> StepRecord:
+        """The step's record. Its resisting force along the motion is the pressure's on the body's slope
+        (force_x, force_y: the lateral force), and ``dissipation`` that force's power; given the material's
+        dissipated ``power`` (W: a steady sliding solve's), the resisting force is power / speed and
+        ``dissipation`` that power (mu_r from the dissipation; force_x, force_y stay the lateral force:
+        petroll.records.lateral_friction)."""
         g, comm, p = self.scene.grid, self.comm, solution.pressure
         x, y = g.offsets(self.x, self.y, sx, sy)
         slope_x, slope_y = self.scene.body.slope(x, y)
@@ -279,6 +287,9 @@ class Simulation:
         area = g.cell_area
         force, force_x, force_y = total * area, px * area, py * area
         resisting = force_x * d[0] + force_y * d[1]
+        dissipation = force_x * velocity[0] + force_y * velocity[1]
+        if power is not None:
+            dissipation, resisting = power, power / float(np.hypot(*velocity))
         half = 0.5 * (abs(d[0]) * g.dx + abs(d[1]) * g.dy)
         has = cells > 0
         return StepRecord(
@@ -286,7 +297,7 @@ class Simulation:
             force_y=force_y, mu_r=resisting / force if has else 0.0, area=cells * area, p_max=extremes[0],
             cop_x=mx / total if has else math.nan, cop_y=my / total if has else math.nan,
             lead=extremes[1] + half if has else math.nan, trail=-extremes[2] - half if has else math.nan,
-            dissipation=force_x * velocity[0] + force_y * velocity[1], distance=distance,
+            dissipation=dissipation, distance=distance,
             iterations=solution.iterations, applications=solution.applications, residual=solution.residual,
             solve_time=elapsed)
 

@@ -47,7 +47,7 @@ from petroll.solver.kernels.periodic import Spectral
 from petroll.solver.petsc import gmres
 from petroll.solver.steady import steady_step
 
-FORMS = ("operator", "modulus", "lag", "newton")
+FORMS = ("operator", "modulus", "lag", "newton", "dissipation")
 """The kernels of the steady sliding solve, each A_k times a factor of H (class SlidingKernel)."""
 
 
@@ -56,14 +56,18 @@ class SlidingKernel(Spectral):
     ``velocity`` (m/s, along the base's Fourier axes only) and the material's integrator at steps of dt:
     with S = A H, ``form`` "operator": S; "modulus": |S|^2 / Re S = A |H|^2 / Re H (symmetric positive
     definite, real); "lag": S - modulus; "newton": conj(H) / Re H alone (no A: a multiplier of the modes,
-    identity in real space along a non-Fourier axis; after M^-1 it gives K^-1). Where a mode is its own
-    conjugate (2 m = 0 mod n along every Fourier axis) the real part is taken (a real field's transform
-    is real there)."""
+    identity in real space along a non-Fourier axis; after M^-1 it gives K^-1); "dissipation": (k.e) Im S,
+    e the direction of motion, k.e at the frequency the integrator sees: its phase per step k.V dt brought
+    into (-pi, pi] (k.e itself where |k.V dt| <= pi: along an axis, at most one cell per step), so that
+    (k.e) Im H >= 0 for every mode (the integrator's loss); real and even, (k.e) and Im H being odd in k;
+    the material's power under a pressure p is V sum p (D p) dA (:meth:`SteadySliding.dissipated`). Where
+    a mode is its own conjugate (2 m = 0 mod n along every Fourier axis) the real part is taken (a real
+    field's transform is real there)."""
 
     def __init__(self, base: Spectral, material, integrator: str, velocity, dt: float, form: str):
         super().__init__(base.dx, base.dy, base.nx, base.ny, base.fourier)
         self.base, self.form = base, form
-        self.even = form == "modulus"
+        self.even = form in ("modulus", "dissipation")
         self.material, self.integrator, self.velocity, self.dt = material, integrator, tuple(velocity), dt
 
     def factor(self, ax, ay) -> np.ndarray:
@@ -80,6 +84,8 @@ class SlidingKernel(Spectral):
         h = np.where(own, h.real, h)
         if self.form == "operator":
             return h
+        if self.form == "dissipation":  # k.e, at the frequency the integrator sees (its phase per step)
+            return -np.angle(np.exp(1j * phase)) / (math.hypot(*self.velocity) * self.dt) * h.imag
         modulus = np.abs(h) ** 2 / h.real
         if self.form == "modulus":
             return modulus
@@ -178,6 +184,7 @@ class SteadySliding:
                                 kernel=make("modulus"))
         self.operator = Convolution(make("operator"), g.nx, g.ny, comm, workers=self.qp.workers)
         self.lag = Convolution(make("lag"), g.nx, g.ny, comm, workers=self.qp.workers)
+        self.loss = Convolution(make("dissipation"), g.nx, g.ny, comm, workers=self.qp.workers)
         newton = Convolution(make("newton"), g.nx, g.ny, comm, workers=self.qp.workers)
         self.system = ContactSystem(self.operator, self._inverse(newton), self.qp.local_shape, comm,
                                     scene.penetration is None)
@@ -275,6 +282,19 @@ class SteadySliding:
         solution.iterations = solver.work[0] - work[0]
         solution.applications = solver.work[1] - work[1] + self.system.applications - applications
         return solution, self.operator(solution.pressure)
+
+    def dissipated(self, pressure: np.ndarray) -> float:
+        """The power (W; line contact W/m) the material dissipates under the steady ``pressure`` (Pa, this
+        rank's rows): the work of the pressure on the surface's displacement as each material point sees it
+        change, mean(p dw/dt) over the cell times its area, w's modes oscillating at k.V (module
+        docstring), V sum_k |p_k|^2 (k.e) Im S_k = V sum p (D p) dA with D the "dissipation" kernel
+        (SlidingKernel): >= 0 for a dissipative material, each mode's (k.e) Im H being >= 0, and 0 for an
+        elastic one (H real).
+        On the contact w = delta - Z, so in the continuum it is the lateral force's power V sum p dZ/dx dA;
+        on the grid they differ where the spectral derivative of w across the contact's edges does (the
+        discretisation's difference; equal in full contact). Collective."""
+        power = float((pressure * self.loss(pressure)).sum()) * self.scene.grid.cell_area * self.speed
+        return self.comm.allreduce(power)
 
     def _qp(self, height, delta, warm):
         """A fixed-point step's contact QP on the modulus kernel for ``height`` (m), warm from ``warm`` (Pa,

@@ -215,6 +215,11 @@ class SteadySolve:
         self.comm.Allreduce(MPI.IN_PLACE, sums, op=MPI.SUM)
         return float(sums[0]), float(sums[1])
 
+    def dissipated(self, pressure: np.ndarray) -> None:
+        """None: a rolling body's resisting force is the pressure's on its slope (:meth:`forces`), and
+        the dissipation that force's power (the steady state's protocol, petroll.solver.steady_state)."""
+        return None
+
     def _steady(self, forces, previous, qp_tol: float) -> bool:
         """The ``steady`` stop: forces changed by at most steady x force, with QPs solved to steady / 3."""
         return (self.steady is not None and previous is not None and qp_tol <= self.steady / 3

@@ -46,6 +46,12 @@ class SteadyState(Protocol):
         SolverError after ``max_iterations`` iterations."""
         ...
 
+    def dissipated(self, pressure: np.ndarray) -> float | None:
+        """The power (W) the material dissipates under the steady ``pressure`` (this rank's rows) from its
+        own response, the run's resisting force being that power over the speed (sliding); None where
+        the resisting force is the pressure's on the body's slope (rolling). Collective."""
+        ...
+
 
 def steady_state(scene, solver: ContactSolver, tol: float, steady: float | None = None) -> SteadyState:
     """The steady solve of ``scene`` on its grid: sliding where the contact QP covers the whole grid

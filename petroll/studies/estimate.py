@@ -31,10 +31,17 @@ and so is the estimate (:attr:`ErrorEstimate.range_checked`; results.h5, the pri
 What counts cells (the area, the patch edges lead and trail) moves by whole cells, not by a power of the
 cell: it is not extrapolated, and its error is the larger of its 2x grids' difference and its quantisation
 (:func:`quantised`, :func:`_floor`).
+
+A steady sliding solve's mu_r is the material's dissipated power over F V, and the lateral force's
+coefficient (petroll.records.lateral_friction) is the same quantity discretised otherwise: their
+difference on the fine grid, |mu_r - mu_lateral|, is added to mu_r's error (``lateral``; an error of
+nan stays nan): the two converge to each other, and a grid on which they differ has not resolved mu_r to
+better than that difference, whatever the coarser grids say.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time as clock
 from dataclasses import dataclass, field
@@ -46,7 +53,7 @@ from petroll.errors import PetrollError
 from petroll.model.clock import TimeMode
 from petroll.model.preflight import Preflight, check
 from petroll.model.scene import Scene
-from petroll.records import StepRecord
+from petroll.records import StepRecord, lateral_friction
 from petroll.solver.simulation import Simulation
 
 QUANTITIES = ("force", "mu_r", "p_max", "area", "lead", "trail")
@@ -113,7 +120,8 @@ class QuantityEstimate:
     the known one), whether it was ``observed``, the coarser grids' values (``coarse``), and whether the
     asymptotic range was ``checked`` (False: the error rests on the known order alone, no 4x grid having
     compared its difference; True also where there is nothing to check: values that agree to round-off,
-    what counts cells)."""
+    what counts cells); ``lateral``: the part of the error that is the fine grid's |mu_r - mu_lateral| (a
+    steady sliding solve's mu_r; else 0)."""
 
     value: float
     extrapolated: float
@@ -122,6 +130,7 @@ class QuantityEstimate:
     observed: bool
     coarse: tuple[float, ...]
     checked: bool = True
+    lateral: float = 0.0
 
     @property
     def asymptotic(self) -> bool:
@@ -305,17 +314,28 @@ def estimate_error(scene: Scene, fine: StepRecord, comm: MPI.Comm = MPI.COMM_WOR
             quantised(value, twice, _floor(scene, fine, name)) if name in COUNTED else
             richardson(value, twice, four, orders[name], observe=cells >= THIRD_GRID_CELLS,
                        round_off=ROUND_OFF.get(name, 0.0)))
+    if scene.time.mode is TimeMode.STEADY and g.topology.whole:
+        found.quantities["mu_r"] = with_lateral(found.quantities["mu_r"], fine, scene)
     found.wall_s = comm.allreduce(clock.perf_counter() - began, op=MPI.MAX)
     return found
 
 
+def with_lateral(estimate: QuantityEstimate, fine: StepRecord, scene: Scene) -> QuantityEstimate:
+    """A steady sliding solve's mu_r ``estimate`` with the fine record's |mu_r - mu_lateral| added to its
+    error (the module's text)."""
+    velocity = np.asarray(scene.velocity(0.0), dtype=float)
+    lateral = abs(fine.mu_r - lateral_friction(fine, velocity / np.hypot(*velocity)))
+    return dataclasses.replace(estimate, error=estimate.error + lateral, lateral=lateral)
+
+
 def as_attributes(found: ErrorEstimate) -> tuple[dict[str, dict], dict]:
     """(per quantity: value, extrapolated, error, order, observed, coarse, range_checked, known_order (what
-    counts cells: 1); the group's attributes): what results.h5's group error_estimate holds
-    (docs/results.md)."""
+    counts cells: 1), and mu_r's lateral_difference (QuantityEstimate.lateral); the group's attributes):
+    what results.h5's group error_estimate holds (docs/results.md)."""
     per = {name: {"value": q.value, "extrapolated": q.extrapolated, "error": q.error, "order": q.order,
                   "observed_order": q.observed, "coarse": np.array(q.coarse), "range_checked": q.checked,
                   "known_order": found.orders.get(name, 1.0)}
+           | ({"lateral_difference": q.lateral} if name == "mu_r" else {})
            for name, q in found.quantities.items()}
     attrs = {"grids": np.array(found.grids), "wall_s": found.wall_s, "failed": found.failed or "",
              "integrator": found.integrator, "range_checked": found.range_checked,

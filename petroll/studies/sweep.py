@@ -74,7 +74,7 @@ EXCLUSIVE = {
 COLUMNS: dict[str, tuple[str, str]] = {
     "value": ("(of KEY)", "the varied value (a vector key: its magnitude)"),
     "force": ("N", "normal force at the last step"),
-    "mu_r": ("-", "rolling-resistance coefficient at the last step"),
+    "mu_r": ("-", "rolling-resistance coefficient at the last step (steady sliding: friction, dissipation's)"),
     "delta": ("m", "penetration at the last step"),
     "area": ("m^2", "contact area at the last step"),
     "area_fraction": ("-", "A/A0: contact area / the cell's area (a grid periodic along X and Y; else NaN)"),
