@@ -31,16 +31,22 @@ def parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _scene_run_options(verb, out: str, estimate: str) -> None:
+    """What run and sweep share: the scene, --out, --quiet and --estimate-error (with their help texts)."""
+    verb.add_argument("scene", help="scene file (TOML)")
+    verb.add_argument("--out", help=out)
+    verb.add_argument("--quiet", action="store_true", help="no progress line (also off when not a terminal)")
+    verb.add_argument("--estimate-error", action="store_true", help=estimate)
+
+
 def _run_verbs(verbs) -> None:
     """run, restart, keys."""
     run = verbs.add_parser("run", help="run a scene and write DIR/results.h5")
-    run.add_argument("scene", help="scene file (TOML)")
-    run.add_argument("--out", help="output directory (default: the scene's [output] dir)")
-    run.add_argument("--quiet", action="store_true", help="no progress line (also off when not a terminal)")
+    _scene_run_options(run, "output directory (default: the scene's [output] dir)", "also solve on grids 2x "
+                       "(and 4x) coarser and report the discretisation error of the last step's values "
+                       "(docs/accuracy.md)")
     run.add_argument("--overwrite", action="store_true", help="replace the results of another scene in the "
                      "output directory (refused without it)")
-    run.add_argument("--estimate-error", action="store_true", help="also solve on grids 2x (and 4x) coarser "
-                     "and report the discretisation error of the last step's values (docs/accuracy.md)")
     restart = verbs.add_parser("restart", help="continue a run from a checkpoint to its end "
                                "(docs/checkpoints.md)")
     restart.add_argument("checkpoint", help="a checkpoint file, or a run directory (its newest checkpoint)")
@@ -113,17 +119,15 @@ def _study_verbs(verbs) -> None:
                        "nothing installed); measures nothing")
     sweep = verbs.add_parser("sweep", help="run a scene over values of one key to steady state; table and "
                              "plot in DIR (docs/sweep.md); run again to resume")
-    sweep.add_argument("scene", help="scene file (TOML)")
+    _scene_run_options(sweep, "output directory (default: the scene's [output] dir + -sweep)", "estimate each "
+                       "point's discretisation error (grids 2x and 4x coarser): columns <quantity>_error "
+                       "(docs/accuracy.md)")
     sweep.add_argument("--vary", action="append", required=True, metavar="KEY=SPEC",
                        help="KEY=V1,V2,... or KEY=START..STOP:log:N or KEY=START..STOP:lin:N, e.g. "
                        "motion.velocity=1e-4..1e-1:log:7 (a vector key varies its magnitude); given twice: "
                        "a family of curves, one sweep of the first key per value of the second")
-    sweep.add_argument("--out", help="output directory (default: the scene's [output] dir + -sweep)")
-    sweep.add_argument("--quiet", action="store_true", help="no progress line (also off when not a terminal)")
     sweep.add_argument("--transient", action="store_true", help="run every point from rest to steady state, "
                        "even where its steady state can be solved directly (the default there)")
-    sweep.add_argument("--estimate-error", action="store_true", help="estimate each point's discretisation "
-                       "error (grids 2x and 4x coarser): columns <quantity>_error (docs/accuracy.md)")
 
 
 def _material_verbs(verbs) -> None:

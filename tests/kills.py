@@ -16,6 +16,14 @@ Runs are forked from this process (``fork``: no start-up cost, one rank) or star
 ``mpirun -n RANKS petroll run`` (``ranks`` > 0: every rank killed at once, as when a node fails). Each
 forked run reports where it was when killed (outside an append, inside one, inside its commit), and may be
 slowed inside appends (``slow`` seconds per disk write of results.h5) so that more kills land there.
+
+Forked storms may also kill at every *kill point* first (``every_point``): what a run leaves on disk
+changes only at its disk writes (``petroll.io.journal.write_all``) and at the os calls of DURABLE; a kill
+point is one of them, named by the call, the file (digits folded: every step's checkpoint is one file) and
+where the run was (PHASES). A run to its end lists them in order (``kill_points``); a trial is killed just
+before the first call of each kill point (SIGKILL sent by the run to itself), so every way a kill can cut
+a run's writes short is tried, whatever the machine's speed; the random trials then land between them,
+later in the run too.
 ``scripts/kill-storm.py`` runs a storm and prints the table; tests/test_faults.py runs a small one. Fault
 injection is a tool of the checkout's tests, not part of the installed package: this module lives beside
 the tests (``from kills import ...``, the tests' folder is on sys.path under pytest; the script puts it
@@ -24,8 +32,10 @@ there).
 
 from __future__ import annotations
 
+import math
 import os
 import pathlib
+import re
 import shutil
 import signal
 import subprocess
@@ -57,6 +67,9 @@ SCENE = {
 PHASES = ("outside", "append", "commit")
 """Where a forked run was when killed: outside any append, inside one (HDF5 writing), inside its commit."""
 
+DURABLE = ("fsync", "replace", "unlink", "ftruncate", "truncate")
+"""The os calls after which what a run left on disk may differ (besides petroll.io.journal.write_all)."""
+
 
 @dataclass
 class Trial:
@@ -64,8 +77,9 @@ class Trial:
     (steps and saved fields in results.h5, checkpoints, a journal cut short) and what was lost (none!)."""
 
     index: int
-    after: float
+    after: float  # NaN: killed at a kill point
     phase: str = "?"
+    point: str = ""  # the kill point it was killed before ("write results.h5 commit"), "" if at an instant
     steps: int = 0
     fields: int = 0
     checkpoints: int = 0
@@ -75,9 +89,10 @@ class Trial:
 
 
 def storm(directory: str | pathlib.Path, trials: int, seed: int = 0, slow: float = 0.0, restarts: int = 0,
-          ranks: int = 0, log=None) -> list[Trial]:
-    """Run ``trials`` killed runs in ``directory`` (see the module docstring); each trial's directory is
-    removed once checked unless something was lost. ``log(trial)`` after each."""
+          ranks: int = 0, log=None, every_point: bool = False) -> list[Trial]:
+    """Run ``trials`` killed runs in ``directory`` (see the module docstring), after (``every_point``,
+    forked runs only) one killed just before the first call of each kill point; each
+    trial's directory is removed once checked unless something was lost. ``log(trial)`` after each."""
     directory = pathlib.Path(directory).resolve()  # mpirun's runs start in it: their --out must be absolute
     directory.mkdir(parents=True, exist_ok=True)
     scene = parse_scene(SCENE, source="kill-storm.toml", base_dir=directory)
@@ -91,22 +106,31 @@ def storm(directory: str | pathlib.Path, trials: int, seed: int = 0, slow: float
         _kill_fork(scene, directory / "timing", None, slow)  # a whole run, as the trials run (slowed)
         duration = time.perf_counter() - start
     expected = _contents(reference)
+    if every_point and ranks:
+        raise ValueError("kill points are forked runs' (ranks=0)")
+    points = kill_points(scene, directory / "points") if every_point else []
+    chosen = sorted({points.index(point) for point in points})  # the first call of each
     rng = np.random.default_rng(seed)
+    total = len(chosen) + trials
     due = 0.0  # restarts spread over the storm: the first trial from here on that left a checkpoint
     done = []
-    for index in range(trials):
+    for index in range(total):
         out = directory / f"trial-{index:04d}"
         shutil.rmtree(out, ignore_errors=True)
-        after = float(rng.uniform(0.0, duration))
-        trial = Trial(index, after)
-        if ranks:
-            _kill_mpirun(directory, out, ranks, after)
+        if index < len(chosen):
+            trial = Trial(index, math.nan, point=points[chosen[index]])
+            trial.phase = _kill_fork(scene, out, None, 0.0, kill_at=chosen[index])
         else:
-            trial.phase = _kill_fork(scene, out, after, slow)
+            after = float(rng.uniform(0.0, duration))
+            trial = Trial(index, after)
+            if ranks:
+                _kill_mpirun(directory, out, ranks, after)
+            else:
+                trial.phase = _kill_fork(scene, out, after, slow)
         _inspect(out, expected, trial)
         if restarts and index >= due and trial.checkpoints and not trial.lost:
             _restart(out, expected, trial, ranks, directory)
-            due += trials / restarts
+            due += total / restarts
         if not trial.lost:
             shutil.rmtree(out, ignore_errors=True)
         done.append(trial)
@@ -116,16 +140,31 @@ def storm(directory: str | pathlib.Path, trials: int, seed: int = 0, slow: float
 
 
 # -- killing ----------------------------------------------------------------------------------------------
-def _kill_fork(scene, out: pathlib.Path, after: float | None, slow: float) -> str:
-    """Fork a run of ``scene`` into ``out``, SIGKILL it ``after`` seconds later (None: let it end); where it
-    was (PHASES)."""
+def kill_points(scene, out: pathlib.Path) -> list[str]:
+    """The kill points of a run of ``scene`` into ``out`` (removed after), in the order it reaches them, one
+    entry per call: "CALL FILE PHASE" ("write results.h5 commit", "replace step-N.h5 outside")."""
+    listing = out.with_name(out.name + ".txt")
+    _kill_fork(scene, out, None, 0.0, listing=listing)
+    points = listing.read_text(encoding="utf-8").splitlines()
+    shutil.rmtree(out, ignore_errors=True)
+    listing.unlink()
+    return points
+
+
+def _kill_fork(scene, out: pathlib.Path, after: float | None, slow: float, kill_at: int | None = None,
+               listing: pathlib.Path | None = None) -> str:
+    """Fork a run of ``scene`` into ``out``, SIGKILL it ``after`` seconds later (None: let it end) or just
+    before its kill point number ``kill_at`` (it kills itself), or list its kill points in ``listing``;
+    where it was (PHASES)."""
     read, write = os.pipe()
     pid = os.fork()
     if pid == 0:  # the run: tells the parent where it is, one byte per change
         try:
             os.close(read)
-            _instrument(write, slow)
+            points = _instrument(write, slow, kill_at, out)
             run(scene, MPI.COMM_SELF, out)
+            if listing is not None:
+                listing.write_text("".join(f"{point}\n" for point in points), encoding="utf-8")
         finally:
             os._exit(0)
     os.close(write)
@@ -141,31 +180,59 @@ def _kill_fork(scene, out: pathlib.Path, after: float | None, slow: float) -> st
     return {b"o": "outside", b"a": "append", b"c": "commit"}[last]
 
 
-def _instrument(pipe: int, slow: float) -> None:
+def _instrument(pipe: int, slow: float, kill_at: int | None, out: pathlib.Path) -> list[str]:
     """In a forked run: mark entering and leaving each append and commit on ``pipe``; slow results.h5's
-    disk writes by ``slow`` seconds each."""
+    disk writes by ``slow`` seconds each; SIGKILL the run just before its kill point number ``kill_at``.
+    Returns the list that its kill points are added to as it reaches them."""
     append, commit, write_all = ResultsFile.append, journal.Session.commit, journal.write_all
+    phase = [b"o"]
+    points: list[str] = []
+
+    def mark(byte: bytes) -> None:
+        phase[0] = byte
+        os.write(pipe, byte)
 
     def marked_append(self, *args, **kwargs):
-        os.write(pipe, b"a")
+        mark(b"a")
         try:
             return append(self, *args, **kwargs)
         finally:
-            os.write(pipe, b"o")
+            mark(b"o")
 
-    def marked_commit(self):
-        os.write(pipe, b"c")
+    def marked_commit(self):  # results.h5's in an append, a checkpoint's outside
+        before = phase[0]
+        mark(b"c")
         try:
             return commit(self)
         finally:
-            os.write(pipe, b"a")
+            mark(before)
+
+    def point(call: str, target) -> None:
+        """Before a call that may change what is on disk: a kill point, the run killed if it is the one."""
+        if isinstance(target, int):
+            target = os.readlink(f"/proc/self/fd/{target}")
+        name = "DIR" if pathlib.Path(target) == out else re.sub(r"(?<=tmp)\d+|(?<=-)\d+", "N",
+                                                                 pathlib.Path(target).name)
+        if len(points) == kill_at:
+            os.kill(os.getpid(), signal.SIGKILL)
+        points.append(f"{call} {name} {PHASES['oac'.index(phase[0].decode())]}")
 
     def slowed(fd, data, at):
+        point("write", fd)
         if slow and os.readlink(f"/proc/self/fd/{fd}").endswith("results.h5"):
             time.sleep(slow)
         write_all(fd, data, at)
 
+    def durable(call: str, function):
+        def before(*args, **kwargs):
+            point(call, args[-1] if call == "replace" else args[0])
+            return function(*args, **kwargs)
+        return before
+
     ResultsFile.append, journal.Session.commit, journal.write_all = marked_append, marked_commit, slowed
+    for call in DURABLE:
+        setattr(os, call, durable(call, getattr(os, call)))
+    return points
 
 
 def _mpirun_reference(directory: pathlib.Path, ranks: int) -> tuple[Results, float]:
@@ -284,7 +351,8 @@ def _restart(out: pathlib.Path, expected: dict, trial: Trial, ranks: int, direct
 
 def summary(trials: list[Trial]) -> dict:
     """Counts over a storm: trials, where the kills landed, files left, restarts, and losses."""
-    return {"trials": len(trials), **{f"killed {p}": sum(t.phase == p for t in trials) for p in PHASES},
+    return {"trials": len(trials), "kill points": len({t.point for t in trials if t.point}),
+            **{f"killed {p}": sum(t.phase == p for t in trials) for p in PHASES},
             "results.h5 left": sum(t.steps > 0 for t in trials), "torn commits": sum(t.torn for t in trials),
             "checkpoints checked": sum(t.checkpoints for t in trials),
             "restarted": sum(t.restarted for t in trials), "trials with a loss": sum(bool(t.lost) for t in trials)}

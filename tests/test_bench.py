@@ -96,34 +96,41 @@ def test_skips_bench_each_saving_keeps_the_answer(tmp_path):
     assert (tmp_path / "skips.csv").exists()
 
 
-@pytest.mark.slow
-def test_tao_types_on_the_rolling_scene_agree(tmp_path):
-    from petroll.bench.solvers import tao_types_rolling
+def _bench_docs(tmp_path_factory, name: str) -> list[dict]:
+    """The rows of results/bench/NAME that docs/benchmarks.md's blocks wrote (``petroll bench ... --quick``,
+    run once a session by tests/test_docs.py): what the command wrote, checked without running it again."""
+    from test_docs import ROOT, document_run
 
-    rows = tao_types_rolling(tmp_path, distance=0.3e-3)
+    with open(document_run(ROOT / "docs" / "benchmarks.md", tmp_path_factory) / "results" / "bench" / name) as fh:
+        return list(csv.DictReader(fh))
+
+
+@pytest.mark.slow
+def test_tao_types_on_the_rolling_scene_agree(tmp_path_factory):
+    """``petroll bench tao --quick``'s rolling part (docs/benchmarks.md): every TAO type and PC rolls the
+    default scene to the same force."""
+    rows = _bench_docs(tmp_path_factory, "tao_rolling.csv")
     forces = [float(r["force"]) for r in rows]  # a failed type would not parse
     assert len(rows) == 15 and max(forces) / min(forces) - 1 < 1e-6  # every solver and PC, the same answer
     assert [r["pc"] for r in rows if r["tao_type"] == "tron"] == ["circulant", "none"]
     assert [r["pc"] for r in rows if r["tao_type"] == "bncg"] == ["-"]
-    assert all(int(r["steps"]) == rows[0]["steps"] for r in rows)
-    assert (tmp_path / "tao_rolling.csv").exists()
+    assert int(rows[0]["steps"]) > 1 and all(r["steps"] == rows[0]["steps"] for r in rows)
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("steady", [False, True])
-def test_memory_bench_reports_every_ranks_peak_and_the_same_force_on_1_and_2_ranks(tmp_path, steady):
-    """petroll bench memory on a 256^2 grid, rolled or its steady state solved directly: a peak above the
-    fixed cost on every rank, rank 0 / mean near 1, and one answer whatever the rank count (the children
-    run the same scene)."""
-    from petroll.bench.memory import memory
-
-    rows = memory(tmp_path, sides=(256,), ranks=(1, 2), steps=2, steady=steady)
-    assert [r["ranks"] for r in rows] == [1, 2] and all(r["cells"] == 256 * 256 for r in rows)
-    assert all(r["mean_mib"] > r["fixed_mib"] > 20 and r["run_mib"] > 0 for r in rows)
-    assert rows[1]["rank0_over_mean"] < 1.15 and rows[0]["steps"] == rows[1]["steps"] == (1 if steady else 3)
-    assert rows[1]["force"] == pytest.approx(rows[0]["force"], rel=1e-10 if steady else 1e-12)
-    with open(tmp_path / f"memory{'_steady' if steady else ''}.csv") as fh:
-        assert len(list(csv.DictReader(fh))) == 2
+def test_memory_bench_reports_every_ranks_peak_and_the_same_force_on_1_and_2_ranks(tmp_path_factory, steady):
+    """``petroll bench memory [--steady] --quick --sides 256 --ranks 1,2`` (docs/benchmarks.md) on a 256^2
+    grid, rolled or its steady state solved directly: a peak above the fixed cost on every rank, rank 0 /
+    mean near 1, and one answer whatever the rank count (the children run the same scene)."""
+    rows = [r for r in _bench_docs(tmp_path_factory, f"memory{'_steady' if steady else ''}.csv")
+            if r["side"] == "256"]
+    rows = [next(r for r in rows if r["ranks"] == k) for k in ("1", "2")]
+    assert all(int(r["cells"]) == 256 * 256 for r in rows)
+    assert all(float(r["mean_mib"]) > float(r["fixed_mib"]) > 20 and float(r["run_mib"]) > 0 for r in rows), rows
+    assert float(rows[1]["rank0_over_mean"]) < 1.15
+    assert int(rows[0]["steps"]) == int(rows[1]["steps"]) == (1 if steady else 3)
+    assert float(rows[1]["force"]) == pytest.approx(float(rows[0]["force"]), rel=1e-10 if steady else 1e-12)
 
 
 def test_steady_growth_times_the_direct_solve_on_each_grid(tmp_path):
@@ -265,14 +272,13 @@ def test_a_surface_sampled_coarser_keeps_its_modes():
     assert np.abs(truncated(surface(64), 16) - surface(16)).max() < 1e-12
 
 
-def test_the_resolution_benches_measure_against_their_reference(tmp_path):
-    """bench cutoff and bench sized at tiny sizes: the reference row is the reference, the coarser one the
-    same surface (penetration within 3 %), the sized grid within a few per cent of the fine one."""
-    from petroll.bench.sizing import cutoff, sized
-
-    rows = cutoff(tmp_path, cells=(2,), reference=4, side=0.5e-3)
-    assert [r["cells_per_cutoff"] for r in rows] == [4, 2] and rows[0]["mu_change"] == "+0.00%"
+@pytest.mark.slow
+def test_the_resolution_benches_measure_against_their_reference(tmp_path_factory):
+    """``petroll bench cutoff --quick`` and ``bench sized --quick`` (docs/benchmarks.md): the reference row is
+    the reference, the coarser one the same surface (penetration within 3 %), the sized grid within a few
+    per cent of the fine one."""
+    rows = _bench_docs(tmp_path_factory, "cutoff.csv")
+    assert [r["cells_per_cutoff"] for r in rows] == ["4", "2"] and rows[0]["mu_change"] == "+0.00%"
     assert abs(float(rows[1]["penetration_change"].rstrip("%"))) < 3
-    (row,) = sized(tmp_path, speeds="0.01", fine=80)
+    row = next(r for r in _bench_docs(tmp_path_factory, "sized.csv") if r["speed"] == "0.01")
     assert all(abs(float(row[f"{q}_change"].rstrip("%"))) < 3 for q in ("mu_r", "delta", "area", "p_max")), row
-    assert (tmp_path / "cutoff.csv").is_file() and (tmp_path / "sized.csv").is_file()

@@ -84,6 +84,14 @@ def test_exact_data_take_the_terms_they_need():
     assert storage.max() < 1e-3 and loss[inside].max() < 2.5e-3 and loss.max() < 1e-2
 
 
+def _fit(comm, csv, lines: list[str]) -> int:
+    """``petroll material fit CSV --out m.toml`` (beside CSV) on the table ``lines``, written by rank 0."""
+    if comm.rank == 0:
+        csv.write_text("\n".join(lines) + "\n")
+    comm.barrier()
+    return main(["material", "fit", str(csv), "--out", str(csv.with_name("m.toml"))])
+
+
 @pytest.mark.slow
 def test_a_master_curve_as_users_have_it_is_taken_and_its_plateau_gives_einf(comm, shared_dir, capsys):
     """Unsorted rows merged from sweeps, near-duplicate and duplicate frequencies, a plateau over the
@@ -97,10 +105,7 @@ def test_a_master_curve_as_users_have_it_is_taken_and_its_plateau_gives_einf(com
     lines = ["frequency,storage,loss"] + [f"{a!r},{b!r},{c!r}"
                                           for a, b, c in zip(f, rows["storage"], rows["loss"])]
     tmp_path = shared_dir
-    if comm.rank == 0:
-        (tmp_path / "master.csv").write_text("\n".join(lines) + "\n")
-    comm.barrier()
-    assert main(["material", "fit", str(tmp_path / "master.csv"), "--out", str(tmp_path / "m.toml")]) == 0
+    assert _fit(comm, tmp_path / "master.csv", lines) == 0
     out = capsys.readouterr().out
     if comm.rank != 0:
         return
@@ -142,10 +147,7 @@ def test_einf_given_or_from_the_data_and_a_fluid_refused_saying_what_to_do(comm,
     fluid = ["frequency,storage,loss"] + [f"{w / 2 / np.pi / 1e-3!r},{1e6 * w**2 / (1 + w**2)!r},"
                                           f"{1e6 * w / (1 + w**2)!r}" for w in wt]
     tmp_path = shared_dir
-    if comm.rank == 0:
-        (tmp_path / "fluid.csv").write_text("\n".join(fluid) + "\n")
-    comm.barrier()
-    assert main(["material", "fit", str(tmp_path / "fluid.csv"), "--out", str(tmp_path / "m.toml")]) == 2
+    assert _fit(comm, tmp_path / "fluid.csv", fluid) == 2
     err = capsys.readouterr().err
     assert main(["material", "fit", str(tmp_path / "fluid.csv"), "--einf", "1e3", "--out",
                  str(tmp_path / "m.toml")]) == 0

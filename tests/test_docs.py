@@ -178,10 +178,9 @@ def run_elsewhere(doc: pathlib.Path) -> frozenset:
                                if not block.elsewhere))
 
 
-@pytest.mark.slow
-@pytest.mark.serial
-@pytest.mark.parametrize("doc", [d for d in DOCS if runnable(d)], ids=lambda d: str(d.relative_to(ROOT)))
-def test_every_block_runs_as_written(doc, tmp_path):
+def run_document(doc: pathlib.Path, tmp_path: pathlib.Path) -> pathlib.Path:
+    """Run the blocks of ``doc`` in order in a copy of the repository under ``tmp_path`` (the conventions
+    of this module's docstring); returns the copy, with what the blocks wrote (``results/...``)."""
     copy = _copy(tmp_path)
     previous = None
     ran = frozenset()  # the commands this document's blocks ran
@@ -207,6 +206,32 @@ def test_every_block_runs_as_written(doc, tmp_path):
             assert previous.returncode == 0, (
                 f"{where} failed (exit {previous.returncode}):\n{source}\n"
                 f"stdout:\n{previous.stdout[-3000:]}\nstderr:\n{previous.stderr[-3000:]}")
+    return copy
+
+
+_RAN: dict[pathlib.Path, pathlib.Path | AssertionError] = {}
+
+
+def document_run(doc: pathlib.Path, tmp_path_factory) -> pathlib.Path:
+    """``run_document`` once a session: the copy it left, or its failure again. Tests that check what a
+    document's block writes (tests/test_bench.py: ``petroll bench ... --quick``) read it there instead of
+    running the same command a second time."""
+    if doc not in _RAN:
+        try:
+            _RAN[doc] = run_document(doc, tmp_path_factory.mktemp(doc.stem))
+        except AssertionError as failure:
+            _RAN[doc] = failure
+            raise
+    if isinstance(_RAN[doc], AssertionError):
+        raise AssertionError(f"{doc.relative_to(ROOT)}'s blocks failed") from _RAN[doc]
+    return _RAN[doc]
+
+
+@pytest.mark.slow
+@pytest.mark.serial
+@pytest.mark.parametrize("doc", [d for d in DOCS if runnable(d)], ids=lambda d: str(d.relative_to(ROOT)))
+def test_every_block_runs_as_written(doc, tmp_path_factory):
+    document_run(doc, tmp_path_factory)
 
 
 def _slug(heading: str) -> str:

@@ -111,7 +111,7 @@ def memory(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, sides: tuple[int,
                   mean_mib=f"{r['mean_mib']:.0f}", max_mib=f"{r['max_mib']:.0f}",
                   rank0_over_mean=f"{r['rank0_over_mean']:.3f}", fixed_mib=f"{r['fixed_mib']:.0f}",
                   run_mib=f"{r['run_mib']:.0f}", per_rank_vs_1=f"{r['per_rank_vs_1']:.3f}",
-                  force=f"{r['force']:.10g}") for r in rows], out / f"memory{'_steady' if steady else ''}.csv")
+                  force=f"{r['force']:.17g}") for r in rows], out / f"memory{'_steady' if steady else ''}.csv")
     _plot_memory(rows, out / f"memory{'_steady' if steady else ''}.png")
     return rows
 

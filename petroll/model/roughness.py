@@ -22,7 +22,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.fft
-import scipy.optimize
 
 from petroll.errors import MISSING, SceneError
 from petroll.model.limits import heights_out_of_scale
@@ -191,10 +190,12 @@ class TabulatedPSD:
             cuts, radius = np.delete(cuts, i + 1), np.delete(radius, i + 1)
             moment0 = np.concatenate([moment0[:i], [moment0[i] + moment0[i + 1]], moment0[i + 2:]])
             moment2 = np.concatenate([moment2[:i], [moment2[i] + moment2[i + 1]], moment2[i + 2:]])
+        from scipy.optimize import brentq  # here: scipy.optimize takes ~0.1 s to import, a run needs it not
+
         left, right = np.zeros(moment0.size), np.zeros(moment0.size)
         for i in np.flatnonzero(full):
-            alpha = scipy.optimize.brentq(lambda a: _mean_log_ratio(a, span[i]) - ratio[i], -_STEEPEST,
-                                          _STEEPEST, xtol=1e-13, rtol=1e-15)
+            alpha = brentq(lambda a: _mean_log_ratio(a, span[i]) - ratio[i], -_STEEPEST, _STEEPEST, xtol=1e-13,
+                           rtol=1e-15)
             left[i] = moment0[i] / (2.0 * np.pi * radius[i] ** 2 * math.exp(_log_integral(alpha + 1.0, span[i])))
             right[i] = left[i] * math.exp(alpha * span[i])
         first, last = np.flatnonzero(full)[[0, -1]]

@@ -55,6 +55,16 @@ def main(prepare) -> None:
     print(json.dumps({"tol": tol, "difference": difference, "iterations": count}))
 
 
+def zero_start(problem, start, name: str) -> tuple[np.ndarray, int, float, float]:
+    """For a peer that starts from zero only (START ``hertz`` refused, naming the peer): the problem's
+    heights, N, cell side (m) and grid side N x cell (m)."""
+    if start != "zero":
+        raise SystemExit(f"{name}: start {start!r}: only zero")
+    heights = problem["heights"]
+    n, cell = heights.shape[0], float(problem["cell"])
+    return heights, n, cell, n * cell
+
+
 def centres(problem) -> np.ndarray:
     """The cell centres (m) along either axis: N cells of side ``cell`` centred on 0."""
     n, cell = problem["heights"].shape[0], float(problem["cell"])

@@ -12,15 +12,11 @@ from ContactMechanics import FreeFFTElasticHalfSpace
 from ContactMechanics.Optimization import constrained_conjugate_gradients
 from SurfaceTopography import Topography
 
-from common import main
+from common import main, zero_start
 
 
 def prepare(problem, start):
-    if start != "zero":
-        raise SystemExit(f"contactmechanics: start {start!r}: only zero")
-    heights = problem["heights"]
-    n, cell = heights.shape[0], float(problem["cell"])
-    side = n * cell
+    heights, n, cell, side = zero_start(problem, start, "contactmechanics")
     topography = Topography(-np.ascontiguousarray(heights), physical_sizes=(side, side))
     substrate = FreeFFTElasticHalfSpace((n, n), 1.0 / float(problem["compliance"]), (side, side))
     load, delta, pressure = (float(problem[k]) for k in ("load", "delta", "pressure"))

@@ -9,15 +9,11 @@ iterations."""
 import numpy as np
 import tamaas as tm
 
-from common import main
+from common import main, zero_start
 
 
 def prepare(problem, start):
-    if start != "zero":
-        raise SystemExit(f"tamaas: start {start!r}: only zero")
-    heights = problem["heights"]
-    n, cell = heights.shape[0], float(problem["cell"])
-    side = n * cell
+    heights, n, _, side = zero_start(problem, start, "tamaas")
     model = tm.ModelFactory.createModel(tm.model_type.basic_2d, [side, side], [n, n])
     model.E, model.nu = 1.0 / float(problem["compliance"]), 0.0
     tm.ModelFactory.registerNonPeriodic(model, "dcfft")
