@@ -530,9 +530,9 @@ def test_the_friction_benchmark_and_the_solvers_comparison_run(comm, shared_dir)
     from petroll.bench.friction import bench_friction, compare_solvers
 
     rows = bench_friction(shared_dir, quick=True, comm=comm)
-    assert len(rows) == 11 and all(row["applications"] > 0 for row in rows)
+    assert len(rows) == 13 and all(row["applications"] > 0 for row in rows)
     if comm.rank == 0:
-        assert (shared_dir / "friction.csv").read_text().count("\n") == 12
+        assert (shared_dir / "friction.csv").read_text().count("\n") == 14
     table = compare_solvers(MPI.COMM_SELF, n=4)
     assert {row["solver"] for row in table} >= {"DiskPCG", "FISTA (restarted)", "TAO pk"}
     assert all(row["applications"] for row in table if row["solver"].startswith("DiskPCG ("))
