@@ -424,9 +424,10 @@ class ContactSolver:
 
     def _to_pressure_tol(self, qp: WindowQP, shape: tuple[int, int], total: float | None, solved: tuple,
                          tol: float):
-        """Solve the QP (its right-hand side set) on from its answer, held in its solution vector, ``solved`` (x, gap, multiplier, iterations, applications) at the
-        residual tolerance ``tol`` until its estimated relative L2 error is <= ``pressure_tol``; returns the
-        same five (work summed) and the final residual tolerance."""
+        """Re-solve the QP (right-hand side set, its last answer ``solved`` = (x, gap, multiplier, iterations,
+        applications) at residual tolerance ``tol`` held in its solution vector) at tighter residual
+        tolerances until its estimated relative L2 pressure error is <= ``pressure_tol``; returns the same
+        five (work summed) and the final residual tolerance."""
         x, gap, multiplier, its, applications = solved
         inverse = self.influence.window(*shape, inverse=True)
         for _ in range(self.REFINES):
