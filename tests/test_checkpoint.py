@@ -335,7 +335,10 @@ def flip_byte_inside(path: pathlib.Path, dataset: str) -> None:
     """Overwrite bytes in the middle of the stored (compressed) data of ``dataset``."""
     with h5py.File(path, "r") as f:
         info = f[dataset].id.get_chunk_info(0)
-        offset = info.byte_offset + info.size // 2
+    flip_byte_at(path, info.byte_offset + info.size // 2)
+
+
+def flip_byte_at(path: pathlib.Path, offset: int) -> None:
     with open(path, "r+b") as fh:
         fh.seek(offset)
         byte = fh.read(1)
@@ -377,6 +380,8 @@ BAD = {
                      "not a petroll checkpoint (a petroll results file"),
     "other hdf5": (lambda good, p: other_hdf5(p), "not a petroll checkpoint (an HDF5 file"),
     "corrupted data": (lambda good, p: (shutil.copy(good, p), flip_byte_inside(p, "state/q")), "corrupted"),
+    "damaged seal": (lambda good, p: (shutil.copy(good, p), flip_byte_at(p, 3)),
+                     "corrupted (its seal, the file's first 512 bytes, is damaged)"),
     "edited scene": (lambda good, p: (shutil.copy(good, p), set_attribute(p, "scene", "[grid]\nnx = 1\n")),
                      "corrupted (its bytes do not match the checksum it was sealed with)"),
     "edited and sealed": (lambda good, p: (shutil.copy(good, p), set_attribute(p, "scene", "[grid]\nnx = 1\n",

@@ -225,6 +225,9 @@ SEAL_BYTES = 512
 
 SEAL_MAGIC = b"petroll-seal 1 sha256 "
 
+HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
+"""The first bytes of HDF5's superblock (at offset 0, or after a user block)."""
+
 
 def seal(path: pathlib.Path) -> None:
     """Write into the user block of a complete file made with ``RowFile(..., sealed=True)`` the SHA-256 of
@@ -239,11 +242,14 @@ def seal(path: pathlib.Path) -> None:
 
 def seal_broken(path: pathlib.Path) -> str | None:
     """Why a sealed file is damaged, "truncated (...)" or "corrupted (...)" (its content no longer the
-    sealed one); None if it is whole or has no seal (an unsealed or older file, or a seal damaged beyond
-    recognition: HDF5 ignores the user block)."""
+    sealed one, or its seal itself damaged: a user block that is neither a seal nor blank); None if it is
+    whole or has no seal (an older file, HDF5 from its first byte, or a blank user block)."""
     with open(path, "rb") as fh:
-        head = fh.read(SEAL_BYTES)
+        head = fh.read(SEAL_BYTES + len(HDF5_SIGNATURE))
     if not head.startswith(SEAL_MAGIC):
+        block, rest = head[:SEAL_BYTES], head[SEAL_BYTES:]
+        if rest == HDF5_SIGNATURE and block.strip(b"\0"):
+            return f"corrupted (its seal, the file's first {SEAL_BYTES} bytes, is damaged)"
         return None
     digest, _, size = head[len(SEAL_MAGIC):].partition(b"\n")[0].decode("ascii", "replace").partition(" bytes ")
     actual = os.path.getsize(path)
