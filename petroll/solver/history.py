@@ -29,6 +29,7 @@ relaxed and instantaneous moduli by more than 1 % of their difference (unstable 
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -317,9 +318,11 @@ def holding_response(material, integrator: str, dt: float, steps: int = 40) -> n
     return np.array(pressures)
 
 
+@functools.lru_cache(maxsize=256)
 def holding_violation(material, integrator: str, dt: float) -> float:
     """How far the held cell's pressure (:func:`holding_response`) leaves [1/Jinf, 1/J0], as a fraction of
-    that range (0: it stays inside)."""
+    that range (0: it stays inside). Remembered per material, integrator and step: every guarded history
+    (a run's, a steady solve's state space) asks it at its first step of each length."""
     lo, hi = 1.0 / material.Jinf, 1.0 / material.J0
     if not hi > lo * (1 + 1e-12):
         return 0.0
