@@ -16,6 +16,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
+import contextlib
 import errno
 import hashlib
 import os
@@ -25,7 +26,7 @@ import sys
 import h5py
 import numpy as np
 
-from petroll.errors import reason
+from petroll.errors import PetrollError, reason
 from petroll.io.journal import Session, atomic_write
 
 if TYPE_CHECKING:
@@ -49,6 +50,20 @@ def add_strings(f: h5py.File, name: str, lines) -> None:
     new = [line for line in lines if line not in held]
     if new:
         f.attrs[name] = np.array(held + new, dtype=h5py.string_dtype())
+
+
+@contextlib.contextmanager
+def reading_as(path, what: str):
+    """Within the block ``path``, an HDF5 file, is read as ``what`` (e.g. "petroll results file"): any
+    exception but a PetrollError is raised as one, "PATH: not a readable WHAT (reason)". h5py reports a
+    damaged file as OSError, KeyError, RuntimeError, ValueError, TypeError, ..., and a damaged file's values
+    and names can be of any type: each is the file's problem, told in one line."""
+    try:
+        yield
+    except PetrollError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - see above
+        raise PetrollError(f"{path}: not a readable {what} ({reason(exc)})") from None
 
 
 def parallel_hdf5(comm: MPI.Comm) -> bool:

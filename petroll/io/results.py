@@ -39,11 +39,14 @@ import numpy as np
 
 from petroll import __version__
 from petroll.errors import PetrollError, reason
-from petroll.io.hdf5 import RowFile, add_strings, chunk_rows, string_list
+from petroll.io.hdf5 import RowFile, add_strings, chunk_rows, reading_as, string_list
 from petroll.io.journal import atomic_write, copy_committed, reading, sync_directory  # noqa: F401 - atomic_write: here too
 from petroll.records import INTEGER_SERIES, SERIES, friction_units
 
 FORMAT_VERSION = 1
+
+RESULTS_FILE = "petroll results file"
+"""What a results file is called in the error that a damaged one gives (:func:`reading_as`)."""
 
 
 class OutputError(PetrollError):
@@ -169,10 +172,16 @@ class Results:
     def open(cls, path: str | pathlib.Path) -> "Results":
         """Read a results file's series and coordinates (any rank may call it), up to ``steps_written``."""
         path = pathlib.Path(path)
-        with reading(path) as f:
+        with reading_as(path, RESULTS_FILE), reading(path) as f:
             n = int(f.attrs.get("steps_written", len(f["series/t"])))
             k = int(f.attrs.get("fields_written", len(f["fields/step"])))
             series = {name: f["series"][name][:n] for name in f["series"]}
+            line = bool(f.attrs.get("line_contact", False))
+            for name in LINE_SERIES_UNITS if line else SERIES_UNITS:  # a damaged file's may be gone or short
+                held = "missing" if name not in series else f"{len(series[name])} values"
+                if name not in series or len(series[name]) != n:
+                    raise PetrollError(f"{path}: not a readable {RESULTS_FILE} (series {name}: {held} for the "
+                                       f"{n} steps written)")
             fields = f["fields"]
             rough = {name: f["rough"][name][:k] for name in f["rough"]} if "rough" in f else None
             estimate = None
@@ -180,14 +189,14 @@ class Results:
                 group = f["error_estimate"]
                 estimate = {name: dict(group[name].attrs) for name in group} | {"": dict(group.attrs)}
             return cls(path, series, fields["step"][:k], fields["x"][()], fields["y"][()], str(f.attrs["scene"]),
-                       bool(f.attrs.get("complete", True)), bool(f.attrs.get("line_contact", False)),
+                       bool(f.attrs.get("complete", True)), line,
                        tuple(name for name in FIELD_UNITS if name in fields), bool(f.attrs.get("steady", False)),
                        str(f.attrs.get("scene_file", "")), str(f.attrs.get("petroll_version", "")),
                        str(f.attrs.get("run_id", "")), estimate, rough, string_list(f, "warnings"))
 
     def field(self, name: str) -> np.ndarray:
         """The saved fields ``name`` (a key of FIELD_UNITS), (n_saved, nx, ny), read from the file."""
-        with reading(self.path) as f:
+        with reading_as(self.path, RESULTS_FILE), reading(self.path) as f:
             return f["fields"][name][: len(self.field_steps)]
 
     @functools.cached_property
@@ -508,7 +517,7 @@ def _resumable(source: pathlib.Path, steps: int, field_steps: list[int], check=N
             n, k = int(f.attrs["steps_written"]), int(f.attrs["fields_written"])
             have = [int(s) for s in f["fields/step"][:k]]
             other = check(f, source) if check is not None else None
-    except (OSError, KeyError) as exc:
+    except Exception as exc:  # noqa: BLE001 - h5py reports damage as OSError, KeyError, RuntimeError, ...
         return f"{source}: cannot continue the results of the checkpoint's run ({reason(exc)}){fix}"
     if other is not None:
         return other
@@ -527,7 +536,7 @@ def results_identity(path: str | pathlib.Path) -> dict | None:
             return {"scene": str(f.attrs["scene"]), "run_id": str(f.attrs.get("run_id", "")),
                     "fingerprint": str(f.attrs.get("fingerprint", "")),
                     "complete": bool(f.attrs.get("complete", True)), "estimated": "error_estimate" in f}
-    except (OSError, KeyError):
+    except Exception:  # noqa: BLE001 - h5py reports damage as OSError, KeyError, RuntimeError, ...
         return None
 
 
