@@ -14,6 +14,7 @@ import signal
 import subprocess
 import sys
 import time
+import warnings
 import xml.etree.ElementTree as ET
 
 import h5py
@@ -361,6 +362,15 @@ def set_attribute(path: pathlib.Path, name: str, value, reseal: bool = False) ->
         seal(path)
 
 
+def set_dataset_digest(path: pathlib.Path, name: str, value) -> None:
+    """The checksum attribute of dataset ``name`` edited (h5py), and the file sealed again (as its writer)."""
+    from petroll.io.hdf5 import seal
+
+    with h5py.File(path, "r+") as f:
+        f[name].attrs["sha256"] = value
+    seal(path)
+
+
 def unseal(path: pathlib.Path) -> None:
     """A checkpoint as written before seals (petroll.io.hdf5.seal): its user block's seal blanked."""
     from petroll.io.hdf5 import SEAL_BYTES, SEAL_MAGIC
@@ -389,6 +399,12 @@ BAD = {
                           "corrupted (its attributes or list of datasets do not match the checksum)"),
     "newer format": (lambda good, p: (shutil.copy(good, p), set_attribute(p, "format_version", 3, reseal=True)),
                      "written in checkpoint format 3"),
+    "checksum an array": (lambda good, p: (shutil.copy(good, p), set_attribute(p, "sha256", np.zeros(3),
+                                                                               reseal=True)),
+                          "corrupted (its attributes or list of datasets do not match the checksum)"),
+    "a dataset's checksum an array": (lambda good, p: (shutil.copy(good, p), set_dataset_digest(p, "series/t",
+                                                                                                np.zeros(3))),
+                                      "corrupted (the data of series/t do not match their checksum)"),
 }
 
 
@@ -408,7 +424,8 @@ def test_every_kind_of_bad_checkpoint_is_refused_with_one_line_and_nothing_writt
     before = snapshot(shared_dir)
     for kind, (_, expected) in BAD.items():
         path = shared_dir / "bad" / f"{kind.replace(' ', '-')}.h5"
-        with pytest.raises(CheckpointError) as info:
+        with pytest.raises(CheckpointError) as info, warnings.catch_warnings():
+            warnings.simplefilter("error")  # e.g. numpy's FutureWarning comparing an array with a string
             read_checkpoint(path, comm)
         message = str(info.value)
         assert message.startswith(f"{path}: ") and expected in message, (kind, message)
