@@ -477,6 +477,34 @@ def test_restart_with_an_unsafe_scene_change_names_the_key(change, key, comm, sh
     assert snapshot(shared_dir) == before
 
 
+def test_restart_refuses_results_whose_datasets_reach_beyond_what_was_written(comm, shared_dir, capsys):
+    """A results.h5 whose series or field was damaged to a huge extent (random bytes in its dataspace:
+    series/trail 1095216660491 rows of 11): the restart, which cuts the datasets back to the checkpoint's
+    step, refuses it in one line, exit 2, before writing (HDF5 walked every chunk of the cut: a hang that
+    SIGTERM could not end). Likewise a saved field whose rows are not the grid's shape."""
+    run(make_scene(raw_scene()), comm, shared_dir / "run")
+    damages = {"series": ("series/trail", lambda d: d.resize((10**12,)),
+                          "series/trail holds 1000000000000 rows, more than the"),
+               "field rows": ("fields/pressure", lambda d: d.resize(10**9, axis=0),
+                              "fields/pressure holds 1000000000 rows, more than the"),
+               "field shape": ("fields/pressure", lambda d: d.resize(5, axis=2), "fields/pressure has shape (")}
+    for kind, (name, damage, says) in damages.items():
+        out = shared_dir / kind.replace(" ", "-")
+        if comm.rank == 0:
+            shutil.copytree(shared_dir / "run", out)
+            with h5py.File(out / "results.h5", "r+") as f:
+                damage(f[name])
+        comm.Barrier()
+        before = snapshot(out)
+        capsys.readouterr()
+        assert main(["restart", str(out / "checkpoints" / "step-00000004.h5"), "--quiet"]) == 2, kind
+        if comm.rank == 0:
+            lines = [line for line in capsys.readouterr().err.splitlines() if line.strip()]
+            assert len(lines) == 1 and lines[0].startswith(f"petroll: error: {out / 'results.h5'}: damaged (")
+            assert says in lines[0], (kind, lines)
+        assert snapshot(out) == before, kind
+
+
 def test_restart_may_extend_the_run_and_change_outputs(comm, shared_dir, capsys):
     raw = raw_scene(distance=2 * LENGTH)
     raw["time"]["distance"] = LENGTH

@@ -516,6 +516,9 @@ def _resumable(source: pathlib.Path, steps: int, field_steps: list[int], check=N
                 return f"{source}: written by an older petroll (not appendable); run the scene again"
             n, k = int(f.attrs["steps_written"]), int(f.attrs["fields_written"])
             have = [int(s) for s in f["fields/step"][:k]]
+            odd = _odd_extent(f, n, k)
+            if odd is not None:  # HDF5 would walk every chunk of it when the datasets are cut: a hang
+                return f"{source}: damaged ({odd}){fix}"
             other = check(f, source) if check is not None else None
     except Exception as exc:  # noqa: BLE001 - h5py reports damage as OSError, KeyError, RuntimeError, ...
         return f"{source}: cannot continue the results of the checkpoint's run ({reason(exc)}){fix}"
@@ -525,6 +528,20 @@ def _resumable(source: pathlib.Path, steps: int, field_steps: list[int], check=N
         return (f"{source}: holds {n} steps and fields of steps {have[:6]}{'...' if len(have) > 6 else ''}; "
                 f"the checkpoint needs {steps} steps and fields of steps "
                 f"{list(field_steps)[:6]}{'...' if len(field_steps) > 6 else ''}{fix}")
+    return None
+
+
+def _odd_extent(f: h5py.File, steps: int, fields: int) -> str | None:
+    """Which growing dataset of an open results file has rows beyond those written (``steps`` series values,
+    ``fields`` saved fields; a committed file has none: each append resizes and marks in one commit), or a
+    saved field not of the grid's shape; None if none."""
+    grid = (len(f["fields/x"]), len(f["fields/y"]))
+    for group, written in (("series", steps), ("fields", fields), ("rough", fields)):
+        for name, d in f[group].items() if group in f else ():
+            if d.maxshape[0] is None and d.shape[0] > written:
+                return f"{group}/{name} holds {d.shape[0]} rows, more than the {written} written"
+            if group == "fields" and name in FIELD_UNITS and d.shape[1:] != grid:
+                return f"{group}/{name} has shape {d.shape}, not (n, {grid[0]}, {grid[1]}) of the grid"
     return None
 
 
