@@ -141,7 +141,7 @@ def test_restart_summary_names_the_step_it_resumed_from(run_dir, cli_main, comm)
 
 
 DAMAGES = {  # how a results.h5 is damaged (its HDF5 still readable): what the refusal names
-    "a series renamed": (lambda f: f.move("series/delta", "series/deltx"), "(series delta: missing for the"),
+    "a series renamed": (lambda f: f.move("series/delta", "series/deltx"), "(series delta: 0 values for the"),
     "a series cut short": (lambda f: (f.__delitem__("series/force"), f.create_dataset("series/force", data=[1.0])),
                            "(series force: 1 values for the"),
     "coordinates gone": (lambda f: f.__delitem__("fields/x"), "not a readable petroll results file ("),

@@ -66,6 +66,19 @@ def reading_as(path, what: str):
         raise PetrollError(f"{path}: not a readable {what} ({reason(exc)})") from None
 
 
+def overgrown(f: h5py.File, written: dict[str, int]) -> str | None:
+    """Which dataset growing along its first axis (maxshape None there) in a group of ``written`` has more
+    rows than that group's count written, or other axes than its maximum's (a damaged extent: HDF5 walks
+    every chunk of a cut, e.g. 10^12 rows cut back to 10, a hang); None if none."""
+    for group, rows in written.items():
+        for name, d in f[group].items() if group in f else ():
+            if d.maxshape[0] is None and d.shape[0] > rows:
+                return f"{group}/{name} holds {d.shape[0]} rows, more than the {rows} written"
+            if d.maxshape[0] is None and d.shape[1:] != d.maxshape[1:]:
+                return f"{group}/{name} has shape {d.shape}, not (n, {', '.join(map(str, d.maxshape[1:]))})"
+    return None
+
+
 def parallel_hdf5(comm: MPI.Comm) -> bool:
     """True when several ranks can open one HDF5 file together (h5py has MPI and comm has > 1 rank)."""
     return comm.size > 1 and bool(h5py.get_config().mpi)

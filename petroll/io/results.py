@@ -39,14 +39,12 @@ import numpy as np
 
 from petroll import __version__
 from petroll.errors import PetrollError, reason
-from petroll.io.hdf5 import RowFile, add_strings, chunk_rows, reading_as, string_list
+from petroll.io.hdf5 import RowFile, add_strings, chunk_rows, overgrown, reading_as, string_list
 from petroll.io.journal import atomic_write, copy_committed, reading, sync_directory  # noqa: F401 - atomic_write: here too
 from petroll.records import INTEGER_SERIES, SERIES, friction_units
 
 FORMAT_VERSION = 1
-
-RESULTS_FILE = "petroll results file"
-"""What a results file is called in the error that a damaged one gives (:func:`reading_as`)."""
+RESULTS_FILE = "petroll results file"  # what the error that a damaged one gives calls it (reading_as)
 
 
 class OutputError(PetrollError):
@@ -177,11 +175,10 @@ class Results:
             k = int(f.attrs.get("fields_written", len(f["fields/step"])))
             series = {name: f["series"][name][:n] for name in f["series"]}
             line = bool(f.attrs.get("line_contact", False))
-            for name in LINE_SERIES_UNITS if line else SERIES_UNITS:  # a damaged file's may be gone or short
-                held = "missing" if name not in series else f"{len(series[name])} values"
-                if name not in series or len(series[name]) != n:
-                    raise PetrollError(f"{path}: not a readable {RESULTS_FILE} (series {name}: {held} for the "
-                                       f"{n} steps written)")
+            short = [s for s in (LINE_SERIES_UNITS if line else SERIES_UNITS) if len(series.get(s, ())) != n]
+            if short:  # a damaged file's series may be gone or cut short
+                raise PetrollError(f"{path}: not a readable {RESULTS_FILE} (series {short[0]}: "
+                                   f"{len(series.get(short[0], ()))} values for the {n} steps written)")
             fields = f["fields"]
             rough = {name: f["rough"][name][:k] for name in f["rough"]} if "rough" in f else None
             estimate = None
@@ -516,8 +513,7 @@ def _resumable(source: pathlib.Path, steps: int, field_steps: list[int], check=N
                 return f"{source}: written by an older petroll (not appendable); run the scene again"
             n, k = int(f.attrs["steps_written"]), int(f.attrs["fields_written"])
             have = [int(s) for s in f["fields/step"][:k]]
-            odd = _odd_extent(f, n, k)
-            if odd is not None:  # HDF5 would walk every chunk of it when the datasets are cut: a hang
+            if (odd := overgrown(f, {"series": n, "fields": k, "rough": k})) is not None:  # cut: a hang
                 return f"{source}: damaged ({odd}){fix}"
             other = check(f, source) if check is not None else None
     except Exception as exc:  # noqa: BLE001 - h5py reports damage as OSError, KeyError, RuntimeError, ...
@@ -528,20 +524,6 @@ def _resumable(source: pathlib.Path, steps: int, field_steps: list[int], check=N
         return (f"{source}: holds {n} steps and fields of steps {have[:6]}{'...' if len(have) > 6 else ''}; "
                 f"the checkpoint needs {steps} steps and fields of steps "
                 f"{list(field_steps)[:6]}{'...' if len(field_steps) > 6 else ''}{fix}")
-    return None
-
-
-def _odd_extent(f: h5py.File, steps: int, fields: int) -> str | None:
-    """Which growing dataset of an open results file has rows beyond those written (``steps`` series values,
-    ``fields`` saved fields; a committed file has none: each append resizes and marks in one commit), or a
-    saved field not of the grid's shape; None if none."""
-    grid = (len(f["fields/x"]), len(f["fields/y"]))
-    for group, written in (("series", steps), ("fields", fields), ("rough", fields)):
-        for name, d in f[group].items() if group in f else ():
-            if d.maxshape[0] is None and d.shape[0] > written:
-                return f"{group}/{name} holds {d.shape[0]} rows, more than the {written} written"
-            if group == "fields" and name in FIELD_UNITS and d.shape[1:] != grid:
-                return f"{group}/{name} has shape {d.shape}, not (n, {grid[0]}, {grid[1]}) of the grid"
     return None
 
 
