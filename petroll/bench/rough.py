@@ -6,7 +6,9 @@ one of the non-periodic DC-FFT operator on the same grid, 256^2 to 2048^2, in pr
 first), median of repeated applications on this process's ranks (:func:`applications`,
 ``periodic.csv``); and petroll's periodic elastic contact on a random rough surface against Tamaas's
 periodic solver (``PolonskyKeerRey`` on its spectral operator, the same kernel), same grid and load, both
-solved to 1e-12, from the benchmark-only environment ``.venv-peers`` (:func:`tamaas`, ``tamaas.csv``).
+solved to 1e-12, from the benchmark-only environment ``.venv-peers`` (:func:`tamaas`, ``tamaas.csv``); and
+what an application costs inside a contact QP against a bare one, periodic and padded, 512^2 and 2048^2
+(:func:`in_solve`, ``in-solve.csv``).
 
 ``petroll bench sliding [--out DIR]``: the closed forms of full contact of sliding sinusoids against the
 steady sliding solve (:func:`closed_forms`, ``closed-forms.csv``); the steady sliding state of a 1024^2
@@ -252,7 +254,9 @@ def in_solve(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, sides=(512, 204
     first solve built the TAO objects and kernels; each of ``repeats`` rounds times the same solve from the
     same start (ContactSolver.solve_load / solve_penetration: its QPs with their set-up and
     read-out) and, alternating with it, one bare application of the QP window's operator (median of 5, on
-    a random field); medians over the rounds. Columns: the solve's iterations and counted applications
+    a random field); medians over the rounds. Times are CPU times of the process (the largest over the
+    ranks; its FFT threads' included): on a shared machine what the work costs, which a busy neighbour's
+    processes do not stretch as they do the wall time. Columns: the solve's iterations and counted applications
     (StepSolution.applications: the Hessian's mults, gradient evaluations included), FFT pairs of the
     window's size (the tally of petroll.solver.fft_work, the preconditioner's included) per application,
     the solve's time per application and its ratio to the bare one. Writes ``out/in-solve.csv``."""
@@ -268,15 +272,15 @@ def in_solve(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, sides=(512, 204
             solves, bare, pairs = [], [], []
             for _ in range(repeats):
                 comm.Barrier()
-                work, start = FFTWork.total, time.perf_counter()
+                work, start = FFTWork.total, time.process_time()
                 step = solve()
-                solves.append(comm.allreduce(time.perf_counter() - start, op=MPI.MAX))
+                solves.append(comm.allreduce(time.process_time() - start, op=MPI.MAX))
                 pairs.append((FFTWork.total - work) / conv.cost)
                 for _ in range(5):
                     comm.Barrier()
-                    start = time.perf_counter()
+                    start = time.process_time()
                     conv(field)
-                    bare.append(comm.allreduce(time.perf_counter() - start, op=MPI.MAX))
+                    bare.append(comm.allreduce(time.process_time() - start, op=MPI.MAX))
             seconds, one = statistics.median(solves), statistics.median(bare)
             contact = comm.allreduce(int(np.count_nonzero(step.pressure))) / ((i1 - i0) * (j1 - j0))
             per = 1e3 * seconds / step.applications
@@ -366,10 +370,12 @@ def tamaas(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, sides=(128, 256, 
 
 
 def periodic(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, sides=(256, 512, 1024, 2048),
-             repeats: int = 20, tamaas_sides=(128, 256, 512)) -> None:
-    """``petroll bench periodic``: the operator's cost against the non-periodic one on ``sides``, and
-    Tamaas on ``tamaas_sides`` (none: Tamaas is not run, nothing installed)."""
+             repeats: int = 20, tamaas_sides=(128, 256, 512), solve_sides=(512, 2048)) -> None:
+    """``petroll bench periodic``: the operator's cost against the non-periodic one on ``sides``, an
+    application inside a QP against a bare one on ``solve_sides``, and Tamaas on ``tamaas_sides`` (none:
+    Tamaas is not run, nothing installed)."""
     applications(out, comm, sides, repeats)
+    in_solve(out, comm, solve_sides, min(repeats, 3))
     if tamaas_sides:
         tamaas(out, comm, tamaas_sides)
 
