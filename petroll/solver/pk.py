@@ -125,9 +125,9 @@ class PolonskyKeer:
         g = own[0] if own else g
         d, hd, r, z = (x.duplicate() for _ in range(4))
         n = x.getLocalSize()
-        # work arrays, written in place each iteration: g - lambda, a scratch (the residual, the step), masks
-        shifted, scratch = np.empty(n), np.empty(n)
-        free, clipped, reenter = (np.empty(n, dtype=bool) for _ in range(3))
+        # work arrays, written in place each iteration: g - lambda, the residual, masks
+        shifted, projected = np.empty(n), np.empty(n)
+        free, reenter = np.empty(n, dtype=bool), np.empty(n, dtype=bool)
         with x as xw:
             box.project(xw)
         self.breakdown = ""
@@ -153,7 +153,7 @@ class PolonskyKeer:
             return tao.computeObjectiveGradient(x, g)
 
         f = evaluate()
-        conjugate, previous_gz, its, step, first = False, 1.0, 0, 0.0, None
+        conjugate, previous_gz, previous_count, its, step, first = False, 1.0, 0, 0, 0.0, None
         while True:
             xa = x.array_r
             box.free(xa, free)
@@ -164,7 +164,7 @@ class PolonskyKeer:
                 if lam:
                     np.subtract(gf, lam, out=gf, where=free)
             ga = np.subtract(g.array_r, lam, out=shifted) if lam else g.array_r
-            res = box.residual(xa, ga, scratch, comm)
+            res = box.residual(xa, ga, projected, comm)
             first = res if first is None else first
             tao.setIterationNumber(its)
             tao.monitor(its, f, res, 0.0, step)
@@ -199,14 +199,14 @@ class PolonskyKeer:
                         np.subtract(za, total(za.sum()) / count, out=za, where=free)
                 za = z.array_r
                 gz = total(np.dot(gf, za))
-                with d as da:  # za + beta d on the free variables (d is 0 elsewhere: za's mask kept)
-                    if conjugate:
-                        np.multiply(da, gz / previous_gz, out=da)
-                        np.add(da, za, out=da)
-                        np.multiply(da, free, out=da)
-                    else:
-                        da[:] = za
-                previous_gz = gz
+                if conjugate:  # za + beta d on the free variables, 0 elsewhere
+                    d.aypx(gz / previous_gz, z)
+                    if count != previous_count:  # fewer free: some reached a bound exactly (none left it)
+                        with d as da:
+                            np.multiply(da, free, out=da)
+                else:
+                    z.copy(d)
+                previous_gz, previous_count = gz, count
             else:  # nothing free, or a stationary free part: projected steepest descent
                 with d as da:
                     box.residual(xa, ga, da, comm)
@@ -222,15 +222,14 @@ class PolonskyKeer:
             # the step along the gradient of a direction preconditioned by C^-1: scaled by <g, C^-1 g> / <g, g>
             # (the same first-order decrease as the conjugate step's)
             along = step if steepest else step * gz / gg
-            with x as new:  # x - step d, projected, re-entries put back: written over x (its old values unused)
-                np.multiply(da, step, out=scratch)
-                np.subtract(new, scratch, out=new)
-                box.outside(new, clipped)
+            x.axpy(-step, d)
+            with x as new:  # x - step d, projected, re-entries put back
+                clipped = box.outside(new)
                 box.project(new)
                 box.reentering(new, ga, reenter, free)  # (free: scratch, unused until the next iteration)
                 back = np.flatnonzero(reenter)
                 new[back] = box.clip(new[back] - along * ga[back], back)
-                changed = comm.allreduce(bool(back.size or clipped.any()), op=MPI.LOR)
+                changed = comm.allreduce(bool(back.size) or clipped, op=MPI.LOR)
                 if changed and load is not None:
                     np.multiply(new, load / total(new.sum()), out=new)
             conjugate = not (changed or steepest)
@@ -308,11 +307,11 @@ class _Box:
         if not self.nonnegative:
             out &= x < self.hi
 
-    def outside(self, v: np.ndarray, out: np.ndarray) -> None:
-        """out <- the values that P changes (below lo or above hi)."""
-        np.less(v, self.lo, out=out)
-        if not self.nonnegative:
-            out |= v > self.hi
+    def outside(self, v: np.ndarray) -> bool:
+        """Whether P changes any of the values ``v`` (one below lo or above hi)."""
+        if self.nonnegative:
+            return bool(v.min(initial=0.0) < 0)
+        return bool(np.any(v < self.lo) or np.any(v > self.hi))
 
     def reentering(self, x: np.ndarray, g: np.ndarray, out: np.ndarray, scratch: np.ndarray) -> None:
         """out <- the variables at a bound whose gradient ``g`` points into the box (``scratch``: a boolean
@@ -326,9 +325,12 @@ class _Box:
         """out <- the projected gradient x - P(x - g); returns its max norm over all ranks."""
         from mpi4py import MPI
 
-        np.subtract(x, g, out=out)
-        self.project(out)
-        np.subtract(x, out, out=out)
+        if self.nonnegative:  # x - max(x - g, 0) = min(x, g)
+            np.minimum(x, g, out=out)
+        else:
+            np.subtract(x, g, out=out)
+            self.project(out)
+            np.subtract(x, out, out=out)
         return comm.allreduce(max(float(out.max(initial=0.0)), -float(out.min(initial=0.0))), op=MPI.MAX)
 
 
