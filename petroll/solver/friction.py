@@ -107,7 +107,9 @@ class Stepping:
     ``solver``: the tractions of the last steps kept (this rank's rows), u' = c K q' left to the QP's
     gradient (elastic; viscoelastic: u' computed on the box of the new contact and the sources). Each
     step starts from the tractions of the last steps carried along with the body (``warm``,
-    petroll.solver.warm.TractionWarmStart: at k steps per cell, those k and 2k steps back, extrapolated).
+    petroll.solver.warm.TractionWarmStart: at k steps per cell, those k, 2k and 3k steps back, extrapolated
+    in the body's and the material's frame); a shift from rest under force control from Cattaneo and
+    Mindlin's (:func:`cattaneo_mindlin`).
 
     :meth:`shift`: a quasi-static step (rate-independent: first order, u' = the last step's u), the
     body's rigid tangential displacement changed by ``increment`` or found from the force; ``shift``
@@ -220,7 +222,8 @@ class Stepping:
         if self.last_distance is None:  # after a shift: its trend is not the rolling's
             self.warm.forget()
         previous, earlier, compliance, v = self._previous(bound, weights, dt)
-        solution = solver.solve(bound, rigid, previous, self.warm.guess(*centre, bound), force, tol, compliance, earlier)
+        solution = solver.solve(bound, rigid, previous, self.warm.guess(*centre, bound), force, tol, compliance,
+                                earlier)
         self.warm.record(solution.traction, *centre)
         self._remember(solution, compliance, v, dt, rolled=True)
         self.creepage = (np.asarray(creepage, dtype=float)[: solver.m] if force is None

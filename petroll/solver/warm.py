@@ -129,8 +129,6 @@ class TractionWarmStart(WarmStart):
     guess of the next step's (module docstring: extrapolated in the body's and the material's frame from
     the solutions k, 2k and 3k steps back): ``depth`` 3 (default) or 2 extrapolates, 1 only carries."""
 
-    needed = 3
-
     def __init__(self, scene_grid, rows, comm, depth: int = DEPTH):
         super().__init__(scene_grid, rows, comm, depth)
 
@@ -146,11 +144,14 @@ class TractionWarmStart(WarmStart):
             chosen = [len(self.recent) - j * lag for j in range(1, levels + 1)]  # k, 2k (, 3k) steps back
             if all(cells[i] is not None for i in chosen):
                 _, bx, by = self.recent[chosen[0]]  # the body one lag back
-                ahead = [self._carry(self.recent[i][0], cells[i]) for i in chosen]  # T^j q_j
-                here = [self._carry(self.recent[i][0], self._cells(bx - self.recent[i][1], by - self.recent[i][2]))
-                        for i in chosen]  # T^(j-1) q_j
+                ahead = [self._carry(self.recent[i][0], cells[i]) for i in chosen[:2]]  # T^j q_j
+                here = [self._carry(q, self._cells(bx - x, by - y))  # T^(j-1) q_j
+                        for q, x, y in (self.recent[i] for i in chosen)]
                 body = 2 * ahead[0] - ahead[1]
-                guess = ahead[0] + here[0] - here[1] if levels == 2 else body + here[0] - 2 * here[1] + here[2]
+                if levels == 2:
+                    guess = ahead[0] + here[0] - here[1]
+                else:
+                    guess = body + here[0] - 2 * here[1] + here[2]
                 return guess if bound is None else _on_edge(guess, body, bound)
         return self._nearest(sx, sy, cells)
 
