@@ -25,7 +25,7 @@ q_j the solution jk steps back (j = 1, 2, 3) where it was, the guess is
     (1 + 2 T) q_1 - (2 T + T^2) q_2 + T^2 q_3     (three kept; two: (1 + T) q_1 - T q_2),
 
 the extrapolation whose error vanishes for any field B(x - s) + M(x) + t C(x - s): one steady in the body's
-frame, one fixed in the material, one growing linearly in the body's frame (two kept: the first two) --
+frame, one fixed in the material, one growing linearly in the body's frame (two kept: exact for the first two) --
 the roots T, T, 1 of z^3 - (1 + 2 T) z^2 + (2 T + T^2) z - T^2. A body at rest (T = 1) gets quadratic
 (linear) extrapolation in time. The QP reads its slip set from the guess (cells on their disk's edge), and
 the material's terms leave a slip cell a little inside it: so where the extrapolation in the body's frame
@@ -128,9 +128,6 @@ class TractionWarmStart(WarmStart):
     """The last tangential tractions of a run ((m, rows, ny), Pa, with the body's position) and the first
     guess of the next step's (module docstring: extrapolated in the body's and the material's frame from
     the solutions k, 2k and 3k steps back): ``depth`` 3 (default) or 2 extrapolates, 1 only carries."""
-
-    def __init__(self, scene_grid, rows, comm, depth: int = DEPTH):
-        super().__init__(scene_grid, rows, comm, depth)
 
     def guess(self, sx: float, sy: float, bound: np.ndarray | None = None) -> np.ndarray | None:
         """The first guess for the body at (sx, sy) (m) on the step's traction bound ``bound`` (Pa, this
