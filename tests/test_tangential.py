@@ -710,3 +710,24 @@ def test_the_traction_guess_extrapolates_in_the_body_and_the_material_frame(comm
     direction = exact / np.sqrt((exact * exact).sum(axis=0))
     assert np.allclose(guess[:, slip], (direction * size)[:, slip], rtol=0.0, atol=1e-12)
     assert np.abs(guess - exact)[:, ~slip].max(initial=0.0) <= 1e-12
+
+
+def test_the_free_sets_condition_numbers_are_built_from_the_solvers_sets():
+    """`free_set_conditioning` at 4 cells per radius: the free directions' matrix preconditioned by its own
+    inverse has condition number 1 (to 1e-10: the dense operator, the sets and the directions fit
+    together), its stick and slip counts are the shift's (cells inside the contact with |q| below or on
+    the bound), and every other condition number is >= 1 (measured at 16 cells per radius in
+    docs/friction.md: 8.5 with DiskPCG's preconditioner)."""
+    from petroll.bench.friction import free_set_conditioning, hertz_case
+    from petroll.solver.friction import Stepping
+
+    numbers = free_set_conditioning(4)
+    assert numbers["exact"] == pytest.approx(1.0, abs=1e-10)
+    grid, solver, bound = hertz_case(4, MPI.COMM_SELF)
+    g = bound()
+    shift = Stepping(solver).shift(g, force=np.array([-0.5 * total(MPI.COMM_SELF, g, grid), 0.0]))
+    size = np.sqrt((shift.traction**2).sum(axis=0))
+    on_bound = (g > 0) & (size >= g * (1 - 1e-9))
+    assert (numbers["stick"], numbers["slip"]) == (int(np.count_nonzero((g > 0) & ~on_bound)),
+                                                   int(np.count_nonzero(on_bound)))
+    assert min(v for k, v in numbers.items() if k not in ("stick", "slip")) >= 1 - 1e-12

@@ -450,3 +450,53 @@ def _tao_box(solver: TangentialSolver, bound, b, g, kind: str, tol: float):
     for v in (x, rhs, grad, lower, upper, mat):
         v.destroy()
     return applications if residual <= tol else None
+
+
+def free_set_conditioning(n: int = 16) -> dict[str, float]:
+    """Condition numbers behind the tangential QP's rate (docs/friction.md, Speed), on the final sets of the
+    shift Q = mu P/2 at ``n`` cells per radius (one process; dense matrices of the window's operator H and
+    preconditioner M, 2 N x 2 N for N window cells): M H on the window and on the contact's cells, and on
+    DiskPCG's free directions with its sets fixed (the stick cells' two components, the slip cells' edge
+    direction tau, the edge's curvature kappa = -t.s/g on them: A = Z^T (H + kappa) Z) preconditioned by
+    its D M D (D = (1 + kappa)^-1/2 on slip cells), by M without D, by the exact inverses of the stick and
+    the slip blocks (block Jacobi), and on the stick cells alone; with ``exact`` A's own inverse (1: the
+    check of the construction)."""
+    grid, solver, bound = hertz_case(n, MPI.COMM_SELF)
+    final = {}
+    solver.monitor = lambda iteration, state, objective: final.update(state=state)
+    solution = Stepping(solver).shift(bound(), force=np.array([-0.5 * _force(MPI.COMM_SELF, bound(), grid), 0.0]))
+    st, problem = final["state"], solver.scaled(bound(), solution.window)
+    shape, size = (2, problem.nx, problem.ny), 2 * problem.nx * problem.ny
+    cells = size // 2
+
+    def dense(operator):
+        columns = [operator(np.eye(1, size, k).reshape(shape)).ravel() for k in range(size)]
+        matrix = np.array(columns).T
+        return 0.5 * (matrix + matrix.T)
+
+    def condition(a, p):
+        lower = np.linalg.cholesky(0.5 * (p + p.T))
+        values = np.linalg.eigvalsh(lower.T @ a @ lower)
+        return float(values.max() / values.min())
+
+    h, m = dense(problem.apply), dense(problem.precondition)
+    g = problem.g.ravel() / problem.q_ref
+    stick, slip = np.flatnonzero(st.stick), np.flatnonzero(st.slip)
+    kappa = np.zeros(cells)
+    kappa[slip] = -(st.s[:, slip] * st.t[:, slip]).sum(axis=0) / g[slip]
+    z = np.zeros((size, 2 * len(stick) + len(slip)))
+    z[stick, 2 * np.arange(len(stick))] = z[cells + stick, 2 * np.arange(len(stick)) + 1] = 1.0
+    columns = 2 * len(stick) + np.arange(len(slip))
+    z[slip, columns], z[cells + slip, columns] = st.tau[0, slip], st.tau[1, slip]
+    a = z.T @ (h + np.diag(np.tile(kappa, 2))) @ z
+    d = np.diag(np.tile(np.where(st.slip, 1 / np.sqrt(1 + kappa), 1.0), 2))
+    contact = np.flatnonzero(np.tile(g > 0, 2))
+    blocks = np.zeros_like(a)
+    for part in (slice(0, 2 * len(stick)), slice(2 * len(stick), None)):
+        blocks[part, part] = np.linalg.inv(a[part, part])
+    lone = slice(0, 2 * len(stick))
+    return {"window": condition(h, m), "contact": condition(h[np.ix_(contact, contact)], m[np.ix_(contact, contact)]),
+            "free set, D M D": condition(a, z.T @ d @ m @ d @ z), "free set, M": condition(a, z.T @ m @ z),
+            "free set, block Jacobi": condition(a, blocks),
+            "stick cells alone": condition(z[:, lone].T @ h @ z[:, lone], z[:, lone].T @ m @ z[:, lone]),
+            "exact": condition(a, np.linalg.inv(a)), "stick": len(stick), "slip": len(slip)}
