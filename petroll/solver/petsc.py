@@ -214,11 +214,10 @@ class ShellInfluence:
     def __init__(self, conv: Convolution, scale: float = 1.0, inverse: Convolution | None = None):
         self.conv, self.scale, self.inverse, self.applications = conv, scale, inverse, 0
 
-    def precondition(self, x: np.ndarray) -> np.ndarray:
-        """(scale C)^-1 x for a vector's local array ``x`` (flattened rows); x unchanged without inverse."""
-        if self.inverse is None:
-            return x
-        return self.inverse(x.reshape(-1, self.conv.ny)).ravel() / self.scale
+    def precondition(self, x: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+        """(scale C)^-1 x for a vector's local array ``x`` (flattened rows), written into ``out`` if given
+        (with ``inverse`` only: :class:`CirculantInverse` checks it is set)."""
+        return np.divide(self.inverse(x.reshape(-1, self.conv.ny)).ravel(), self.scale, out=out)
 
     def mult(self, mat, x, y) -> None:
         local = x.getArray(readonly=True).reshape(-1, self.conv.ny)
@@ -320,7 +319,8 @@ class CirculantInverse:
 
     def apply(self, pc, x, y) -> None:
         if self.index is None:
-            y.setArray(self.shell.precondition(x.array_r))
+            with y as out:  # written in place: no temporary copy of the window
+                self.shell.precondition(x.array_r, out)
             return
         self.full[:] = 0.0
         self.full[self.index] = x.array_r
