@@ -67,11 +67,14 @@ class PolonskyKeer:
     """Context of a TAO of type ``python``: ``tao.setType("python"); tao.setPythonContext(PolonskyKeer())``
     (or ``-tao_type python -tao_python_type petroll.solver.pk.PolonskyKeer``)."""
 
-    def __init__(self):
+    def __init__(self, bounds: tuple[float, float] = (-np.inf, np.inf)):
         self.refresh = 25  # recompute the gradient from scratch at least this often (-tao_pk_refresh)
         self.breakdown = ""  # why the last solve stopped with DIVERGED_USER, in words
         self.total = None  # load control: sum x held at this value (None: no such constraint)
         self.multiplier = 0.0  # its multiplier lambda at the last solve's end (0 without it)
+        # (lower, upper): uniform bounds for a side on which TAO holds no bound vector (a vector costs 8 bytes
+        # per variable; petroll's contact QP gives (0, inf) here and no vectors)
+        self.bounds = bounds
 
     def setFromOptions(self, tao) -> None:
         """-<prefix>tao_pk_refresh N; the KSP (prefix the TAO's) is ``preonly`` and its PC ``none`` unless
@@ -114,7 +117,7 @@ class PolonskyKeer:
         comm = x.getComm().tompi4py()
         gatol, grtol, gttol = tao.getTolerances()
         max_it, max_fev = tao.getMaximumIterations(), tao.getMaximumFunctionEvaluations()
-        lo, hi = self._bounds(tao, x)
+        lo, hi = self._bounds(tao, x, self.bounds)
         pc = tao.getKSP().getPC()
         if pc.getType() not in (None, "none"):
             pc.setOperators(hessian, hessian)
@@ -122,15 +125,19 @@ class PolonskyKeer:
         g = tao.getGradient()[0]  # left holding the gradient at the solution
         own = [] if g.handle else [x.duplicate()]  # none given to TAO: a vector of its own
         g = own[0] if own else g
-        d, hd, r, z = (x.duplicate() for _ in range(4))
+        load = self.total
+        # three work vectors, each reused within an iteration (no field-sized temporaries): d the direction;
+        # hd the free gradient, then H d; z the projected gradient, then C^-1 of the free gradient, then
+        # g - lambda, then the step's new point
+        d, hd, z = (x.duplicate() for _ in range(3))
         project = _projection(lo, hi)
-        x.setArray(project(x.array_r))
+        with x as xa:
+            project(xa, out=xa)
         self.breakdown = ""
 
         def total(value) -> float:
             return comm.allreduce(float(value))
 
-        load = self.total
         if load is not None:
             if np.any(lo != 0) or np.any(hi != np.inf) or not load >= 0:
                 raise ValueError("pk: load control (total) needs bounds x >= 0 and total >= 0")
@@ -160,11 +167,15 @@ class PolonskyKeer:
         f = evaluate()
         conjugate, previous_gz, its, step, first = False, 1.0, 0, 0.0, None
         while True:
-            xa = x.array_r
-            lam = shift(xa, g.array_r)
-            ga = g.array_r - lam
-            projected = xa - project(xa - ga)
-            res = comm.allreduce(float(np.abs(projected).max(initial=0.0)), op=MPI.MAX)
+            xa, ga = x.array_r, g.array_r
+            lam = shift(xa, ga)
+            with z as projected:  # x - P(x - (g - lambda))
+                np.subtract(ga, lam, out=projected)
+                np.subtract(xa, projected, out=projected)
+                project(projected, out=projected)
+                np.subtract(xa, projected, out=projected)
+                res = comm.allreduce(max(float(projected.max(initial=0.0)), -float(projected.min(initial=0.0))),
+                                     op=MPI.MAX)
             first = res if first is None else first
             tao.setIterationNumber(its)
             tao.monitor(its, f, res, 0.0, step)
@@ -186,16 +197,17 @@ class PolonskyKeer:
                 break
             its += 1
             free = (xa > lo) & (xa < hi)
-            with r as gf:  # the gradient on the free variables, 0 elsewhere (written in r: no copy)
-                gf.fill(0.0)
-                np.copyto(gf, ga, where=free)
-            gf = r.array_r
-            steepest = not total(np.dot(gf, gf)) > 0
+            with hd as gf:  # the gradient (g - lambda) on the free variables, 0 elsewhere
+                np.subtract(ga, lam, out=gf)
+                gf[~free] = 0.0
+            gf = hd.array_r
+            gg = total(np.dot(gf, gf))
+            steepest = not gg > 0
             if not steepest:  # conjugate gradients on the free variables
                 if pc.getType() in (None, "none"):
-                    r.copy(z)
+                    hd.copy(z)
                 else:
-                    pc.apply(r, z)
+                    pc.apply(hd, z)
                 with z as za:  # C^-1 gf on the free variables, 0 elsewhere
                     za[~free] = 0.0
                     if load is not None:  # onto sum d = 0 over the free variables
@@ -203,31 +215,42 @@ class PolonskyKeer:
                 za = z.array_r
                 gz = total(np.dot(gf, za))
                 beta = gz / previous_gz if conjugate else 0.0
-                d.setArray(np.where(free, za + beta * d.array_r, 0.0))
+                with d as da:  # C^-1 gf + beta d on the free variables, 0 elsewhere
+                    if conjugate:
+                        da *= beta
+                        da += za
+                    else:
+                        da[:] = za
+                    da[~free] = 0.0
                 previous_gz = gz
-            else:  # nothing free, or a stationary free part: projected steepest descent
-                d.setArray(projected)
+            else:  # nothing free, or a stationary free part: projected steepest descent (held in z)
+                z.copy(d)
             hessian.mult(d, hd)
             da, hda = d.array_r, hd.array_r
-            gd, dhd = total(np.dot(ga, da)), total(np.dot(da, hda))
+            with z as shifted:  # g - lambda
+                np.subtract(ga, lam, out=shifted)
+                negative, positive = shifted < 0, shifted > 0  # where a variable at a bound may re-enter
+            gd, dhd = total(np.dot(z.array_r, da)), total(np.dot(da, hda))
             if not dhd > 0:
                 reason = Reason.DIVERGED_NAN if not np.isfinite(dhd) else Reason.DIVERGED_USER
                 self.breakdown = (f"breakdown at iteration {its}: d^T H d = {dhd:.3g} along a search direction "
                                   "(the Hessian is not positive definite)")
                 break
             step = gd / dhd
-            moved = xa - step * da
-            new = project(moved)
-            clipped = new != moved
-            reenter = ((new <= lo) & (ga < 0)) | ((new >= hi) & (ga > 0))
-            # the step along the gradient of a direction preconditioned by C^-1: scaled by <g, C^-1 g> / <g, g>
-            # (the same first-order decrease as the conjugate step's)
-            along = step if steepest else step * gz / total(np.dot(gf, gf))
-            new[reenter] = np.clip(new[reenter] - along * ga[reenter], lo[reenter], hi[reenter])
-            changed = comm.allreduce(bool(clipped.any() or reenter.any()), op=MPI.LOR)
-            if changed and load is not None:
-                new *= load / total(new.sum())
-            x.setArray(new)
+            with z as new:  # x - step d, projected: the new point
+                np.multiply(da, step, out=new)
+                np.subtract(xa, new, out=new)
+                clipped = ~((new >= lo) & (new <= hi))  # where the projection moves it (or NaN)
+                project(new, out=new)
+                reenter = ((new <= lo) & negative) | ((new >= hi) & positive)
+                # the step along the gradient of a direction preconditioned by C^-1: scaled by
+                # <g, C^-1 g> / <g, g> (the same first-order decrease as the conjugate step's)
+                along = step if steepest else step * gz / gg
+                new[reenter] = np.clip(new[reenter] - along * (ga[reenter] - lam), lo[reenter], hi[reenter])
+                changed = comm.allreduce(bool(clipped.any() or reenter.any()), op=MPI.LOR)
+                if changed and load is not None:
+                    new *= load / total(new.sum())
+            z.copy(x)
             conjugate = not (changed or steepest)
             if changed or its % self.refresh == 0:
                 f = evaluate()
@@ -237,40 +260,41 @@ class PolonskyKeer:
         self.multiplier = lam
         tao.setIterationNumber(its)
         tao.setConvergedReason(reason)
-        for v in (d, hd, r, z, *own):
+        for v in (d, hd, z, *own):
             v.destroy()
 
     @staticmethod
-    def _bounds(tao, x) -> tuple[np.ndarray, np.ndarray]:
-        """This rank's lower and upper bounds (infinite where TAO has none); a bound that is the same for
-        every variable (the contact QP's 0 and infinity) as a read-only broadcast of that value, which
-        holds no array (16 bytes per variable less at the solve's peak)."""
+    def _bounds(tao, x, uniform: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
+        """This rank's lower and upper bounds (``uniform``'s where TAO has no bound vector); a bound that is
+        the same for every variable (the contact QP's 0 and infinity) as a read-only broadcast of that
+        value, which holds no array (16 bytes per variable less at the solve's peak)."""
         n = x.getLocalSize()
-        return tuple(_bound(vector, n, default) for vector, default in zip(tao.getVariableBounds(),
-                                                                           (-np.inf, np.inf)))
+        return tuple(_bound(vector, n, side, value) for vector, side, value in zip(tao.getVariableBounds(),
+                                                                                  (-np.inf, np.inf), uniform))
 
 
-def _bound(vector, n: int, default: float) -> np.ndarray:
-    """One bound's values (``default``, -inf or inf, where TAO has none); PETSc's infinity (PETSC_INFINITY,
-    PETSC_NINFINITY) is finite in floating point: made ``default`` (a value beyond 1e300 on its side)."""
+def _bound(vector, n: int, side: float, missing: float) -> np.ndarray:
+    """One bound's values (``missing`` where TAO has no vector; ``side`` -inf for the lower bound, inf for
+    the upper); PETSc's infinity (PETSC_INFINITY, PETSC_NINFINITY) is finite in floating point: made
+    ``side`` (a value beyond 1e300 on its side)."""
     if vector is None or not vector.handle:
-        return np.broadcast_to(default, (n,))
-    values, side = vector.array_r, np.sign(default)
+        return np.broadcast_to(float(missing), (n,))
+    values, sign = vector.array_r, np.sign(side)
     if n and np.all(values == values[0]):
         value = float(values[0])
-        return np.broadcast_to(default if value * side >= 1e300 else value, (n,))
+        return np.broadcast_to(side if value * sign >= 1e300 else value, (n,))
     values = values.copy()
-    values[values * side >= 1e300] = default
+    values[values * sign >= 1e300] = side
     return values
 
 
 def _projection(lo: np.ndarray, hi: np.ndarray):
-    """P, the projection onto the bounds lo <= x <= hi (this rank's): np.clip, or where the bounds are
-    x >= 0 alone (the contact QP's) the same values by np.maximum (0.23 ms against clip's 3.0 ms with
-    array bounds, on 2 10^5 values)."""
+    """P, the projection onto the bounds lo <= x <= hi (this rank's), ``P(v, out=None)``: np.clip, or where
+    the bounds are x >= 0 alone (the contact QP's) the same values by np.maximum (0.23 ms against clip's
+    3.0 ms with array bounds, on 2 10^5 values)."""
     if np.all(lo == 0) and np.all(hi == np.inf):
-        return lambda v: np.maximum(v, 0.0)
-    return lambda v: np.clip(v, lo, hi)
+        return lambda v, out=None: np.maximum(v, 0.0, out=out)
+    return lambda v, out=None: np.clip(v, lo, hi, out=out)
 
 
 def tao_reasons():
