@@ -150,7 +150,7 @@ class ContactSolver:
         if self.tao_type == "pk":
             if not reach > base:
                 raise BeyondReach(f"the load {load:g} N needs a penetration beyond {reach:g} m")
-            if warm is None:
+            if warm is None and not self.topology.whole:  # a periodic grid's: made where the QP is posed
                 warm = self.hertz_pressure(height, compliance, load, radius_hint, min(delta_guess, reach))
             return self._load_in_pk(height, compliance, load, min(delta_guess, reach), warm, reach)
         power = self.topology.load_power
@@ -389,6 +389,8 @@ class ContactSolver:
         to_pressure = w_ref / (compliance * diagonal)  # p = to_pressure * p_hat
 
         qp = self.window_qp(i1 - i0, j1 - j0)
+        if warm is None and load is not None and self.topology.whole:  # a periodic grid's cold start under load
+            warm = self.summits_pressure(height, load)  # control (hertz_pressure's), let go once written
         with qp.x as start:  # the start, p_hat >= 0 (0 without a warm one), written straight into the solution
             if warm is None:
                 start.fill(0.0)
@@ -402,7 +404,7 @@ class ContactSolver:
         with qp.rhs as gaps:
             np.divide(target.reshape(-1), -w_ref, out=gaps)
             np.minimum(gaps, self.NO_SURFACE_GAP, out=gaps)
-        del target  # posed: the interference goes before the solve's arrays come
+        del target, warm  # posed: the interference and the start go before the solve's arrays come
         tol = self.tol if self.pressure_tol is None else self.pressure_tol
         x, gap, multiplier, its, applications = qp.solve(total, tol)
         if self.pressure_tol is not None:
