@@ -1,7 +1,8 @@
 """A Polonsky-Keer constrained conjugate gradient as a TAO Python type (scene/CLI name: ``pk``).
 
 Solves min f(x) = 1/2 x^T H x + b^T x + c subject to the variable bounds set on the TAO (lower <= x <=
-upper, any mix of finite and infinite values; none set: unconstrained) for a symmetric positive definite H
+upper, any mix of finite and infinite values; a side TAO holds no vector for: the context's uniform
+``bounds``, by default unconstrained) for a symmetric positive definite H
 (Polonsky & Keer, Wear 1999, displacement-controlled form, here for two-sided bounds): conjugate gradients
 on the free variables (strictly between their bounds), projection onto the bounds after each step, and
 variables at a bound whose gradient points into the box put back with a steepest-descent step (which,
