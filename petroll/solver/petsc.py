@@ -216,14 +216,9 @@ class ShellInfluence:
         self.conv, self.scale, self.inverse, self.applications = conv, scale, inverse, 0
 
     def precondition(self, x: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
-        """(scale C)^-1 x for a vector's local array ``x`` (flattened rows), written in ``out`` if given;
-        x unchanged without inverse."""
-        if self.inverse is None and out is None:
-            return x
-        if self.inverse is None:
-            out[:] = x
-            return out
-        return np.divide(self.inverse(x.reshape(-1, self.conv.ny)).reshape(-1), self.scale, out=out)
+        """(scale C)^-1 x for a vector's local array ``x`` (flattened rows), written into ``out`` if given
+        (with ``inverse`` only: :class:`CirculantInverse` checks it is set)."""
+        return np.divide(self.inverse(x.reshape(-1, self.conv.ny)).ravel(), self.scale, out=out)
 
     def mult(self, mat, x, y) -> None:
         local = x.getArray(readonly=True).reshape(-1, self.conv.ny)
@@ -325,7 +320,7 @@ class CirculantInverse:
 
     def apply(self, pc, x, y) -> None:
         if self.index is None:
-            with y as out:  # written in place: no temporary copy
+            with y as out:  # written in place: no temporary copy of the window
                 self.shell.precondition(x.array_r, out)
             return
         self.full[:] = 0.0
