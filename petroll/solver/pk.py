@@ -129,8 +129,9 @@ class PolonskyKeer:
         g = own[0] if own else g
         d, hd, r, z = (x.duplicate() for _ in range(4))
         n = x.getLocalSize()
-        # work arrays, written in place each iteration: g - lambda, the residual, masks
-        shifted = np.empty(n) if self.total is not None else None  # (the residual is written into z)
+        # work arrays, written in place each iteration: g - lambda (load control only), masks (the residual
+        # goes into z, free until the PC writes it)
+        shifted = np.empty(n) if self.total is not None else None
         free, reenter = np.empty(n, dtype=bool), np.empty(n, dtype=bool)
         with x as xw:
             box.project(xw)
