@@ -127,7 +127,9 @@ class PolonskyKeer:
         g = tao.getGradient()[0]  # left holding the gradient at the solution
         own = [] if g.handle else [x.duplicate()]  # none given to TAO: a vector of its own
         g = own[0] if own else g
-        d, hd, r, z = (x.duplicate() for _ in range(4))
+        # three work vectors: d the direction; hd the free gradient, then H d; z scratch, then C^-1 of the
+        # free gradient
+        d, hd, z = (x.duplicate() for _ in range(3))
         n = x.getLocalSize()
         # work arrays, written in place each iteration: g - lambda (load control only), masks (the residual
         # goes into z, free until the PC writes it)
@@ -163,7 +165,7 @@ class PolonskyKeer:
             xa = x.array_r
             box.free(xa, free)
             count = total(np.count_nonzero(free))
-            with r as gf:  # the gradient on the free variables, 0 elsewhere (written in r: no copy)
+            with hd as gf:  # the gradient on the free variables, 0 elsewhere (in hd until H d is written)
                 np.multiply(g.array_r, free, out=gf)
                 lam = self._multiplier(comm, gf, g.array_r, count)
                 if lam:
@@ -191,14 +193,14 @@ class PolonskyKeer:
             if reason != Reason.CONTINUE_ITERATING:
                 break
             its += 1
-            gf = r.array_r
+            gf = hd.array_r
             gg = total(np.dot(gf, gf))
             steepest = not gg > 0
             if not steepest:  # conjugate gradients on the free variables
                 if preconditioned:
-                    pc.apply(r, z)
+                    pc.apply(hd, z)
                 else:
-                    r.copy(z)
+                    hd.copy(z)
                 with z as za:  # C^-1 gf on the free variables, 0 elsewhere
                     np.multiply(za, free, out=za)
                     if load is not None:  # onto sum d = 0 over the free variables
@@ -247,7 +249,7 @@ class PolonskyKeer:
         self.multiplier = lam
         tao.setIterationNumber(its)
         tao.setConvergedReason(reason)
-        for v in (d, hd, r, z, *own):
+        for v in (d, hd, z, *own):
             v.destroy()
 
     def _multiplier(self, comm, gf: np.ndarray, g: np.ndarray, count: int) -> float:
