@@ -1,7 +1,8 @@
 """A Polonsky-Keer constrained conjugate gradient as a TAO Python type (scene/CLI name: ``pk``).
 
 Solves min f(x) = 1/2 x^T H x + b^T x + c subject to the variable bounds set on the TAO (lower <= x <=
-upper, any mix of finite and infinite values; none set: unconstrained) for a symmetric positive definite H
+upper, any mix of finite and infinite values; a side TAO holds no vector for: the context's uniform
+``bounds``, by default unconstrained) for a symmetric positive definite H
 (Polonsky & Keer, Wear 1999, displacement-controlled form, here for two-sided bounds): conjugate gradients
 on the free variables (strictly between their bounds), projection onto the bounds after each step, and
 variables at a bound whose gradient points into the box put back with a steepest-descent step (which,
@@ -67,11 +68,14 @@ class PolonskyKeer:
     """Context of a TAO of type ``python``: ``tao.setType("python"); tao.setPythonContext(PolonskyKeer())``
     (or ``-tao_type python -tao_python_type petroll.solver.pk.PolonskyKeer``)."""
 
-    def __init__(self):
+    def __init__(self, bounds: tuple[float, float] = (-np.inf, np.inf)):
         self.refresh = 25  # recompute the gradient from scratch at least this often (-tao_pk_refresh)
         self.breakdown = ""  # why the last solve stopped with DIVERGED_USER, in words
         self.total = None  # load control: sum x held at this value (None: no such constraint)
         self.multiplier = 0.0  # its multiplier lambda at the last solve's end (0 without it)
+        # (lower, upper): uniform bounds for a side on which TAO holds no bound vector (a vector costs 8 bytes
+        # per variable; petroll's contact QP gives (0, inf) here and no vectors)
+        self.bounds = bounds
 
     def setFromOptions(self, tao) -> None:
         """-<prefix>tao_pk_refresh N; the KSP (prefix the TAO's) is ``preonly`` and its PC ``none`` unless
@@ -114,7 +118,7 @@ class PolonskyKeer:
         comm = x.getComm().tompi4py()
         gatol, grtol, gttol = tao.getTolerances()
         max_it, max_fev = tao.getMaximumIterations(), tao.getMaximumFunctionEvaluations()
-        box = _Box(*self._bounds(tao, x))
+        box = _Box(*self._bounds(tao, x, self.bounds))
         pc = tao.getKSP().getPC()
         preconditioned = pc.getType() not in (None, "none")
         if preconditioned:
@@ -123,10 +127,13 @@ class PolonskyKeer:
         g = tao.getGradient()[0]  # left holding the gradient at the solution
         own = [] if g.handle else [x.duplicate()]  # none given to TAO: a vector of its own
         g = own[0] if own else g
-        d, hd, r, z = (x.duplicate() for _ in range(4))
+        # three work vectors: d the direction; hd the free gradient, then H d; z scratch, then C^-1 of the
+        # free gradient
+        d, hd, z = (x.duplicate() for _ in range(3))
         n = x.getLocalSize()
-        # work arrays, written in place each iteration: g - lambda, the residual, masks
-        shifted, projected = np.empty(n), np.empty(n)
+        # work arrays, written in place each iteration: g - lambda (load control only), masks (the residual
+        # goes into z, free until the PC writes it)
+        shifted = np.empty(n) if self.total is not None else None
         free, reenter = np.empty(n, dtype=bool), np.empty(n, dtype=bool)
         with x as xw:
             box.project(xw)
@@ -158,13 +165,14 @@ class PolonskyKeer:
             xa = x.array_r
             box.free(xa, free)
             count = total(np.count_nonzero(free))
-            with r as gf:  # the gradient on the free variables, 0 elsewhere (written in r: no copy)
+            with hd as gf:  # the gradient on the free variables, 0 elsewhere (in hd until H d is written)
                 np.multiply(g.array_r, free, out=gf)
                 lam = self._multiplier(comm, gf, g.array_r, count)
                 if lam:
                     np.subtract(gf, lam, out=gf, where=free)
             ga = np.subtract(g.array_r, lam, out=shifted) if lam else g.array_r
-            res = box.residual(xa, ga, projected, comm)
+            with z as scratch:  # z is free until the PC writes into it
+                res = box.residual(xa, ga, scratch, comm)
             first = res if first is None else first
             tao.setIterationNumber(its)
             tao.monitor(its, f, res, 0.0, step)
@@ -185,14 +193,14 @@ class PolonskyKeer:
             if reason != Reason.CONTINUE_ITERATING:
                 break
             its += 1
-            gf = r.array_r
+            gf = hd.array_r
             gg = total(np.dot(gf, gf))
             steepest = not gg > 0
             if not steepest:  # conjugate gradients on the free variables
                 if preconditioned:
-                    pc.apply(r, z)
+                    pc.apply(hd, z)
                 else:
-                    r.copy(z)
+                    hd.copy(z)
                 with z as za:  # C^-1 gf on the free variables, 0 elsewhere
                     np.multiply(za, free, out=za)
                     if load is not None:  # onto sum d = 0 over the free variables
@@ -241,7 +249,7 @@ class PolonskyKeer:
         self.multiplier = lam
         tao.setIterationNumber(its)
         tao.setConvergedReason(reason)
-        for v in (d, hd, r, z, *own):
+        for v in (d, hd, z, *own):
             v.destroy()
 
     def _multiplier(self, comm, gf: np.ndarray, g: np.ndarray, count: int) -> float:
@@ -257,26 +265,27 @@ class PolonskyKeer:
         return comm.allreduce(float(gf.sum())) / count
 
     @staticmethod
-    def _bounds(tao, x) -> tuple[np.ndarray, np.ndarray]:
-        """This rank's lower and upper bounds (infinite where TAO has none); a bound that is the same for
-        every variable (the contact QP's 0 and infinity) as a read-only broadcast of that value, which
-        holds no array (16 bytes per variable less at the solve's peak)."""
+    def _bounds(tao, x, uniform: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
+        """This rank's lower and upper bounds (``uniform``'s where TAO has no bound vector); a bound that is
+        the same for every variable (the contact QP's 0 and infinity) as a read-only broadcast of that
+        value, which holds no array (16 bytes per variable less at the solve's peak)."""
         n = x.getLocalSize()
-        return tuple(_bound(vector, n, default) for vector, default in zip(tao.getVariableBounds(),
-                                                                           (-np.inf, np.inf)))
+        return tuple(_bound(vector, n, side, value) for vector, side, value in zip(tao.getVariableBounds(),
+                                                                                  (-np.inf, np.inf), uniform))
 
 
-def _bound(vector, n: int, default: float) -> np.ndarray:
-    """One bound's values (``default``, -inf or inf, where TAO has none); PETSc's infinity (PETSC_INFINITY,
-    PETSC_NINFINITY) is finite in floating point: made ``default`` (a value beyond 1e300 on its side)."""
+def _bound(vector, n: int, side: float, missing: float) -> np.ndarray:
+    """One bound's values (``missing`` where TAO has no vector; ``side`` -inf for the lower bound, inf for
+    the upper); PETSc's infinity (PETSC_INFINITY, PETSC_NINFINITY) is finite in floating point: made
+    ``side`` (a value beyond 1e300 on its side)."""
     if vector is None or not vector.handle:
-        return np.broadcast_to(default, (n,))
-    values, side = vector.array_r, np.sign(default)
+        return np.broadcast_to(float(missing), (n,))
+    values, sign = vector.array_r, np.sign(side)
     if n and np.all(values == values[0]):
         value = float(values[0])
-        return np.broadcast_to(default if value * side >= 1e300 else value, (n,))
+        return np.broadcast_to(side if value * sign >= 1e300 else value, (n,))
     values = values.copy()
-    values[values * side >= 1e300] = default
+    values[values * sign >= 1e300] = side
     return values
 
 
