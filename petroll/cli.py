@@ -102,13 +102,16 @@ def _info(args: argparse.Namespace) -> None:
     state = "complete (the run finished)" if r.complete else "partial (still running, or stopped or killed)"
     per = "/m" if r.line else ""
     lines = [f"{found.directory}: a petroll run, written by petroll {r.version or '0.1.0'}",
-             f"  scene: {r.scene_file or '(not recorded)'}; its text is in {r.path.name} (attribute scene)",
-             f"  steps: {n} written (0 ... {last}), {state}" + (", the steady state solved directly"
-                                                                 if r.solved_steady else ""),
-             f"  last step {last}: t = {s['t'][-1]:.6g} s, rolled {s['distance'][-1]:.6g} m, force "
-             f"{s['force'][-1]:.6g} N{per}, mu_r {s['mu_r'][-1]:.5g}, penetration {s['delta'][-1]:.6g} m",
-             f"  saved fields: {', '.join(r.fields)} at {len(r.field_steps)} steps "
-             f"({', '.join(str(int(k)) for k in r.field_steps)}); results.xdmf for ParaView"]
+             f"  scene: {r.scene_file or '(not recorded)'}; its text is in {r.path.name} (attribute scene)"]
+    if n:
+        lines += [f"  steps: {n} written (0 ... {last}), {state}" + (", the steady state solved directly"
+                                                                     if r.solved_steady else ""),
+                  f"  last step {last}: t = {s['t'][-1]:.6g} s, rolled {s['distance'][-1]:.6g} m, force "
+                  f"{s['force'][-1]:.6g} N{per}, mu_r {s['mu_r'][-1]:.5g}, penetration {s['delta'][-1]:.6g} m"]
+    else:  # a run stopped or killed during its first step
+        lines.append(f"  steps: none written, {state}")
+    lines.append(f"  saved fields: {', '.join(r.fields)} at {len(r.field_steps)} steps "
+                 f"({', '.join(str(int(k)) for k in r.field_steps)}); results.xdmf for ParaView")
     if found.checkpoints:
         steps = ", ".join(str(step) for step, _ in found.checkpoints)
         where = found.checkpoints[-1][1].parent

@@ -435,10 +435,15 @@ def test_a_reader_that_stops_reading_ends_the_command_quietly(argv, cli):
 
 @pytest.mark.serial  # one process: the line is checked where it is printed
 def test_a_step_count_per_cell_that_underflows_is_refused_in_one_line(tmp_path, cli_main):
-    """``steps_per_cell = 5e-324`` (the smallest double, drawn by test_fuzz's seed 2289785311): the steps per
-    second underflow to 0 (was ZeroDivisionError in model/clock.py); one line naming the key."""
-    text = (pathlib.Path(__file__).parents[1] / "runs" / "sphere-dma.toml").read_text(encoding="utf-8")
-    scene = tmp_path / "tiny.toml"
-    scene.write_text(re.sub(r"(?m)^steps_per_cell = .*$", "steps_per_cell = 5e-324", text), encoding="utf-8")
-    code, _, err = cli_main(["check", str(scene)])
-    assert code == 2 and err.count("\n") == 1 and "[time] steps_per_cell" in err, err
+    """``steps_per_cell = 5e-324`` (the smallest double, drawn by test_fuzz's seed 2289785311; in a steady
+    scene by seed 3490272453), and 1e-315 at 0.01 m/s, whose time per cell overflows: the steps per second
+    underflow to 0 (was ZeroDivisionError in model/clock.py, transient and steady); one line naming the key."""
+    for name, value in (("sphere-dma.toml", "5e-324"), ("rough-rubber.toml", "5e-324"),
+                        ("rough-rubber.toml", "1e-315")):
+        text = (pathlib.Path(__file__).parents[1] / "runs" / name).read_text(encoding="utf-8")
+        assert re.search(r"(?m)^steps_per_cell = ", text), name  # the scene sets it, to be replaced
+        scene = tmp_path / f"tiny-{value}-{name}"
+        scene.write_text(re.sub(r"(?m)^steps_per_cell = .*$", f"steps_per_cell = {value}", text), encoding="utf-8")
+        code, _, err = cli_main(["check", str(scene)])
+        assert code == 2 and err.count("\n") == 1 and f"[time] steps_per_cell = {value}: gives no finite step" \
+            in err, (name, value, err)

@@ -361,6 +361,15 @@ def set_attribute(path: pathlib.Path, name: str, value, reseal: bool = False) ->
         seal(path)
 
 
+def set_dataset_digest(path: pathlib.Path, name: str, value) -> None:
+    """The checksum attribute of dataset ``name`` edited (h5py), and the file sealed again (as its writer)."""
+    from petroll.io.hdf5 import seal
+
+    with h5py.File(path, "r+") as f:
+        f[name].attrs["sha256"] = value
+    seal(path)
+
+
 def unseal(path: pathlib.Path) -> None:
     """A checkpoint as written before seals (petroll.io.hdf5.seal): its user block's seal blanked."""
     from petroll.io.hdf5 import SEAL_BYTES, SEAL_MAGIC
@@ -387,8 +396,14 @@ BAD = {
     "edited and sealed": (lambda good, p: (shutil.copy(good, p), set_attribute(p, "scene", "[grid]\nnx = 1\n",
                                                                                 reseal=True)),
                           "corrupted (its attributes or list of datasets do not match the checksum)"),
+    "digest not text": (lambda good, p: (shutil.copy(good, p), set_attribute(p, "sha256", np.zeros(3),
+                                                                               reseal=True)),
+                        "corrupted (its attributes or list of datasets do not match the checksum)"),
     "newer format": (lambda good, p: (shutil.copy(good, p), set_attribute(p, "format_version", 3, reseal=True)),
                      "written in checkpoint format 3"),
+    "a dataset's digest not text": (lambda good, p: (shutil.copy(good, p), set_dataset_digest(p, "series/t",
+                                                                                              np.zeros(3))),
+                                    "corrupted (the data of series/t do not match their checksum)"),
 }
 
 
@@ -397,6 +412,7 @@ def snapshot(directory: pathlib.Path) -> dict:
             for p in sorted(directory.rglob("*")) if p.is_file()}
 
 
+@pytest.mark.filterwarnings("error::FutureWarning")  # numpy's, of a comparison with a damaged value
 def test_every_kind_of_bad_checkpoint_is_refused_with_one_line_and_nothing_written(comm, shared_dir, capsys):
     run(make_scene(raw_scene(PRONY)), comm, shared_dir / "run")
     good = shared_dir / "run" / "checkpoints" / "step-00000008.h5"
@@ -459,6 +475,34 @@ def test_restart_with_an_unsafe_scene_change_names_the_key(change, key, comm, sh
     if comm.rank == 0:
         assert capsys.readouterr().err.strip() == f"petroll: error: {message}"
     assert snapshot(shared_dir) == before
+
+
+def test_restart_refuses_results_whose_datasets_reach_beyond_what_was_written(comm, shared_dir, capsys):
+    """A results.h5 whose series or field was damaged to a huge extent (random bytes in its dataspace:
+    series/trail 1095216660491 rows of 11): the restart, which cuts the datasets back to the checkpoint's
+    step, refuses it in one line, exit 2, before writing (HDF5 walked every chunk of the cut: a hang that
+    SIGTERM could not end). Likewise a saved field whose rows are not the grid's shape."""
+    run(make_scene(raw_scene()), comm, shared_dir / "run")
+    damages = {"series": ("series/trail", lambda d: d.resize((10**12,)),
+                          "series/trail holds 1000000000000 rows, more than the"),
+               "field rows": ("fields/pressure", lambda d: d.resize(10**9, axis=0),
+                              "fields/pressure holds 1000000000 rows, more than the"),
+               "field shape": ("fields/pressure", lambda d: d.resize(5, axis=2), "fields/pressure has shape (")}
+    for kind, (name, damage, says) in damages.items():
+        out = shared_dir / kind.replace(" ", "-")
+        if comm.rank == 0:
+            shutil.copytree(shared_dir / "run", out)
+            with h5py.File(out / "results.h5", "r+") as f:
+                damage(f[name])
+        comm.Barrier()
+        before = snapshot(out)
+        capsys.readouterr()
+        assert main(["restart", str(out / "checkpoints" / "step-00000004.h5"), "--quiet"]) == 2, kind
+        if comm.rank == 0:
+            lines = [line for line in capsys.readouterr().err.splitlines() if line.strip()]
+            assert len(lines) == 1 and lines[0].startswith(f"petroll: error: {out / 'results.h5'}: damaged (")
+            assert says in lines[0], (kind, lines)
+        assert snapshot(out) == before, kind
 
 
 def test_restart_may_extend_the_run_and_change_outputs(comm, shared_dir, capsys):

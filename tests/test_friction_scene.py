@@ -318,8 +318,8 @@ def test_petroll_bench_friction_quick_writes_its_table(tmp_path, cli_main):
     code, out, err = cli_main(["bench", "friction", "--quick", "--out", str(tmp_path)])
     assert code == 0, err
     rows = list(csv.DictReader(open(tmp_path / "friction.csv", encoding="utf-8")))
-    assert [r["case"].split(",")[0] for r in rows][:3] == ["normal QP", "normal QP", "shift Q = mu P/2"]
-    assert len(rows) == 13 and rows[-1]["case"].startswith("creep curve, 3 points")
+    assert [r["case"].split(",")[0] for r in rows][:4] == ["normal QP"] * 3 + ["shift Q = mu P/2"]
+    assert len(rows) == 14 and rows[-1]["case"].startswith("creep curve, 3 points")
     plain, both = rows[-3], rows[-2]  # the steady scenes: frictionless, then under mu P/2
     assert plain["case"].startswith("steady scene, frictionless") and both["case"].startswith("steady scene, force")
     ratio = float(both["note"].split()[1])
@@ -328,7 +328,7 @@ def test_petroll_bench_friction_quick_writes_its_table(tmp_path, cli_main):
     tangential = float(both["applications"]) - float(plain["applications"])
     assert tangential > 0 and float(both["fft_pairs"]) == pytest.approx(
         float(plain["fft_pairs"]) + 2 * tangential, rel=1e-12)
-    for row in rows[2:-3] + rows[-1:]:
+    for row in rows[3:-3] + rows[-1:]:
         assert float(row["fft_pairs"]) == pytest.approx(2 * float(row["applications"]), rel=1e-12)
         assert float(row["applications"]) > 0
 

@@ -102,6 +102,30 @@ def dense_tao(comm, h, b, lo, hi, gatol=1e-13, max_it=10000, set_bounds=True, ma
     return tao, x, (r0, r1)
 
 
+@pytest.mark.parametrize("seed", [1, 2])
+def test_pk_takes_uniform_bounds_from_its_context_where_tao_has_none(comm, taos, seed):
+    """x >= 0 given as PolonskyKeer's ``bounds`` (0, inf), with no bound vectors on the TAO (the contact QP's
+    way: 16 bytes per variable less): the active-set oracle's solution on those bounds, many of them
+    active; a vector TAO holds wins over the context (its 'finite' bounds below)."""
+    h, b, _, _ = random_qp(seed, "none")
+    lo, hi = np.zeros(N), np.full(N, np.inf)
+    reference = active_set_oracle(h, b, lo, hi)
+    assert np.count_nonzero(reference == 0.0) >= 5
+    tao, x, _ = dense_tao(comm, h, b, lo, hi, set_bounds=False, made=taos)
+    tao.getPythonContext().bounds = (0.0, np.inf)
+    tao.solve(x)
+    assert tao.getConvergedReason() == PETSc.TAO.Reason.CONVERGED_GATOL
+    ours = np.concatenate(comm.allgather(x.array_r.copy()))
+    assert np.abs(ours - reference).max() <= 1e-10 * max(1.0, np.abs(reference).max())
+    _, _, flo, fhi = random_qp(seed, "finite")
+    tao, x, _ = dense_tao(comm, h, b, flo, fhi, made=taos)
+    tao.getPythonContext().bounds = (0.0, np.inf)
+    tao.solve(x)
+    ours = np.concatenate(comm.allgather(x.array_r.copy()))
+    finite = active_set_oracle(h, b, flo, fhi)
+    assert np.abs(ours - finite).max() <= 1e-10 * max(1.0, np.abs(finite).max())
+
+
 @pytest.mark.parametrize("bounds", ["finite", "infinite", "mixed", "none"])
 @pytest.mark.parametrize("seed", [1, 2])
 def test_pk_agrees_with_a_dense_active_set_solver(comm, taos, bounds, seed):

@@ -240,8 +240,10 @@ def test_a_generated_rough_surface_has_one_sample_per_cell(tmp_path):
 def test_a_generated_surface_makes_its_coefficients_once_before_its_run(monkeypatch):
     """runs/rough-rubber.toml's surface (a periodic grid's generated rough body) read and checked before a
     run (load_scene, the pre-flight, the path's checks, the first whole-grid heights and slopes): its
-    spline coefficients are made once, for every row (its lowest point needs some, the whole-grid queries
-    that follow all), and its samples' spectrum once (the radius hint, the cut-off and the contact scale)."""
+    spline coefficients are made once, for every row (its lowest point needs some, the pre-flight's
+    queries between the samples others), and let go by the run's whole-grid queries, which lie on the
+    samples and need none; its samples' spectrum is made where asked for, not kept (8 bytes per sample):
+    for the radius hint, the contact scale, the cut-off and the slopes on the samples."""
     import sys
 
     import scipy.fft
@@ -268,4 +270,4 @@ def test_a_generated_surface_makes_its_coefficients_once_before_its_run(monkeypa
     g = scene.grid
     scene.body.height(g.x[:, None], g.y[None, :])
     scene.body.slope(g.x[:, None], g.y[None, :])
-    assert made == {"coefficients": 1, "spectra": 1} and scene.body.rows_held == g.nx
+    assert made == {"coefficients": 1, "spectra": 4} and scene.body.rows_held == 0

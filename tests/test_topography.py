@@ -127,6 +127,20 @@ def test_not_measured_points_are_refused(tmp_path):
         read_topography(tmp_path / "s.x3p")
 
 
+@pytest.mark.parametrize("dtype", ["<f8", "<f4"])
+def test_a_signalling_nan_in_a_npy_file_is_refused_as_nan_without_a_warning(tmp_path, dtype):
+    """A .npy map holding a signalling NaN (its bits as random bytes leave them: test_fuzz's seed 1846961097):
+    refused as a NaN height, without numpy's 'invalid value encountered in multiply' (or 'in cast', for
+    float32) warning first."""
+    heights = HEIGHTS.astype(dtype)
+    bits = heights.view("<u8" if dtype == "<f8" else "<u4")
+    bits[2, 3] = 0x7FF0000000000001 if dtype == "<f8" else 0x7F800001  # exponent all ones, quiet bit clear
+    np.save(tmp_path / "s.npy", heights)
+    with pytest.raises(SceneError, match="1 of 40 heights are NaN or -inf"), warnings.catch_warnings():
+        warnings.simplefilter("error")
+        read_topography(tmp_path / "s.npy", cell=CELL, unit="um")
+
+
 @pytest.mark.parametrize("name, text, what", [("empty.txt", "", "a matrix of heights"),
                                               ("comments.txt", "# heights\n# to come\n\n", "a matrix of heights"),
                                               ("empty.xyz", "", "an xyz list (columns x y z)")])

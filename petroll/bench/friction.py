@@ -6,8 +6,10 @@ The cases are Hertzian contacts with the pressure at the cell centres (a = 1, n 
 half-width, a margin of 4 cells), nu = 0.3, two bodies of one material (compliance 1/G), mu = 0.3:
 
 - normal: the normal QP of the same sphere under load control (pk from Hertz's pressure, the default
-  solver's cold start): the reference of the "3 x the normal solve" target;
-- shift: Cattaneo's shift by Q = mu P/2 in one step (force control), and the same load in 4 steps;
+  solver's cold start): the reference of the "3 x the normal solve" target; a rolling step of it (the
+  last pressure moved: its answer); its load ramped in 4 steps (a normal step whose answer changes);
+- shift: Cattaneo's shift by Q = mu P/2 in one step (force control; from Cattaneo and Mindlin's
+  tractions), and the same load in 4 steps;
 - transient: rolling one cell a step at that force after the shift, over five contact lengths (per step:
   the first, third and fifth contact length: the transient fades by about 0.15 a contact length), and
   half a cell a step (2 steps per cell: the third contact length);
@@ -80,12 +82,15 @@ def _timed(call):
     return out, time.perf_counter() - start
 
 
-def normal_reference(n: int, comm: MPI.Comm) -> list[tuple[int, float]]:
+def normal_reference(n: int, comm: MPI.Comm) -> list[tuple[float, float]]:
     """The normal QP of the benchmark's sphere under load control (pk): (applications, wall time) from
-    Hertz's pressure (a cold step), and from the previous step's pressure moved one cell with the body
-    (a rolling step of an elastic run)."""
+    Hertz's pressure (a cold step), from the previous step's pressure moved one cell with the body (a
+    rolling step of an elastic run), and per step of the load ramped from 0 in 4 steps, each from the
+    last pressures as a run starts it (petroll.solver.warm.WarmStart; the first from Hertz's): the normal
+    problem's step when its answer changes, as the tangential ramp's does."""
     from petroll.solver.contact import ContactSolver
     from petroll.solver.partition import shift_field
+    from petroll.solver.warm import WarmStart
 
     dx = 1.0 / n
     cells = n + max(4, n // 2)  # the load-control guess's interference must stay off the edge
@@ -103,7 +108,14 @@ def normal_reference(n: int, comm: MPI.Comm) -> list[tuple[int, float]]:
     cold, cold_time = solve(0.0)
     moved = shift_field(cold.pressure, 1, 0, solver.rows, comm)
     warm, warm_time = solve(dx, moved)
-    return [(cold.applications, cold_time), (warm.applications, warm_time)]
+    starts, ramp, ramp_time = WarmStart(grid, solver.rows, comm), 0, 0.0
+    height = (x * x + y * y) / (2 * radius)
+    for k in range(1, 5):
+        step, seconds = _timed(lambda: solver.solve_load(height, compliance, load * k / 4, radius,
+                                                         warm=starts.guess(0.0, 0.0)))
+        starts.record(step.pressure, 0.0, 0.0)
+        ramp, ramp_time = ramp + step.applications, ramp_time + seconds
+    return [(cold.applications, cold_time), (warm.applications, warm_time), (ramp / 4, ramp_time / 4)]
 
 
 def bench_friction(out: pathlib.Path | None = None, quick: bool = False, comm: MPI.Comm = MPI.COMM_WORLD,
@@ -115,11 +127,13 @@ def bench_friction(out: pathlib.Path | None = None, quick: bool = False, comm: M
     if quick:
         n = scene_n = 4
     rows = []
-    (apps, seconds), (moved, moved_seconds) = normal_reference(n, comm)
+    (apps, seconds), (moved, moved_seconds), (ramp, ramp_seconds) = normal_reference(n, comm)
     rows.append(dict(case="normal QP, load control (reference)", applications=apps, fft_pairs=apps,
                      seconds=seconds, iterations="", note="pk from Hertz's pressure"))
     rows.append(dict(case="normal QP, rolling step (reference)", applications=moved, fft_pairs=moved,
                      seconds=moved_seconds, iterations="", note="from the last pressure, moved"))
+    rows.append(dict(case="normal QP, load 0 to P in 4 steps (per step, reference)", applications=ramp,
+                     fft_pairs=ramp, seconds=ramp_seconds, iterations="", note="from the last pressures"))
     grid, solver, bound = hertz_case(n, comm, length=10.0)  # five contact lengths of track
     force = np.array([-0.5 * _force(comm, bound(), grid), 0.0])
     stepping = Stepping(solver)
@@ -132,7 +146,7 @@ def bench_friction(out: pathlib.Path | None = None, quick: bool = False, comm: M
     for k in range(1, 5):
         total += steps.shift(bound(), force=force * k / 4).applications
     rows.append(dict(case="shift Q = mu P/2, 4 steps (per step)", applications=total / 4, fft_pairs=total / 2,
-                     seconds=(time.perf_counter() - start) / 4, iterations="", note="from the last two, extrapolated"))
+                     seconds=(time.perf_counter() - start) / 4, iterations="", note="from the last three, extrapolated"))
     rows += _transient(stepping, bound, force, n, (1, 3, 5))
     halves = Stepping(solver)
     halves.shift(bound(), force=force)
@@ -242,7 +256,7 @@ def _transient(stepping: Stepping, bound, force, n: int, lengths, per_cell: int 
         rows.append(dict(case=f"transient rolling{every}, contact length {length} (per step)", applications=apps,
                          fft_pairs=2 * apps, seconds=sum(r[1] for r in part) / len(part),
                          iterations=sum(r[2] for r in part) / len(part),
-                         note=f"from {per_cell} and {2 * per_cell} steps back, carried"))
+                         note=f"from {per_cell}, {2 * per_cell}, {3 * per_cell} steps back, carried"))
     return rows
 
 
@@ -436,3 +450,53 @@ def _tao_box(solver: TangentialSolver, bound, b, g, kind: str, tol: float):
     for v in (x, rhs, grad, lower, upper, mat):
         v.destroy()
     return applications if residual <= tol else None
+
+
+def free_set_conditioning(n: int = 16) -> dict[str, float]:
+    """Condition numbers behind the tangential QP's rate (docs/friction.md, Speed), on the final sets of the
+    shift Q = mu P/2 at ``n`` cells per radius (one process; dense matrices of the window's operator H and
+    preconditioner M, 2 N x 2 N for N window cells): M H on the window and on the contact's cells, and on
+    DiskPCG's free directions with its sets fixed (the stick cells' two components, the slip cells' edge
+    direction tau, the edge's curvature kappa = -t.s/g on them: A = Z^T (H + kappa) Z) preconditioned by
+    its D M D (D = (1 + kappa)^-1/2 on slip cells), by M without D, by the exact inverses of the stick and
+    the slip blocks (block Jacobi), and on the stick cells alone; with ``exact`` A's own inverse (1: the
+    check of the construction)."""
+    grid, solver, bound = hertz_case(n, MPI.COMM_SELF)
+    final = {}
+    solver.monitor = lambda iteration, state, objective: final.update(state=state)
+    solution = Stepping(solver).shift(bound(), force=np.array([-0.5 * _force(MPI.COMM_SELF, bound(), grid), 0.0]))
+    st, problem = final["state"], solver.scaled(bound(), solution.window)
+    shape, size = (2, problem.nx, problem.ny), 2 * problem.nx * problem.ny
+    cells = size // 2
+
+    def dense(operator):
+        columns = [operator(np.eye(1, size, k).reshape(shape)).ravel() for k in range(size)]
+        matrix = np.array(columns).T
+        return 0.5 * (matrix + matrix.T)
+
+    def condition(a, p):
+        lower = np.linalg.cholesky(0.5 * (p + p.T))
+        values = np.linalg.eigvalsh(lower.T @ a @ lower)
+        return float(values.max() / values.min())
+
+    h, m = dense(problem.apply), dense(problem.precondition)
+    g = problem.g.ravel() / problem.q_ref
+    stick, slip = np.flatnonzero(st.stick), np.flatnonzero(st.slip)
+    kappa = np.zeros(cells)
+    kappa[slip] = -(st.s[:, slip] * st.t[:, slip]).sum(axis=0) / g[slip]
+    z = np.zeros((size, 2 * len(stick) + len(slip)))
+    z[stick, 2 * np.arange(len(stick))] = z[cells + stick, 2 * np.arange(len(stick)) + 1] = 1.0
+    columns = 2 * len(stick) + np.arange(len(slip))
+    z[slip, columns], z[cells + slip, columns] = st.tau[0, slip], st.tau[1, slip]
+    a = z.T @ (h + np.diag(np.tile(kappa, 2))) @ z
+    d = np.diag(np.tile(np.where(st.slip, 1 / np.sqrt(1 + kappa), 1.0), 2))
+    contact = np.flatnonzero(np.tile(g > 0, 2))
+    blocks = np.zeros_like(a)
+    for part in (slice(0, 2 * len(stick)), slice(2 * len(stick), None)):
+        blocks[part, part] = np.linalg.inv(a[part, part])
+    lone = slice(0, 2 * len(stick))
+    return {"window": condition(h, m), "contact": condition(h[np.ix_(contact, contact)], m[np.ix_(contact, contact)]),
+            "free set, D M D": condition(a, z.T @ d @ m @ d @ z), "free set, M": condition(a, z.T @ m @ z),
+            "free set, block Jacobi": condition(a, blocks),
+            "stick cells alone": condition(z[:, lone].T @ h @ z[:, lone], z[:, lone].T @ m @ z[:, lone]),
+            "exact": condition(a, np.linalg.inv(a)), "stick": len(stick), "slip": len(slip)}

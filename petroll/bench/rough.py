@@ -6,7 +6,9 @@ one of the non-periodic DC-FFT operator on the same grid, 256^2 to 2048^2, in pr
 first), median of repeated applications on this process's ranks (:func:`applications`,
 ``periodic.csv``); and petroll's periodic elastic contact on a random rough surface against Tamaas's
 periodic solver (``PolonskyKeerRey`` on its spectral operator, the same kernel), same grid and load, both
-solved to 1e-12, from the benchmark-only environment ``.venv-peers`` (:func:`tamaas`, ``tamaas.csv``).
+solved to 1e-12, from the benchmark-only environment ``.venv-peers`` (:func:`tamaas`, ``tamaas.csv``); and
+what an application costs inside a contact QP against a bare one, periodic and padded, 512^2 and 2048^2
+(:func:`in_solve`, ``in-solve.csv``).
 
 ``petroll bench sliding [--out DIR]``: the closed forms of full contact of sliding sinusoids against the
 steady sliding solve (:func:`closed_forms`, ``closed-forms.csv``); the steady sliding state of a 1024^2
@@ -243,6 +245,78 @@ def applications(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, sides=(256,
     return rows
 
 
+def in_solve(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, sides=(512, 2048), repeats: int = 3,
+             show: bool = True) -> list[dict]:
+    """What an operator application costs inside a contact QP against one bare application of the same
+    operator: on a periodic n x n grid (a self-affine rough surface under load control, pk from p = 0's
+    summits start; :func:`qp_cases`) and a padded (windowed half-space) one (a sphere at a penetration whose
+    interference, hence the QP's window, spans n x n cells), for each n of ``sides``. In process, after a
+    first solve built the TAO objects and kernels; each of ``repeats`` rounds times the same solve from the
+    same start (ContactSolver.solve_load / solve_penetration: its QPs with their set-up and
+    read-out) and, alternating with it, one bare application of the QP window's operator (median of 5, on
+    a random field); medians over the rounds. Times are CPU times of the process (the largest over the
+    ranks; its FFT threads' included): on a shared machine what the work costs, which a busy neighbour's
+    processes do not stretch as they do the wall time. Columns: the solve's iterations and counted applications
+    (StepSolution.applications: the Hessian's mults, gradient evaluations included), FFT pairs of the
+    window's size (the tally of petroll.solver.fft_work, the preconditioner's included) per application,
+    the solve's time per application and its ratio to the bare one. Writes ``out/in-solve.csv``."""
+    from petroll.solver.fft_work import FFTWork
+
+    rows = []
+    for n in sides:
+        for case, solver, solve in qp_cases(n, comm):
+            first = solve()  # builds the window's TAO objects and spectra
+            i0, i1, j0, j1 = first.window
+            conv = solver.influence.window(i1 - i0, j1 - j0)
+            field = np.random.default_rng(n).random((conv.r1 - conv.r0, j1 - j0))
+            solves, bare, pairs = [], [], []
+            for _ in range(repeats):
+                comm.Barrier()
+                work, start = FFTWork.total, time.process_time()
+                step = solve()
+                solves.append(comm.allreduce(time.process_time() - start, op=MPI.MAX))
+                pairs.append((FFTWork.total - work) / conv.cost)
+                for _ in range(5):
+                    comm.Barrier()
+                    start = time.process_time()
+                    conv(field)
+                    bare.append(comm.allreduce(time.process_time() - start, op=MPI.MAX))
+            seconds, one = statistics.median(solves), statistics.median(bare)
+            contact = comm.allreduce(int(np.count_nonzero(step.pressure))) / ((i1 - i0) * (j1 - j0))
+            per = 1e3 * seconds / step.applications
+            rows.append(dict(case=case, cells=f"{i1 - i0}x{j1 - j0}", ranks=comm.size,
+                             contact=f"{contact:.3f}", iterations=step.iterations,
+                             applications=step.applications,
+                             fft_pairs_per_application=f"{statistics.median(pairs) / step.applications:.3f}",
+                             solve_ms=f"{1e3 * seconds:.4g}", per_application_ms=f"{per:.4g}",
+                             bare_ms=f"{1e3 * one:.4g}", ratio=f"{per / (1e3 * one):.3f}"))
+    if comm.rank == 0:
+        write_table(rows, out / "in-solve.csv", show=show)
+    return rows
+
+
+def qp_cases(n: int, comm: MPI.Comm):
+    """The two QPs of :func:`in_solve` at side n: (name, ContactSolver, a function solving it), periodic
+    then padded. Periodic: a 1 mm cell of n x n cells, the self-affine surface of :func:`tamaas` (seed 3,
+    rms slope 0.1), compliance 1e-7 1/Pa, mean pressure 50 kPa (about 10 % contact). Padded: a sphere of
+    radius 10 mm on (n + 8)^2 cells of 1/n mm, at the penetration whose interference has a 1 mm radius
+    (its window n x n cells), compliance 1e-9 1/Pa."""
+    from petroll.model.grid import Grid
+    from petroll.solver.contact import ContactSolver
+
+    length, dx = 1e-3, 1e-3 / n
+    grid = Grid(n, n, 0.0, length, 0.0, length, periodic=(True, True))
+    solver = ContactSolver(grid, comm)
+    keys = {"hurst": 0.8, "rolloff": length / 4, "cutoff": 4 * dx, "rms_slope": 0.1, "seed": 3}
+    z = self_affine_heights(keys, (n, n), (dx, dx))[solver.r0 : solver.r1]
+    yield "periodic", solver, lambda: solver.solve_load(z, 1e-7, 5e4 * length**2, length)
+    radius, half = 1e-2, 0.5 * (n + 8) * dx
+    grid = Grid(n + 8, n + 8, -half, half, -half, half)
+    solver = ContactSolver(grid, comm)
+    sphere = (grid.x[solver.r0 : solver.r1, None] ** 2 + grid.y[None, :] ** 2) / (2 * radius)
+    yield "padded", solver, lambda: solver.solve_penetration(sphere, 1e-9, (0.5 * length) ** 2 / (2 * radius))
+
+
 def tamaas(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, sides=(128, 256, 512),
            tol: float = 1e-12) -> list[dict]:
     """petroll's periodic elastic contact (the default pk, load control) against Tamaas's periodic solver on
@@ -296,10 +370,12 @@ def tamaas(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, sides=(128, 256, 
 
 
 def periodic(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, sides=(256, 512, 1024, 2048),
-             repeats: int = 20, tamaas_sides=(128, 256, 512)) -> None:
-    """``petroll bench periodic``: the operator's cost against the non-periodic one on ``sides``, and
-    Tamaas on ``tamaas_sides`` (none: Tamaas is not run, nothing installed)."""
+             repeats: int = 20, tamaas_sides=(128, 256, 512), solve_sides=(512, 2048)) -> None:
+    """``petroll bench periodic``: the operator's cost against the non-periodic one on ``sides``, an
+    application inside a QP against a bare one on ``solve_sides``, and Tamaas on ``tamaas_sides`` (none:
+    Tamaas is not run, nothing installed)."""
     applications(out, comm, sides, repeats)
+    in_solve(out, comm, solve_sides, min(repeats, 3))
     if tamaas_sides:
         tamaas(out, comm, tamaas_sides)
 

@@ -34,7 +34,7 @@ QUICK = {
     "estimate": dict(factors=(1,), repeats=1),
     "accuracy": dict(scenes=("roller-2d.toml",), factors=(0.5,), reference=2.0,
                      integrators=("roller-2d.toml, paper",), order_factors=(1.0, 2.0, 4.0)),
-    "periodic": dict(sides=(32,), repeats=1, tamaas_sides=()),
+    "periodic": dict(sides=(32,), repeats=1, tamaas_sides=(), solve_sides=(32,)),
     "sliding": dict(cells=32, curve_cells=32, points=2),
     "friction": dict(quick=True),
     "cutoff": dict(cells=(2,), reference=4, side=0.5e-3),

@@ -221,6 +221,11 @@ def root_digest(attrs: dict, digests: dict[str, str]) -> str:
     return hashlib.sha256(repr((plain, sorted(digests.items()))).encode()).hexdigest()
 
 
+def _same_digest(stored, digest: str) -> bool:
+    """Whether a digest read from a file (of any type, if the file is damaged) is ``digest``."""
+    return isinstance(stored, str) and stored == digest
+
+
 def _plain(value):
     """An attribute as a plain Python value (str, int, float, bool), however h5py returned it."""
     if isinstance(value, bytes):
@@ -429,7 +434,8 @@ def _read_field(path: pathlib.Path, name: str, shape: tuple, digest: str, comm: 
         what = "truncated" if "truncated" in failures[0].lower() else "corrupted"
         raise CheckpointError(f"{path}: {what}, cannot be read as a checkpoint ({failures[0]})")
     shares = comm.gather(row_digests(parts), root=0)
-    good = comm.bcast(field_digest(name, shape, shares, count) == digest if comm.rank == 0 else None, root=0)
+    good = _same_digest(digest, field_digest(name, shape, shares, count)) if comm.rank == 0 else None
+    good = comm.bcast(good, root=0)
     if not good:
         raise CheckpointError(f"{path}: corrupted (the data of {name} do not match their checksum)")
     return parts
@@ -500,9 +506,9 @@ def _load(path: pathlib.Path) -> dict:
 def _checked(path: pathlib.Path, attrs: dict, data: dict, digests: dict, shapes: dict, version) -> dict:
     """:func:`_load`'s checks of what it read: digests, the datasets a restart needs."""
     for name, value in sorted(data.items()):
-        if digest_of(name, np.asarray(value)) != digests[name]:
+        if not _same_digest(digests[name], digest_of(name, np.asarray(value))):
             raise CheckpointError(f"{path}: corrupted (the data of {name} do not match their checksum)")
-    if root_digest(attrs, digests) != attrs["sha256"]:
+    if not _same_digest(attrs["sha256"], root_digest(attrs, digests)):
         raise CheckpointError(f"{path}: corrupted (its attributes or list of datasets do not match the "
                               f"checksum)")
     prony = attrs["history"] == "prony"

@@ -47,7 +47,7 @@ def file_kind(path: str | pathlib.Path) -> tuple[str, pathlib.Path]:
                 return "run", path
             if "von_mises" in f and "z" in f:
                 return "stress", path
-    except OSError:
+    except Exception:  # noqa: BLE001 - h5py reports damage as OSError, KeyError, RuntimeError, ...
         pass
     raise PetrollError(f"{path}: not a petroll results.h5, sweep.h5 or stress.h5")
 

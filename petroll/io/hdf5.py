@@ -16,6 +16,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
+import contextlib
 import errno
 import hashlib
 import os
@@ -25,7 +26,7 @@ import sys
 import h5py
 import numpy as np
 
-from petroll.errors import reason
+from petroll.errors import PetrollError, reason
 from petroll.io.journal import Session, atomic_write
 
 if TYPE_CHECKING:
@@ -49,6 +50,33 @@ def add_strings(f: h5py.File, name: str, lines) -> None:
     new = [line for line in lines if line not in held]
     if new:
         f.attrs[name] = np.array(held + new, dtype=h5py.string_dtype())
+
+
+@contextlib.contextmanager
+def reading_as(path, what: str):
+    """Within the block ``path``, an HDF5 file, is read as ``what`` (e.g. "petroll results file"): any
+    exception but a PetrollError is raised as one, "PATH: not a readable WHAT (reason)". h5py reports a
+    damaged file as OSError, KeyError, RuntimeError, ValueError, TypeError, ..., and a damaged file's values
+    and names can be of any type: each is the file's problem, told in one line."""
+    try:
+        yield
+    except PetrollError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - see above
+        raise PetrollError(f"{path}: not a readable {what} ({reason(exc)})") from None
+
+
+def overgrown(f: h5py.File, written: dict[str, int]) -> str | None:
+    """Which dataset growing along its first axis (maxshape None there) in a group of ``written`` has more
+    rows than that group's count written, or other axes than its maximum's (a damaged extent: HDF5 walks
+    every chunk of a cut, e.g. 10^12 rows cut back to 10, a hang); None if none."""
+    for group, rows in written.items():
+        for name, d in f[group].items() if group in f else ():
+            if d.maxshape[0] is None and d.shape[0] > rows:
+                return f"{group}/{name} holds {d.shape[0]} rows, more than the {rows} written"
+            if d.maxshape[0] is None and d.shape[1:] != d.maxshape[1:]:
+                return f"{group}/{name} has shape {d.shape}, not (n, {', '.join(map(str, d.maxshape[1:]))})"
+    return None
 
 
 def parallel_hdf5(comm: MPI.Comm) -> bool:

@@ -39,11 +39,12 @@ import numpy as np
 
 from petroll import __version__
 from petroll.errors import PetrollError, reason
-from petroll.io.hdf5 import RowFile, add_strings, chunk_rows, string_list
+from petroll.io.hdf5 import RowFile, add_strings, chunk_rows, overgrown, reading_as, string_list
 from petroll.io.journal import atomic_write, copy_committed, reading, sync_directory  # noqa: F401 - atomic_write: here too
 from petroll.records import INTEGER_SERIES, SERIES, friction_units
 
 FORMAT_VERSION = 1
+RESULTS_FILE = "petroll results file"  # what the error that a damaged one gives calls it (reading_as)
 
 
 class OutputError(PetrollError):
@@ -169,10 +170,15 @@ class Results:
     def open(cls, path: str | pathlib.Path) -> "Results":
         """Read a results file's series and coordinates (any rank may call it), up to ``steps_written``."""
         path = pathlib.Path(path)
-        with reading(path) as f:
+        with reading_as(path, RESULTS_FILE), reading(path) as f:
             n = int(f.attrs.get("steps_written", len(f["series/t"])))
             k = int(f.attrs.get("fields_written", len(f["fields/step"])))
             series = {name: f["series"][name][:n] for name in f["series"]}
+            line = bool(f.attrs.get("line_contact", False))
+            short = [s for s in (LINE_SERIES_UNITS if line else SERIES_UNITS) if len(series.get(s, ())) != n]
+            if short:  # a damaged file's series may be gone or cut short
+                raise PetrollError(f"{path}: not a readable {RESULTS_FILE} (series {short[0]}: "
+                                   f"{len(series.get(short[0], ()))} values for the {n} steps written)")
             fields = f["fields"]
             rough = {name: f["rough"][name][:k] for name in f["rough"]} if "rough" in f else None
             estimate = None
@@ -180,14 +186,14 @@ class Results:
                 group = f["error_estimate"]
                 estimate = {name: dict(group[name].attrs) for name in group} | {"": dict(group.attrs)}
             return cls(path, series, fields["step"][:k], fields["x"][()], fields["y"][()], str(f.attrs["scene"]),
-                       bool(f.attrs.get("complete", True)), bool(f.attrs.get("line_contact", False)),
+                       bool(f.attrs.get("complete", True)), line,
                        tuple(name for name in FIELD_UNITS if name in fields), bool(f.attrs.get("steady", False)),
                        str(f.attrs.get("scene_file", "")), str(f.attrs.get("petroll_version", "")),
                        str(f.attrs.get("run_id", "")), estimate, rough, string_list(f, "warnings"))
 
     def field(self, name: str) -> np.ndarray:
         """The saved fields ``name`` (a key of FIELD_UNITS), (n_saved, nx, ny), read from the file."""
-        with reading(self.path) as f:
+        with reading_as(self.path, RESULTS_FILE), reading(self.path) as f:
             return f["fields"][name][: len(self.field_steps)]
 
     @functools.cached_property
@@ -507,8 +513,10 @@ def _resumable(source: pathlib.Path, steps: int, field_steps: list[int], check=N
                 return f"{source}: written by an older petroll (not appendable); run the scene again"
             n, k = int(f.attrs["steps_written"]), int(f.attrs["fields_written"])
             have = [int(s) for s in f["fields/step"][:k]]
+            if (odd := overgrown(f, {"series": n, "fields": k, "rough": k})) is not None:  # cut: a hang
+                return f"{source}: damaged ({odd}){fix}"
             other = check(f, source) if check is not None else None
-    except (OSError, KeyError) as exc:
+    except Exception as exc:  # noqa: BLE001 - h5py reports damage as OSError, KeyError, RuntimeError, ...
         return f"{source}: cannot continue the results of the checkpoint's run ({reason(exc)}){fix}"
     if other is not None:
         return other
@@ -527,7 +535,7 @@ def results_identity(path: str | pathlib.Path) -> dict | None:
             return {"scene": str(f.attrs["scene"]), "run_id": str(f.attrs.get("run_id", "")),
                     "fingerprint": str(f.attrs.get("fingerprint", "")),
                     "complete": bool(f.attrs.get("complete", True)), "estimated": "error_estimate" in f}
-    except (OSError, KeyError):
+    except Exception:  # noqa: BLE001 - h5py reports damage as OSError, KeyError, RuntimeError, ...
         return None
 
 

@@ -24,10 +24,13 @@ import numpy as np
 
 from petroll.errors import PetrollError, reason
 from petroll.io.journal import reading
-from petroll.io.hdf5 import atomic_hdf5
-from petroll.io.results import OutputError
+from petroll.io.hdf5 import atomic_hdf5, reading_as
+from petroll.io.results import RESULTS_FILE, OutputError
 from petroll.io.rundir import clean_temporaries
 from petroll.solver.partition import RowPartition, gather_field
+
+STRESS_FILE = "petroll stress file"
+"""What a stress file is called in the error that a damaged one gives."""
 
 STRESS_DATASETS = ("sigma_xx", "sigma_yy", "sigma_zz", "sigma_xy", "sigma_xz", "sigma_yz", "von_mises",
                    "max_shear")
@@ -41,30 +44,27 @@ def read_saved_pressure(path: pathlib.Path, step: int | None, comm) -> dict:
     (the body's path, m), ``line`` (a line-contact run: ny = 1), ``traction`` (a run with friction: the
     tangential tractions on the body, (m, local rows, ny) Pa; None without). Collective in effect (every rank reads its rows). Raises PetrollError naming the
     file or the step (with the saved steps) when it cannot."""
-    try:
-        with reading(path) as f:
-            r0, r1 = RowPartition(len(f["fields/x"]), comm.size).range(comm.rank)
-            steps = f["fields/step"][: int(f.attrs.get("fields_written", len(f["fields/step"])))]
-            if len(steps) == 0:
-                raise PetrollError(f"{path}: the file holds no saved pressure fields")
-            k = len(steps) - 1 if step is None else np.flatnonzero(steps == step)
-            if step is not None and len(k) == 0:
-                shown = ", ".join(str(int(s)) for s in steps[:20]) + (", ..." if len(steps) > 20 else "")
-                raise PetrollError(f"--step {step}: no pressure field saved at that step in {path}; saved "
-                                   f"steps: {shown} ([output] every sets them)")
-            k = int(k) if step is None else int(k[0])
-            series = f["series"]
-            n = int(f.attrs.get("steps_written", len(series["step"])))  # a growing file: its valid part
-            row = int(np.flatnonzero(series["step"][:n] == steps[k])[0])
-            tangential = [f["fields"][name][k, r0:r1, :] for name in ("traction_x", "traction_y")
-                          if name in f["fields"]]
-            return {"pressure": f["fields/pressure"][k, r0:r1, :], "rows": (r0, r1), "step": int(steps[k]),
-                    "traction": np.stack(tangential) if tangential else None,
-                    "line": bool(f.attrs.get("line_contact", False)),
-                    "t": float(series["t"][row]), "x": f["fields/x"][()], "y": f["fields/y"][()],
-                    "scene": str(f.attrs["scene"]), "sx": series["sx"][:n], "sy": series["sy"][:n]}
-    except (OSError, KeyError) as exc:
-        raise PetrollError(f"{path}: not a readable petroll results file ({reason(exc)})") from None
+    with reading_as(path, RESULTS_FILE), reading(path) as f:
+        r0, r1 = RowPartition(len(f["fields/x"]), comm.size).range(comm.rank)
+        steps = f["fields/step"][: int(f.attrs.get("fields_written", len(f["fields/step"])))]
+        if len(steps) == 0:
+            raise PetrollError(f"{path}: the file holds no saved pressure fields")
+        k = len(steps) - 1 if step is None else np.flatnonzero(steps == step)
+        if step is not None and len(k) == 0:
+            shown = ", ".join(str(int(s)) for s in steps[:20]) + (", ..." if len(steps) > 20 else "")
+            raise PetrollError(f"--step {step}: no pressure field saved at that step in {path}; saved "
+                               f"steps: {shown} ([output] every sets them)")
+        k = int(k) if step is None else int(k[0])
+        series = f["series"]
+        n = int(f.attrs.get("steps_written", len(series["step"])))  # a growing file: its valid part
+        row = int(np.flatnonzero(series["step"][:n] == steps[k])[0])
+        tangential = [f["fields"][name][k, r0:r1, :] for name in ("traction_x", "traction_y")
+                      if name in f["fields"]]
+        return {"pressure": f["fields/pressure"][k, r0:r1, :], "rows": (r0, r1), "step": int(steps[k]),
+                "traction": np.stack(tangential) if tangential else None,
+                "line": bool(f.attrs.get("line_contact", False)),
+                "t": float(series["t"][row]), "x": f["fields/x"][()], "y": f["fields/y"][()],
+                "scene": str(f.attrs["scene"]), "sx": series["sx"][:n], "sy": series["sy"][:n]}
 
 
 def write_stress(path: pathlib.Path, z: np.ndarray, x: np.ndarray, y: np.ndarray, depths, attrs,
@@ -127,12 +127,9 @@ def stress_section(path: str | pathlib.Path, name: str, index: int) -> np.ndarra
     """Dataset ``name`` of a stress file on the section along the motion (attribute motion_axis) through
     cell ``index`` across it: (nz, cells along the motion), Pa."""
     path = pathlib.Path(path)
-    try:
-        with h5py.File(path, "r") as f:
-            d = f[name]
-            return d[:, :, index] if f.attrs["motion_axis"] == "x" else d[:, index, :]
-    except (OSError, KeyError) as exc:
-        raise PetrollError(f"{path}: not a readable petroll stress file ({reason(exc)})") from None
+    with reading_as(path, STRESS_FILE), h5py.File(path, "r") as f:
+        d = f[name]
+        return d[:, :, index] if f.attrs["motion_axis"] == "x" else d[:, index, :]
 
 
 def stress_planes(path: str | pathlib.Path, name: str) -> dict:
@@ -141,17 +138,14 @@ def stress_planes(path: str | pathlib.Path, name: str) -> dict:
     ``z``, ``x``, ``y`` (m), ``peak`` (Pa), ``at`` (x, y, z of the maximum, m) and ``attrs``. Reads only
     that plane; :func:`stress_section` reads a section along the motion."""
     path = pathlib.Path(path)
-    try:
-        with h5py.File(path, "r") as f:
-            attrs = dict(f.attrs)
-            z, x, y = f["z"][()], f["x"][()], f["y"][()]
-            at = np.asarray(attrs[f"{name}_at"], dtype=float)
-            k = int(np.argmin(np.abs(z - at[2])))
-            d = f[name]
-            planes = {"map": d[k], "z": z, "x": x, "y": y, "peak": float(attrs[f"{name}_max"]), "at": at,
-                      "attrs": attrs}
-            if d.ndim == 2:  # line contact: the whole (nz, nx) section, a profile at the maximum's depth
-                planes["section"] = d[()]
-            return planes
-    except (OSError, KeyError) as exc:
-        raise PetrollError(f"{path}: not a readable petroll stress file ({reason(exc)})") from None
+    with reading_as(path, STRESS_FILE), h5py.File(path, "r") as f:
+        attrs = dict(f.attrs)
+        z, x, y = f["z"][()], f["x"][()], f["y"][()]
+        at = np.asarray(attrs[f"{name}_at"], dtype=float)
+        k = int(np.argmin(np.abs(z - at[2])))
+        d = f[name]
+        planes = {"map": d[k], "z": z, "x": x, "y": y, "peak": float(attrs[f"{name}_max"]), "at": at,
+                  "attrs": attrs}
+        if d.ndim == 2:  # line contact: the whole (nz, nx) section, a profile at the maximum's depth
+            planes["section"] = d[()]
+        return planes

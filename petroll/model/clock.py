@@ -9,6 +9,7 @@ the time-resolution check of petroll.model.preflight weighs against the contact.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from enum import Enum
 
@@ -47,12 +48,7 @@ def step_length(scene, t: float, distance: float) -> float | None:
         if scale == 0:
             raise SceneError(scene.source, "[time] steps_per_cell", tm.steps_per_cell,
                              "needs a moving body: give [time] dt for a body at rest")
-        rate = tm.steps_per_cell * max(speed, 0.1 * scale)  # cells per second; 0 when it underflows
-        if not rate > 0:
-            raise SceneError(scene.source, "[time] steps_per_cell", tm.steps_per_cell,
-                             "gives no finite step (the steps per second underflow to 0); "
-                             "give a value near 1 (docs/accuracy.md)")
-        dt = scene.grid.cell / rate
+        dt = _cell_time(scene, max(speed, 0.1 * scale))
     if tm.end is not None:
         dt = min(dt, tm.end - t)
     elif speed > 0:
@@ -106,8 +102,20 @@ def steady_dt(scene) -> float:
     tm = scene.time
     if tm.dt is not None:
         return tm.dt
-    speed = float(np.hypot(*scene.velocity(0.0)))
-    return scene.grid.cell / ((tm.steps_per_cell or 1.0) * speed)
+    return _cell_time(scene, float(np.hypot(*scene.velocity(0.0))))
+
+
+def _cell_time(scene, speed: float) -> float:
+    """The time (s) to cross a cell over [time] steps_per_cell (default 1) at ``speed`` (m/s, > 0); a
+    SceneError on steps_per_cell where that is no finite number (the steps per second underflow to 0, or
+    so near it that a cell's time overflows)."""
+    k = scene.time.steps_per_cell or 1.0
+    rate = k * speed  # cells per second; 0 when it underflows
+    dt = scene.grid.cell / rate if rate > 0 else math.inf
+    if not math.isfinite(dt):
+        raise SceneError(scene.source, "[time] steps_per_cell", k, "gives no finite step (the steps per second "
+                         "underflow double precision); give a value near 1 (docs/accuracy.md)")
+    return dt
 
 
 def moves(scene, walked: Path) -> np.ndarray:

@@ -96,10 +96,17 @@ def periodic_surface(scene) -> PeriodicSurface | None:
 @functools.lru_cache(maxsize=2)
 def surface_statistics(surface: PeriodicSurface) -> tuple[float, float, np.ndarray]:
     """(lambda_s, h'_rms, the heights Z at the samples sorted): :func:`cutoff_wavelength` and the heights
-    of a surface, kept for the last two surfaces asked about (a scene's checks ask several times)."""
+    of a surface, kept for the last two surfaces asked about (a scene's checks ask several times) until
+    :func:`release_statistics`."""
     z = np.sort((surface.heights - surface.lowest).ravel())
     z.setflags(write=False)
     return (*cutoff_wavelength(surface), z)
+
+
+def release_statistics() -> None:
+    """Let :func:`surface_statistics`'s kept heights go (8 bytes per sample): a run calls it once its
+    checks are made, before its own arrays come."""
+    surface_statistics.cache_clear()
 
 
 def cutoff_wavelength(surface: PeriodicSurface) -> tuple[float, float]:

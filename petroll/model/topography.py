@@ -116,6 +116,8 @@ def read_npy(path: str | os.PathLike, source: str, what: str, key: str = "[body]
                          "real numbers (np.real(...) if the real part is meant)")
     if not isinstance(array, np.ndarray) or not np.issubdtype(array.dtype, np.number):
         raise SceneError(source, key, str(path), f"must be a .npy file holding {what}")
+    if np.issubdtype(array.dtype, np.floating):  # a signalling NaN (random bytes) warns in arithmetic or a
+        array[np.isnan(array)] = np.nan  # cast (FE_INVALID); a quiet one is refused as NaN where it is read
     return array
 
 

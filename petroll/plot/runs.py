@@ -40,10 +40,7 @@ def plot_results(results_dir: str | pathlib.Path, out_dir: str | pathlib.Path | 
         from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: F401
     except ImportError:
         raise PetrollError("petroll plot needs matplotlib: pip install matplotlib") from None
-    try:
-        results = Results.open(path)
-    except (OSError, KeyError) as exc:
-        raise PetrollError(f"{path}: not a readable petroll results file ({exc})") from None
+    results = Results.open(path)
     if len(results.field_steps) == 0:
         raise PetrollError(f"{path}: the file holds no saved pressure fields")
     out = pathlib.Path(out_dir) if out_dir is not None else results_dir / "plots"

@@ -118,7 +118,7 @@ class ContactSolver:
                 raise SolverError(f"[motion] penetration: {delta:g} m leaves no mean gap on the periodic "
                                   f"grid (the surface's mean height is {mean:g} m above its lowest point): "
                                   "a penetration must be below it; full contact needs [motion] load")
-        pressure, its, apps, residual, window, _ = self._solve_qp(delta - height, compliance, warm)
+        pressure, its, apps, residual, window, _ = self._solve_qp(delta, height, compliance, warm)
         self._check_inside(pressure)
         force = self.comm.allreduce(float(pressure.sum())) * self.grid.cell_area
         return StepSolution(pressure, delta, force, its, apps, residual, window)
@@ -150,7 +150,7 @@ class ContactSolver:
         if self.tao_type == "pk":
             if not reach > base:
                 raise BeyondReach(f"the load {load:g} N needs a penetration beyond {reach:g} m")
-            if warm is None:
+            if warm is None and not self.topology.whole:  # a periodic grid's: made where the QP is posed
                 warm = self.hertz_pressure(height, compliance, load, radius_hint, min(delta_guess, reach))
             return self._load_in_pk(height, compliance, load, min(delta_guess, reach), warm, reach)
         power = self.topology.load_power
@@ -259,7 +259,7 @@ class ContactSolver:
         from the solution (both solves' work counted). BeyondReach as :meth:`solve_load`."""
         iterations = applications = 0
         for _ in range(20):
-            pressure, its, apps, residual, window, change = self._solve_qp(delta - height, compliance, warm, load)
+            pressure, its, apps, residual, window, change = self._solve_qp(delta, height, compliance, warm, load)
             iterations += its
             applications += apps
             found = delta + change
@@ -282,11 +282,13 @@ class ContactSolver:
                           "check the scene's load and body")
 
     # -- the QP -----------------------------------------------------------------------------------------
-    def _solve_qp(self, interference: np.ndarray, compliance: float, warm: np.ndarray | None,
+    def _solve_qp(self, delta: float, height: np.ndarray, compliance: float, warm: np.ndarray | None,
                   load: float | None = None):
-        """The QP on the window of the cells that can touch (``interference`` in m); ``load`` (N, pk only):
-        the force held, the penetration found with the pressure. Returns the pressure, TAO's iterations,
-        the applications, the residual, the window and the penetration's change (m; 0 without load).
+        """The QP on the window of the cells that can touch (the interference delta - ``height``, m; on a
+        periodic grid made only while the QP is posed, 8 bytes per cell less while it is solved); ``load``
+        (N, pk only): the force held, the penetration found with the pressure. Returns the pressure, TAO's
+        iterations, the applications, the residual, the window and the penetration's change (m; 0 without
+        load).
 
         With all coefficients positive the cells that can touch are those of positive interference
         (exact). A layer's surface bulges up around a load, so cells beyond them can touch too: the window
@@ -297,17 +299,18 @@ class ContactSolver:
         the contact; the thin incompressible layer's contact, 41 % wider than the interference region, is
         found this way: tests/test_layer.py.)"""
         if self.topology.whole:  # a cell without surface (petroll check refuses them) has no gap
-            if not self.comm.allreduce(bool(np.isfinite(interference).all()), op=MPI.LAND):
+            if not self.comm.allreduce(bool(np.isfinite(delta) and np.isfinite(height).all()), op=MPI.LAND):
                 raise SolverError("the body has no surface (Z = +inf) over some cells of the periodic grid: give "
                                   "it a surface over the whole grid, or set [grid] periodic = false")
-            return self._solve_window(interference, compliance, warm, None, load)
+            return self._solve_window(delta, height, compliance, warm, None, load)
+        interference = delta - height
         candidates = interference > 0
         if (not self.influence.positive and warm is not None
                 and self.comm.allreduce(bool(candidates.any()), op=MPI.LOR)):
             candidates |= warm > 0
         its = applications = 0
         while True:
-            pressure, n, apps, residual, window, change = self._solve_window(interference, compliance, warm,
+            pressure, n, apps, residual, window, change = self._solve_window(delta, height, compliance, warm,
                                                                              candidates, load)
             its, applications = its + n, applications + apps
             if self.influence.positive or window == (0, 0, 0, 0):
@@ -371,7 +374,7 @@ class ContactSolver:
         out[ri, rj] = table[di, dj] @ sp
         return out
 
-    def _solve_window(self, interference: np.ndarray, compliance: float, warm: np.ndarray | None,
+    def _solve_window(self, delta: float, height: np.ndarray, compliance: float, warm: np.ndarray | None,
                       candidates: np.ndarray, load: float | None):
         grid, comm = self.grid, self.comm
         window = self.topology.window(None if candidates is None else self._box(candidates),
@@ -380,12 +383,14 @@ class ContactSolver:
             return np.zeros(self.local_shape), 0, 0, 0.0, (0, 0, 0, 0), 0.0
         i0, i1, j0, j1 = window
         grid_ranges, window_ranges = self._box_ranges(i0, i1)
-        target = move_rows(interference[:, j0:j1], grid_ranges, window_ranges, comm)
+        target = move_rows(delta - height[:, j0:j1], grid_ranges, window_ranges, comm)  # the interference
         w_ref = self._scale(target)
         diagonal = self.influence.diagonal
         to_pressure = w_ref / (compliance * diagonal)  # p = to_pressure * p_hat
 
         qp = self.window_qp(i1 - i0, j1 - j0)
+        if warm is None and load is not None and self.topology.whole:  # a periodic grid's cold start under load
+            warm = self.summits_pressure(height, load)  # control (hertz_pressure's), let go once written
         with qp.x as start:  # the start, p_hat >= 0 (0 without a warm one), written straight into the solution
             if warm is None:
                 start.fill(0.0)
@@ -399,6 +404,7 @@ class ContactSolver:
         with qp.rhs as gaps:
             np.divide(target.reshape(-1), -w_ref, out=gaps)
             np.minimum(gaps, self.NO_SURFACE_GAP, out=gaps)
+        del target, warm  # posed: the interference and the start go before the solve's arrays come
         tol = self.tol if self.pressure_tol is None else self.pressure_tol
         x, gap, multiplier, its, applications = qp.solve(total, tol)
         if self.pressure_tol is not None:

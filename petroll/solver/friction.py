@@ -60,6 +60,25 @@ def rigid_slip(x: np.ndarray, y: np.ndarray, creepage, spin: float, distance: fl
     return distance * np.stack([creepage[0] - spin * ym, creepage[1] + spin * xm])
 
 
+def cattaneo_mindlin(bound: np.ndarray, force, cell_area: float, comm: MPI.Comm) -> np.ndarray:
+    """A first guess of the tractions (Pa, (m, rows, ny)) that carry the tangential ``force`` (N, an
+    m-vector) on the traction bound ``bound`` g = mu p (Pa, this rank's rows) from rest: Cattaneo and
+    Mindlin's, q = F/|F| (g - g*) (sum q dA = F), g* the bound of the contact at a smaller load (what the
+    normal problem's start from Hertz's pressure is to it). For a Hertz pressure g^2 is quadratic in
+    the position, and the smaller contact's g*^2 = g^2 - (1 - k^2) g0^2 (g0 the largest bound, k the stick
+    zone's size over the contact's: (1 - |F|/(mu P))^(1/3), line contact ^(1/2)); any other pressure takes
+    the same formula as a guess."""
+    force = np.asarray(force, dtype=float).reshape(-1)
+    sums = np.array([float(bound.sum()), float(bound.max(initial=0.0))])
+    capacity, g0 = comm.allreduce(sums[0]) * cell_area, comm.allreduce(sums[1], op=MPI.MAX)
+    size = float(np.hypot.reduce(force))
+    if not (size > 0 and capacity > 0):
+        return np.zeros((len(force), *bound.shape))
+    k = max(1.0 - size / capacity, 0.0) ** (1 / (len(force) + 1))
+    inner = np.sqrt(np.clip(bound * bound - (1 - k * k) * g0 * g0, 0.0, None))
+    return (force / size)[:, None, None] * (bound - inner)
+
+
 class ShearMemory:
     """The tangential creep function's hereditary history (module docstring): a normal-problem ``history``
     (petroll.solver.history, on fields of shape (m, rows, ny): its integrators act cell by cell) of the
@@ -88,7 +107,9 @@ class Stepping:
     ``solver``: the tractions of the last steps kept (this rank's rows), u' = c K q' left to the QP's
     gradient (elastic; viscoelastic: u' computed on the box of the new contact and the sources). Each
     step starts from the tractions of the last steps carried along with the body (``warm``,
-    petroll.solver.warm.TractionWarmStart: at k steps per cell, those k and 2k steps back, extrapolated).
+    petroll.solver.warm.TractionWarmStart: at k steps per cell, those k, 2k and 3k steps back, extrapolated
+    in the body's and the material's frame); a shift from rest under force control from Cattaneo and
+    Mindlin's (:func:`cattaneo_mindlin`).
 
     :meth:`shift`: a quasi-static step (rate-independent: first order, u' = the last step's u), the
     body's rigid tangential displacement changed by ``increment`` or found from the force; ``shift``
@@ -166,7 +187,10 @@ class Stepping:
         if force is None:
             increment = np.zeros(solver.m) if increment is None else np.asarray(increment, dtype=float)
             rigid = np.broadcast_to(increment[:, None, None], (solver.m, *solver.local_shape))
-        solution = solver.solve(bound, rigid, previous, self.warm.guess(*centre), force, tol, compliance, earlier)
+        warm = self.warm.guess(*centre, bound)
+        if warm is None and force is not None:  # from rest
+            warm = cattaneo_mindlin(bound, force, solver.grid.cell_area, solver.comm)
+        solution = solver.solve(bound, rigid, previous, warm, force, tol, compliance, earlier)
         self.warm.record(solution.traction, *centre)
         self._remember(solution, compliance, v, dt, rolled=False)
         self.shift_total = self.shift_total + (solution.shift if force is not None else increment)
@@ -198,7 +222,8 @@ class Stepping:
         if self.last_distance is None:  # after a shift: its trend is not the rolling's
             self.warm.forget()
         previous, earlier, compliance, v = self._previous(bound, weights, dt)
-        solution = solver.solve(bound, rigid, previous, self.warm.guess(*centre), force, tol, compliance, earlier)
+        solution = solver.solve(bound, rigid, previous, self.warm.guess(*centre, bound), force, tol, compliance,
+                                earlier)
         self.warm.record(solution.traction, *centre)
         self._remember(solution, compliance, v, dt, rolled=True)
         self.creepage = (np.asarray(creepage, dtype=float)[: solver.m] if force is None

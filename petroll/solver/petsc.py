@@ -80,20 +80,22 @@ class WindowQP:
         influence = solver.influence
         self.hessian = shell_matrix(influence.window(nx, ny), 1.0 / influence.diagonal)
         self.x, self.rhs = self.hessian.createVecs()
-        self.grad, self.gap, lower, upper = (self.x.duplicate() for _ in range(4))
+        self.grad = self.x.duplicate()
         self.pk = solver.tao_type == "pk"
-        lower.set(0.0)
-        upper.set(PETSc.INFINITY)
         tao = self.tao = PETSc.TAO().create(solver.comm)
         tao.setOptionsPrefix(solver.prefix)
-        if self.pk:
+        self._vecs = ()
+        if self.pk:  # p_hat >= 0 given to pk as a number: no bound vectors (16 bytes per cell)
             tao.setType("python")
-            tao.setPythonContext(PolonskyKeer())
+            tao.setPythonContext(PolonskyKeer(bounds=(0.0, np.inf)))
         else:
             tao.setType(solver.tao_type)
+            self._vecs = lower, upper = self.x.duplicate(), self.x.duplicate()
+            lower.set(0.0)
+            upper.set(PETSc.INFINITY)
+            tao.setVariableBounds((lower, upper))
         tao.setObjectiveGradient(self._objective_gradient, self.grad)
         tao.setHessian(lambda tao, p, H, P: None, self.hessian, self.hessian)
-        tao.setVariableBounds((lower, upper))
         tao.setTolerances(gatol=solver.tol, grtol=0.0, gttol=0.0)
         tao.setMaximumIterations(solver.max_iterations)
         tao.setMaximumFunctionEvaluations(10 * solver.max_iterations)
@@ -109,7 +111,6 @@ class WindowQP:
                 ksp.getPC().setPythonContext(CirculantInverse())
             else:
                 ksp.getPC().setType("none")
-        self._vecs = (lower, upper)
         if not _LIVE:  # registered after PETSc started: runs before its finalisation
             atexit.register(_destroy_live)
         self.created = next(_CREATED)
@@ -125,9 +126,10 @@ class WindowQP:
         """Solve to the tolerance ``tol`` (TAO's gatol) from the start the caller wrote in ``x`` (p_hat >= 0)
         on the right-hand side it wrote in ``rhs`` (this rank's window entries, written in place: no copies;
         after a solve ``x`` holds its answer, a start for a tighter solve).
-        ``total`` (pk only): hold sum p_hat = total (load control). Returns p_hat, the gap H p_hat + rhs -
-        lambda (local arrays; lambda the load constraint's multiplier, 0 without it), lambda, TAO's
-        iterations and the operator applications."""
+        ``total`` (pk only): hold sum p_hat = total (load control). Returns p_hat (a read-only view of ``x``,
+        valid until the next solve), the gap H p_hat + rhs - lambda (a new array; lambda the load
+        constraint's multiplier, 0 without it), lambda, TAO's iterations and the operator applications
+        (arrays of this rank's window entries)."""
         self.tao.setTolerances(gatol=tol, grtol=0.0, gttol=0.0)  # the solver's tol may change between solves
         context = self.hessian.getPythonContext()
         before = context.applications
@@ -142,13 +144,12 @@ class WindowQP:
                               f"a larger [solver] tol or -{self.prefix}tao_max_it")
         multiplier = 0.0
         if self.pk:  # pk ends on the gradient at the solution, left in TAO's gradient vector
-            self.tao.getGradient()[0].copy(self.gap)
             multiplier = self.tao.getPythonContext().multiplier
-            self.gap.shift(-multiplier)
-        else:  # other types may keep a projected gradient there
-            self.hessian.mult(self.x, self.gap)
-            self.gap.axpy(1.0, self.rhs)
-        return self.x.array_r.copy(), self.gap.array_r.copy(), multiplier, its, context.applications - before
+        else:  # other types may keep a projected gradient there: recomputed in it (the next solve's anew)
+            self.hessian.mult(self.x, self.grad)
+            self.grad.axpy(1.0, self.rhs)
+        gap = self.grad.array_r - multiplier
+        return self.x.array_r, gap, multiplier, its, context.applications - before
 
     def error_estimate(self, x: np.ndarray, gap: np.ndarray, inverse: Convolution) -> float:
         """The relative L2 error of a solution ``x`` (p_hat, this rank's window entries) whose scaled gap is
@@ -171,7 +172,7 @@ class WindowQP:
         return float(np.sqrt(sums[0] / sums[1])) if sums[1] > 0 else 0.0
 
     def destroy(self) -> None:
-        for obj in (self.tao, self.hessian, self.x, self.rhs, self.grad, self.gap, *self._vecs):
+        for obj in (self.tao, self.hessian, self.x, self.rhs, self.grad, *self._vecs):
             obj.destroy()
         _LIVE.discard(self)
 
@@ -214,11 +215,10 @@ class ShellInfluence:
     def __init__(self, conv: Convolution, scale: float = 1.0, inverse: Convolution | None = None):
         self.conv, self.scale, self.inverse, self.applications = conv, scale, inverse, 0
 
-    def precondition(self, x: np.ndarray) -> np.ndarray:
-        """(scale C)^-1 x for a vector's local array ``x`` (flattened rows); x unchanged without inverse."""
-        if self.inverse is None:
-            return x
-        return self.inverse(x.reshape(-1, self.conv.ny)).ravel() / self.scale
+    def precondition(self, x: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+        """(scale C)^-1 x for a vector's local array ``x`` (flattened rows), written into ``out`` if given
+        (with ``inverse`` only: :class:`CirculantInverse` checks it is set)."""
+        return np.divide(self.inverse(x.reshape(-1, self.conv.ny)).ravel(), self.scale, out=out)
 
     def mult(self, mat, x, y) -> None:
         local = x.getArray(readonly=True).reshape(-1, self.conv.ny)
@@ -320,7 +320,8 @@ class CirculantInverse:
 
     def apply(self, pc, x, y) -> None:
         if self.index is None:
-            y.setArray(self.shell.precondition(x.array_r))
+            with y as out:  # written in place: no temporary copy of the window
+                self.shell.precondition(x.array_r, out)
             return
         self.full[:] = 0.0
         self.full[self.index] = x.array_r

@@ -25,6 +25,7 @@ from petroll.records import RoughOutputs, StepRecord, lateral_friction
 from petroll.solver.rough import radial_spectrum, spectrum_edges
 from petroll.solver.steady_state import steady_state
 from petroll.model.clock import TimeMode, step_length
+from petroll.model.rough_contact import release_statistics
 from petroll.model.scene import Scene
 from petroll.solver.wake import Wake
 from petroll.solver.warm import WarmStart
@@ -39,6 +40,7 @@ class Simulation:
 
     def __init__(self, scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD):
         self.scene, self.comm = scene, comm
+        release_statistics()  # the scene's checks are made: their kept heights go before the run's arrays
         self.solver = ContactSolver(scene.grid, comm, tao_type=scene.solver.tao_type, tol=scene.solver.tol,
                                     layer=scene.layer, pressure_tol=scene.solver.pressure_tol)
         self.history = make_history(scene.material, scene.solver.integrator, self.solver.local_shape)

@@ -16,9 +16,21 @@ Negative values are clipped to zero. Only the first guess depends on this; the Q
 the answer. 3k solutions are kept (k from the last step's move; 3 when no k fits).
 
 :class:`TractionWarmStart` does the same for the tangential tractions of friction (fields (m, rows, ny),
-signed: nothing clipped, the QP projects onto its friction disks), extrapolating linearly from the
-solutions k and 2k steps back (q0 + (q0 - q1): the tractions' transient does not fade by one ratio
-across the field; measured in docs/friction.md).
+signed: nothing clipped, the QP projects onto its friction disks). The tractions of a transient have
+parts that move with the body (its contact, its stick and slip zones) and parts that stay with the
+material (what a shift or the contact's entry left in each material point: friction's memory), so they
+are extrapolated in both frames at once. With T the carry by one lag (the body's move over k steps) and
+q_j the solution jk steps back (j = 1, 2, 3) where it was, the guess is
+
+    (1 + 2 T) q_1 - (2 T + T^2) q_2 + T^2 q_3     (three kept; two: (1 + T) q_1 - T q_2),
+
+the extrapolation whose error vanishes for any field B(x - s) + M(x) + t C(x - s): one steady in the body's
+frame, one fixed in the material, one growing linearly in the body's frame (two kept: exact for the first two) --
+the roots T, T, 1 of z^3 - (1 + 2 T) z^2 + (2 T + T^2) z - T^2. A body at rest (T = 1) gets quadratic
+(linear) extrapolation in time. The QP reads its slip set from the guess (cells on their disk's edge), and
+the material's terms leave a slip cell a little inside it: so where the extrapolation in the body's frame
+alone, 2 T q_1 - T^2 q_2, is on the edge of the step's bound (exactly so for a slip zone that moves with the
+body), the guess is put on the edge. Measured in docs/friction.md.
 """
 
 from __future__ import annotations
@@ -65,6 +77,11 @@ class WarmStart:
             chosen = [len(self.recent) - j * lag for j in range(1, self.needed + 1)]  # k, 2k, 3k steps back
             if all(cells[i] is not None for i in chosen):
                 return self.extrapolate([self._carry(self.recent[i][0], cells[i]) for i in chosen])
+        return self._nearest(sx, sy, cells)
+
+    def _nearest(self, sx: float, sy: float, cells) -> np.ndarray:
+        """The most recent solution a whole number of ``cells`` away carried along, else the newest one
+        rounded to whole cells."""
         for (p, _, _), c in zip(self.recent[::-1], cells[::-1]):
             if c is not None:
                 return self._carry(p, c)
@@ -109,17 +126,43 @@ class WarmStart:
 
 class TractionWarmStart(WarmStart):
     """The last tangential tractions of a run ((m, rows, ny), Pa, with the body's position) and the first
-    guess of the next step's (module docstring): ``depth`` 2 extrapolates, 1 only carries."""
+    guess of the next step's (module docstring: extrapolated in the body's and the material's frame from
+    the solutions k, 2k and 3k steps back): ``depth`` 3 (default) or 2 extrapolates, 1 only carries."""
 
-    needed = 2
-
-    def __init__(self, scene_grid, rows, comm, depth: int = 2):
-        super().__init__(scene_grid, rows, comm, depth)
-
-    def extrapolate(self, carried: list[np.ndarray]) -> np.ndarray:
-        q0, q1 = carried
-        return 2 * q0 - q1
+    def guess(self, sx: float, sy: float, bound: np.ndarray | None = None) -> np.ndarray | None:
+        """The first guess for the body at (sx, sy) (m) on the step's traction bound ``bound`` (Pa, this
+        rank's rows; None: no cell put on its edge); None before the first step."""
+        if not self.recent:
+            return None
+        cells = [self._cells(sx - x, sy - y) for _, x, y in self.recent]
+        lag = self._lag(self.recent)
+        levels = 0 if not lag else min(self.depth, len(self.recent) // lag)
+        if levels >= 2:
+            chosen = [len(self.recent) - j * lag for j in range(1, levels + 1)]  # k, 2k (, 3k) steps back
+            if all(cells[i] is not None for i in chosen):
+                _, bx, by = self.recent[chosen[0]]  # the body one lag back
+                ahead = [self._carry(self.recent[i][0], cells[i]) for i in chosen[:2]]  # T^j q_j
+                here = [self._carry(q, self._cells(bx - x, by - y))  # T^(j-1) q_j
+                        for q, x, y in (self.recent[i] for i in chosen)]
+                body = 2 * ahead[0] - ahead[1]
+                if levels == 2:
+                    guess = ahead[0] + here[0] - here[1]
+                else:
+                    guess = body + here[0] - 2 * here[1] + here[2]
+                return guess if bound is None else _on_edge(guess, body, bound)
+        return self._nearest(sx, sy, cells)
 
     def forget(self) -> None:
         """Keep only the newest solution (the motion changes: a shift's trend is no rolling step's)."""
         self.recent = self.recent[-1:]
+
+
+EDGE = 1e-9
+"""A guess in the body's frame within this fraction of its bound counts as on the disk's edge."""
+
+
+def _on_edge(guess: np.ndarray, body: np.ndarray, bound: np.ndarray) -> np.ndarray:
+    """``guess`` with its cells put on the edge |q| = bound where ``body`` is on it (directions kept)."""
+    size = np.sqrt((guess * guess).sum(axis=0))
+    edge = (bound > 0) & (np.sqrt((body * body).sum(axis=0)) >= bound * (1 - EDGE))
+    return np.where(edge & (size > 0), guess * (bound / np.where(size > 0, size, 1.0)), guess)

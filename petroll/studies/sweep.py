@@ -48,7 +48,7 @@ from petroll import __version__
 from petroll.model import motion as motions
 from petroll.errors import PetrollError, SceneError, reason, shown
 from petroll.model.materials import Prony, Tabulated, loss_peak_time
-from petroll.io.hdf5 import atomic_hdf5
+from petroll.io.hdf5 import atomic_hdf5, reading_as
 from petroll.io.results import Results, atomic_write, results_identity
 from petroll.io.rundir import clean_temporaries
 from petroll.model.clock import TimeMode
@@ -317,7 +317,7 @@ class SweepTable:
         path = pathlib.Path(path)
         if path.is_dir():
             path = path / "sweep.h5"
-        with h5py.File(path, "r") as f:
+        with reading_as(path, "petroll sweep file"), h5py.File(path, "r") as f:
             table = f["table"]
             columns = {name: table[name][()] for name in COLUMNS if name in table}
             return cls(str(f.attrs["key"]), str(f.attrs["unit"]), columns, str(f.attrs["scene"]),

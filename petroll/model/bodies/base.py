@@ -15,6 +15,10 @@ import numpy as np
 
 from petroll.errors import SceneError
 
+ON_SAMPLE = 1e-9
+"""A point within this many cells of a sample along each axis is on that sample: a body given by samples
+(a height map, a periodic surface) takes its height there from the sample, with no interpolation."""
+
 PYTHON_SOURCE = "<python>"
 """The ``source`` of a body built from Python rather than from a scene file (error messages name it)."""
 

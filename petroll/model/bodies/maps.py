@@ -10,13 +10,10 @@ from dataclasses import KW_ONLY, InitVar, dataclass, field
 import numpy as np
 
 from petroll.errors import SceneError
-from petroll.model.bodies.base import PYTHON_SOURCE, Body, cell_pair, point_pair, positive, type_name
+from petroll.model.bodies.base import ON_SAMPLE, PYTHON_SOURCE, Body, cell_pair, point_pair, positive, type_name
 from petroll.model.limits import heights_out_of_scale
 from petroll.model.topography import read_npy
 
-ON_SAMPLE = 1e-9
-"""A point within this many cells of a sample along each axis is on that sample: a height map's height there
-is the sample's (no spline), and its cell is counted as inside the map."""
 
 
 def check_heights(source: str, label: object, heights: object) -> np.ndarray:

@@ -10,7 +10,9 @@ so heights at the sample points are the samples and the surface is twice continu
 slopes are the spectral derivative of the samples (exact for every Fourier mode the lattice carries),
 interpolated the same way. The spline's coefficients are made by FFTs (the periodic prefilter and the
 derivative are diagonal in Fourier space) for the sample rows a query needs only: evaluated on a rank's
-rows of a grid, a surface holds those rows' coefficients, wherever the body has moved.
+rows of a grid, a surface holds those rows' coefficients, wherever the body has moved. Points that all lie
+on samples (a periodic grid's cells with the body at a whole number of cells) need no spline: the heights
+there are the samples, the slopes the spectral derivative's values.
 """
 
 from __future__ import annotations
@@ -23,7 +25,7 @@ import numpy as np
 import scipy.fft
 
 from petroll.errors import SceneError
-from petroll.model.bodies.base import PYTHON_SOURCE, Body
+from petroll.model.bodies.base import ON_SAMPLE, PYTHON_SOURCE, Body
 from petroll.model.grid import Grid
 
 __all__ = ["PeriodicSurface", "RoughBody", "grid_surface", "samples_surface"]
@@ -40,8 +42,8 @@ CHUNK_BYTES = 1 << 25
 def _spectral_slopes(spectrum: np.ndarray, shape: tuple[int, int],
                      cell: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
     """(dh/dx, dh/dy) of the trigonometric interpolant of periodic samples of ``shape``, given their
-    ``spectrum`` (scipy.fft.rfft2), at the samples (Nyquist frequencies, whose derivative a real lattice
-    cannot carry, left out)."""
+    ``spectrum`` (scipy.fft.rfft2; overwritten), at the samples (Nyquist frequencies, whose derivative a
+    real lattice cannot carry, left out). Beside the two slopes, one product with the spectrum."""
     nx, ny = shape
     kx = 2.0 * np.pi * scipy.fft.fftfreq(nx, cell[0])
     ky = 2.0 * np.pi * scipy.fft.rfftfreq(ny, cell[1])
@@ -49,8 +51,9 @@ def _spectral_slopes(spectrum: np.ndarray, shape: tuple[int, int],
         kx[nx // 2] = 0.0
     if ny % 2 == 0:
         ky[-1] = 0.0
-    return (scipy.fft.irfft2(1j * kx[:, None] * spectrum, s=shape),
-            scipy.fft.irfft2(1j * ky[None, :] * spectrum, s=shape))
+    along_x = scipy.fft.irfft2(1j * kx[:, None] * spectrum, s=shape, overwrite_x=True)
+    spectrum *= 1j * ky[None, :]
+    return along_x, scipy.fft.irfft2(spectrum, s=shape, overwrite_x=True)
 
 
 def _multipliers(n: int, h: float) -> tuple[np.ndarray, np.ndarray]:
@@ -97,12 +100,13 @@ class PeriodicSurface(Body):
     a lattice of 1/16 of a cell around the lowest samples (so Z >= 0 to within S's variation over 1/32 of
     a cell).
 
-    Memory: the samples (8 bytes each), their half spectrum (8 bytes per sample, made once) and the spline
-    coefficients of the heights and slopes (24 bytes per sample) of only the sample rows the last large
-    query needed, :data:`ROWS_MARGIN` rows each side (and those of smaller queries since): a rank that
-    evaluates the surface on its rows of a grid holds those rows' coefficients (from its construction,
-    which finds the lowest point, and after a whole-grid query, the whole grid's, until a rank's query
-    replaces them).
+    Memory: the samples (8 bytes each) and the spline coefficients of the heights and slopes (24 bytes per
+    sample) of only the sample rows the last large query needed, :data:`ROWS_MARGIN` rows each side (and
+    those of smaller queries since): a rank that evaluates the surface on its rows of a grid holds those
+    rows' coefficients (from its construction, which finds the lowest point, and after a whole-grid query,
+    the whole grid's, until a rank's query replaces them); a large query whose points all lie on samples
+    needs none and lets them go (a steady periodic solve holds the samples alone). The samples' half
+    spectrum is made where asked for and not kept.
     """
 
     heights: np.ndarray
@@ -129,7 +133,7 @@ class PeriodicSurface(Body):
         set_(self, "_lowest", 0.0)
         set_(self, "_lowest", self._spline_minimum())
         # the summits' radius of curvature ~ 1 / rms curvature (first guesses only)
-        slopes = _spectral_slopes(self._spectrum, heights.shape, cell)
+        slopes = _spectral_slopes(self._spectrum(), heights.shape, cell)
         curvature = np.gradient(slopes[0], cell[0], axis=0) + np.gradient(slopes[1], cell[1], axis=1)
         rms = math.sqrt(float(np.mean(curvature**2)))
         set_(self, "_radius_hint", 1.0 / rms if rms > 0.0 else max(heights.shape) * max(cell))
@@ -138,7 +142,8 @@ class PeriodicSurface(Body):
         """The lowest value of S on a lattice of 1/16 of a cell within a cell of each of the ``candidates``
         lowest samples (the lowest sample if lower). Every sample row's coefficients are prepared for it:
         they cost one pass of the columns' transforms whichever rows are kept, and the pre-flight's
-        queries that follow (over the whole grid) need them all."""
+        queries that follow (lines across the whole grid) need them all; a run's first whole-grid query,
+        on the samples, lets them go."""
         samples = self.heights
         self._prepare(np.arange(samples.shape[0]), False)
         count = min(candidates, samples.size)
@@ -188,12 +193,45 @@ class PeriodicSurface(Body):
         prepared["rows"] = rows
         return prepared
 
+    def _on_samples(self, x, y) -> tuple[np.ndarray, np.ndarray] | None:
+        """The samples' indices (a pair of arrays that broadcast like the points) where every point at
+        offsets (x, y) m lies on a sample (within :data:`ON_SAMPLE` of a cell along each axis), else None."""
+        index = []
+        for w, origin, h, n in zip((x, y), self.origin, self.cell, self.heights.shape):
+            f = (np.asarray(w, dtype=float) - origin) / h
+            nearest = np.rint(f)
+            if np.any(np.abs(f - nearest) > ON_SAMPLE):
+                return None
+            index.append(nearest.astype(np.intp) % n)
+        return index[0], index[1]
+
+    def _at_samples(self, which, at: tuple[np.ndarray, np.ndarray]):
+        """:meth:`_interpolate`'s values on the samples ``at`` (:meth:`_on_samples`): the samples less
+        ``lowest``, the spectral slopes there (which the slopes' spline passes through)."""
+        nx, ny = self.heights.shape
+        i, j = at
+        whole = (i.shape == (nx, 1) and j.shape == (1, ny) and np.array_equal(i[:, 0], np.arange(nx))
+                 and np.array_equal(j[0], np.arange(ny)))  # the whole lattice in order: no gather
+        out, slopes = [], None
+        for w in np.atleast_1d(which):
+            if w == 0:
+                out.append(self.heights - self._lowest if whole else self.heights[i, j] - self._lowest)
+                continue
+            slopes = slopes or _spectral_slopes(self._spectrum(), self.heights.shape, self.cell)
+            out.append(slopes[w - 1] if whole else slopes[w - 1][i, j])
+        return out[0] if np.ndim(which) == 0 else tuple(out)
+
     def _interpolate(self, which, x, y):
         """The spline of coefficients ``which`` (0: heights less ``lowest``, 1: dh/dx, 2: dh/dy; a tuple:
-        each) at offsets (x, y) m, from the sample rows the points' stencils need."""
+        each) at offsets (x, y) m, from the sample rows the points' stencils need; on samples alone, their
+        values (:meth:`_at_samples`), a query of at least an eighth of the rows letting the held rows go."""
         from scipy import ndimage
 
         nx = self.heights.shape[0]
+        if (at := self._on_samples(x, y)) is not None:
+            if 8 * np.unique(at[0]).size >= nx and np.unique(at[1]).size == self.heights.shape[1]:
+                self._prepared.update(rows=np.zeros(0, dtype=np.intp), values=None)
+            return self._at_samples(which, at)
         u = (np.asarray(x, dtype=float) - self.origin[0]) / self.cell[0]
         u = u - nx * np.floor(u / nx)  # in [0, nx]
         base = np.floor(u).astype(np.intp)
@@ -226,9 +264,9 @@ class PeriodicSurface(Body):
         """1 / (rms curvature of the samples): a summit's radius, for first guesses only."""
         return self._radius_hint
 
-    @functools.cached_property
     def _spectrum(self) -> np.ndarray:
-        """scipy.fft.rfft2 of the samples, made once (the radius hint, :meth:`spectrum`)."""
+        """scipy.fft.rfft2 of the samples (the radius hint, :meth:`spectrum`, the slopes on the samples),
+        made where asked for: not kept (8 bytes per sample)."""
         return scipy.fft.rfft2(self.heights)
 
     @functools.cached_property
@@ -253,7 +291,7 @@ class PeriodicSurface(Body):
         weight[0] = 1.0
         if ny % 2 == 0:
             weight[-1] = 1.0
-        power = np.abs(self._spectrum) ** 2 * weight / (nx * ny) ** 2
+        power = np.abs(self._spectrum()) ** 2 * weight / (nx * ny) ** 2
         power[0, 0] = 0.0
         return np.hypot(qx[:, None], qy[None, :]).ravel(), power.ravel()
 
