@@ -22,10 +22,11 @@ just above a fence; readers do not see it:
   are (with the replacements of a ``long`` list after the word, if any); at least one must be elsewhere.
 
 A ``.venv/bin/python -m pytest`` line runs with ``--collect-only``: the suite runs those tests itself.
-Each command (a shell line starting ``.venv/bin/``, ``mpirun`` or ``make``, compared as written: comments
-and spacing aside) runs once per document: a block repeating one that an earlier block ran (the text
-showing a command again where it discusses it) runs without it. Each document is one test, serial (it
-starts processes); the whole takes a few minutes.
+Each command (a shell line starting ``.venv/bin/``, ``mpirun`` or ``make``, compared as written and as run:
+comments and spacing aside) runs once per document: a block repeating one that an earlier block ran (the
+text showing a command again where it discusses it) runs without it, and so does a line repeating an
+earlier line of its own block (a long line whose replacement is the quick line shown below it). Each
+document is one test, serial (it starts processes); the whole takes a few minutes.
 """
 
 from __future__ import annotations
@@ -48,7 +49,7 @@ SHELL = {"sh", "bash"}
 FENCE = re.compile(r"^(?:<!--\s*docs-test:(?P<marker>.*?)-->\n)?```(?P<lang>[\w-]*)[^\n]*\n(?P<body>.*?)^```",
                    re.M | re.S)
 REPLACE = re.compile(r'"([^"]*)"\s*->\s*"([^"]*)"')
-IGNORED = shutil.ignore_patterns(".git", ".venv", ".venv-peers", "results", "__pycache__", "*.egg-info",
+IGNORED = shutil.ignore_patterns(".git", ".venv", ".venv-peers", "results", "*.egg-info",
                                  ".pytest_cache", ".hypothesis", "build")
 ENV = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
            OMPI_MCA_rmaps_base_oversubscribe="1", OMPI_MCA_btl_vader_single_copy_mechanism="none",
@@ -99,8 +100,17 @@ class Block:
 
     def source(self, leave: frozenset = frozenset()) -> str:
         """The text to run: the lines as run, but those whose command (as written or as run, see
-        ``command``) is in ``leave``."""
-        return "".join(run for written, run in self.lines() if not {command(written), command(run)} & leave)
+        ``command``) is in ``leave`` or, in a block whose lines are each a command (``commands``), was
+        a command of an earlier line of the block (a line showing the quick form of the line above)."""
+        text, leave = [], set(leave)
+        each = bool(self.commands())
+        for written, run in self.lines():
+            names = {command(written), command(run)} - {None}
+            if not names & leave:
+                text.append(run)
+            if each:
+                leave |= names
+        return "".join(text)
 
     def commands(self) -> set[str]:
         """The commands of a shell block that runs, as written and as run (see ``command``); none in a

@@ -2,6 +2,7 @@
 ast, every import counted, including those inside functions."""
 
 import ast
+import functools
 import pathlib
 import subprocess
 import sys
@@ -30,6 +31,14 @@ rank's rows). The step records io stores are petroll.records; a checkpoint resto
 its attributes."""
 
 
+@functools.cache
+def sources() -> tuple[tuple[pathlib.Path, str, tuple[ast.AST, ...]], ...]:
+    """Every module of petroll (sorted by path): its path, its text and every node of its tree (``ast.walk``'s
+    order), read and parsed once for the rules below, which only read them."""
+    return tuple((path, text, tuple(ast.walk(ast.parse(text))))
+                 for path in sorted(PACKAGE.rglob("*.py")) for text in [path.read_text(encoding="utf-8")])
+
+
 def module_name(path: pathlib.Path) -> str:
     parts = path.relative_to(PACKAGE.parent).with_suffix("").parts
     return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
@@ -38,9 +47,9 @@ def module_name(path: pathlib.Path) -> str:
 def imports() -> dict[str, set[str]]:
     """Every module of petroll and the modules it imports (absolute names, anywhere in the file)."""
     graph = {}
-    for path in PACKAGE.rglob("*.py"):
+    for path, _, nodes in sources():
         names = set()
-        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        for node in nodes:
             if isinstance(node, ast.Import):
                 names.update(alias.name for alias in node.names)
             elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
@@ -148,12 +157,11 @@ def test_no_private_name_is_imported_across_modules():
     """No ``from petroll.x import _y`` (absolute or relative) and no ``x._y`` where ``x`` is an imported
     petroll module: a name used by another module is public."""
     used = []
-    for path in PACKAGE.rglob("*.py"):
+    for path, _, nodes in sources():
         me = module_name(path)
         package = me if path.name == "__init__.py" else me.rpartition(".")[0]
         modules = {}  # local name -> petroll module it is bound to
-        tree = ast.parse(path.read_text(encoding="utf-8"))
-        for node in ast.walk(tree):
+        for node in nodes:
             if isinstance(node, ast.Import):
                 for alias in node.names:
                     if within(alias.name, "petroll"):
@@ -169,7 +177,7 @@ def test_no_private_name_is_imported_across_modules():
                     if private(alias.name) and base != me:
                         used.append(f"{me}: from {base} import {alias.name}")
                     modules[alias.asname or alias.name] = f"{base}.{alias.name}"
-        for node in ast.walk(tree):
+        for node in nodes:
             if isinstance(node, ast.Attribute) and private(node.attr):
                 chain, value = [], node.value
                 while isinstance(value, ast.Attribute):
@@ -195,11 +203,10 @@ def test_no_function_over_80_lines_and_no_module_over_600_beyond_the_listed_exce
     """Counted from the source (a function from its def to its last line, nested ones too); an exception
     that no longer needs its place in the lists fails too, so that the lists stay true."""
     modules, functions = {}, {}
-    for path in sorted(PACKAGE.rglob("*.py")):
+    for path, text, nodes in sources():
         name = str(path.relative_to(PACKAGE.parent))
-        text = path.read_text(encoding="utf-8")
         modules[name] = len(text.splitlines())
-        for node in ast.walk(ast.parse(text)):
+        for node in nodes:
             if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
                 functions[name, node.name] = max(functions.get((name, node.name), 0),
                                                  node.end_lineno - node.lineno + 1)
@@ -222,13 +229,12 @@ def test_only_the_topology_reads_whether_a_grid_repeats():
     name, ``bench_rough.periodic``, is not one): what differs between topologies is a method or property
     of the topology (``grid.topology``), not a test of the flag."""
     readers = set()
-    for path in PACKAGE.rglob("*.py"):
-        tree = ast.parse(path.read_text(encoding="utf-8"))
-        imported = {alias.asname or alias.name for node in ast.walk(tree)
+    for path, _, nodes in sources():
+        imported = {alias.asname or alias.name for node in nodes
                     if isinstance(node, (ast.Import, ast.ImportFrom)) for alias in node.names}
         if any(isinstance(node, ast.Attribute) and node.attr == "periodic"
                and not (isinstance(node.value, ast.Name) and node.value.id in imported)
-               for node in ast.walk(tree)):
+               for node in nodes):
             readers.add(str(path.relative_to(PACKAGE.parent)))
     assert set(readers) <= set(TOPOLOGY_READERS), sorted(set(readers) - set(TOPOLOGY_READERS))
     assert set(readers) == set(TOPOLOGY_READERS), "a listed reader no longer reads it: update the list"
@@ -239,8 +245,8 @@ def test_the_time_mode_is_an_enum_never_compared_with_a_string():
     the time loop runs a steady solve through the protocol of petroll.solver.steady_state without naming
     which (no rolling or sliding class in petroll/solver/simulation.py)."""
     compared = []
-    for path in PACKAGE.rglob("*.py"):
-        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+    for path, _, nodes in sources():
+        for node in nodes:
             if isinstance(node, ast.Compare):
                 sides = [node.left, *node.comparators]
                 if (any(isinstance(s, ast.Attribute) and s.attr == "mode" for s in sides)

@@ -431,14 +431,15 @@ from scipy.sparse.linalg import LinearOperator, gmres
 from petroll.model.scene import parse_scene
 from petroll.solver.influence import Convolution
 from petroll.solver.kernels import grid_kernel
+from petroll.solver.history import Transfer
 from petroll.solver.sliding import ContactSystem, SlidingKernel
 from petroll.solver.steady import steady_step
 
 scene = parse_scene(json.loads(sys.argv[1]))
 g, comm = scene.grid, MPI.COMM_SELF
 velocity, dt = steady_step(scene)
-made = {form: SlidingKernel(grid_kernel(g), scene.material, scene.solver.integrator, velocity, dt, form)
-        for form in ("operator", "modulus")}
+transfer = Transfer(scene.material, scene.solver.integrator, dt)
+made = {form: SlidingKernel(grid_kernel(g), transfer, velocity, form) for form in ("operator", "modulus")}
 operator = Convolution(made["operator"], g.nx, g.ny, comm)
 system = ContactSystem(operator, Convolution(made["modulus"], g.nx, g.ny, comm, inverse=True), (g.nx, g.ny),
                        comm, border=True)

@@ -29,6 +29,7 @@ relaxed and instantaneous moduli by more than 1 % of their difference (unstable 
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -283,6 +284,24 @@ def transfer(material, integrator: str, dt: float, z: np.ndarray) -> np.ndarray:
     return out[where].reshape(z.shape)
 
 
+class Transfer:
+    """:func:`transfer` of one material's integrator at steps of dt, remembering H at the distinct z of its
+    last call (a d x d solve per z, d the integrator's state size: 40 for a 39-term Prony series): the
+    kernels of one steady sliding solve, one per form (petroll.solver.sliding), ask at the same z, the
+    modes of one grid. H is computed as :func:`transfer` computes it: the same values."""
+
+    def __init__(self, material, integrator: str, dt: float):
+        self.material, self.integrator, self.dt = material, integrator, dt
+        self._z, self._h = None, None  # the last call's distinct z and H there
+
+    def __call__(self, z) -> np.ndarray:
+        z = np.asarray(z, dtype=complex)
+        values, where = np.unique(z.ravel(), return_inverse=True)
+        if self._z is None or not np.array_equal(values, self._z):
+            self._z, self._h = values, transfer(self.material, self.integrator, self.dt, values)
+        return self._h[where].reshape(z.shape)
+
+
 # -- the holding test ---------------------------------------------------------------------------------------
 def holding_response(material, integrator: str, dt: float, steps: int = 40) -> np.ndarray:
     """Pressures (Pa) of one cell (unit influence) held at a unit displacement in pressure space from a
@@ -299,9 +318,11 @@ def holding_response(material, integrator: str, dt: float, steps: int = 40) -> n
     return np.array(pressures)
 
 
+@functools.lru_cache(maxsize=256)
 def holding_violation(material, integrator: str, dt: float) -> float:
     """How far the held cell's pressure (:func:`holding_response`) leaves [1/Jinf, 1/J0], as a fraction of
-    that range (0: it stays inside)."""
+    that range (0: it stays inside). Remembered per material, integrator and step: every guarded history
+    (a run's, a steady solve's state space) asks it at its first step of each length."""
     lo, hi = 1.0 / material.Jinf, 1.0 / material.J0
     if not hi > lo * (1 + 1e-12):
         return 0.0

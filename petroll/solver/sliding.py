@@ -41,7 +41,7 @@ from mpi4py import MPI
 
 from petroll.errors import SolverError
 from petroll.solver.contact import ContactSolver
-from petroll.solver.history import transfer
+from petroll.solver.history import Transfer
 from petroll.solver.influence import Convolution
 from petroll.solver.kernels.periodic import Spectral
 from petroll.solver.petsc import gmres
@@ -53,8 +53,9 @@ FORMS = ("operator", "modulus", "lag", "newton", "dissipation")
 
 class SlidingKernel(Spectral):
     """One of the steady sliding solve's kernels on a periodic ``base`` kernel, for the velocity
-    ``velocity`` (m/s, along the base's Fourier axes only) and the material's integrator at steps of dt:
-    with S = A H, ``form`` "operator": S; "modulus": |S|^2 / Re S = A |H|^2 / Re H (symmetric positive
+    ``velocity`` (m/s, along the base's Fourier axes only) and the material's integrator at steps of dt,
+    H its ``transfer`` (a :class:`~petroll.solver.history.Transfer`, which the kernels of one solve share:
+    they ask H at the same modes): with S = A H, ``form`` "operator": S; "modulus": |S|^2 / Re S = A |H|^2 / Re H (symmetric positive
     definite, real); "lag": S - modulus; "newton": conj(H) / Re H alone (no A: a multiplier of the modes,
     identity in real space along a non-Fourier axis; after M^-1 it gives K^-1); "dissipation": (k.e) Im S,
     e the direction of motion, k.e at the frequency the integrator sees: its phase per step k.V dt brought
@@ -64,11 +65,11 @@ class SlidingKernel(Spectral):
     a mode is its own conjugate (2 m = 0 mod n along every Fourier axis) the real part is taken (a real
     field's transform is real there)."""
 
-    def __init__(self, base: Spectral, material, integrator: str, velocity, dt: float, form: str):
+    def __init__(self, base: Spectral, transfer: Transfer, velocity, form: str):
         super().__init__(base.dx, base.dy, base.nx, base.ny, base.fourier)
         self.base, self.form = base, form
         self.even = form in ("modulus", "dissipation")
-        self.material, self.integrator, self.velocity, self.dt = material, integrator, tuple(velocity), dt
+        self.transfer, self.velocity, self.dt = transfer, tuple(velocity), transfer.dt
 
     def factor(self, ax, ay) -> np.ndarray:
         """The form's factor of H at (ax, ay) (frequency indices along the Fourier axes)."""
@@ -76,7 +77,7 @@ class SlidingKernel(Spectral):
         my = np.asarray(ay) if self.fourier[1] else np.zeros(1, int)
         kx, ky = self.wavenumbers(mx, my)
         phase = -(kx * self.velocity[0] + ky * self.velocity[1]) * self.dt
-        h = transfer(self.material, self.integrator, self.dt, np.exp(1j * phase))
+        h = self.transfer(np.exp(1j * phase))
         own = np.ones(h.shape, dtype=bool)  # self-conjugate modes
         for m, n, fourier in ((mx, self.nx, self.fourier[0]), (my, self.ny, self.fourier[1])):
             if fourier:
@@ -177,8 +178,10 @@ class SteadySliding:
         sx, sy = scene.position
         self.profile = scene.body.height(*g.offsets(g.x[solver.r0 : solver.r1, None], g.y[None, :], sx, sy))
 
+        transfer = Transfer(material, integrator, dt)  # H at the grid's modes, once for every form
+
         def make(form):
-            return SlidingKernel(kernel, material, integrator, velocity, dt, form)
+            return SlidingKernel(kernel, transfer, velocity, form)
 
         self.qp = ContactSolver(g, comm, tao_type=scene.solver.tao_type, tol=scene.solver.tol,
                                 kernel=make("modulus"))
