@@ -100,6 +100,8 @@ class WindowQP:
         tao.setMaximumIterations(solver.max_iterations)
         tao.setMaximumFunctionEvaluations(10 * solver.max_iterations)
         tao.setFromOptions()
+        if self.pk:  # -<prefix>tao_python_type (how the command line names pk) makes a new, unbounded context
+            tao.getPythonContext().bounds = (0.0, np.inf)
         tao.setSolution(self.x)
         tao.setUp()
         self.kind, self.prefix = tao.getType(), solver.prefix
