@@ -218,3 +218,21 @@ def test_the_shipped_polymer_scene_is_the_fit_of_the_shipped_instrument_table():
     f = np.geomspace(data.reduced.min(), data.reduced.max(), 500)
     ours, theirs = fit.dynamic(f), dma.storage_loss(shipped["Einf"], shipped["moduli"], shipped["times"], f)
     assert np.allclose(ours, theirs, rtol=1e-4, atol=0)
+
+
+def test_a_wild_value_leaves_the_shift_errors_unknown_and_warned_of_not_nan(tmp_path):
+    """One loss modulus of the shipped polymer table damaged to 1e30 Pa (a fuzz draw, seed 832810641): the
+    standard errors' products overflow. They come out inf (unknown), not NaN, with no numpy warning, and
+    the warning names every set, as it does above 0.1 decade."""
+    import warnings
+
+    lines = (pathlib.Path(__file__).resolve().parents[1] / "runs" / "polymer-dma.csv").read_text().split("\n")
+    row = lines[255].split(",")
+    row[2] = "1e30"
+    lines[255] = ",".join(row)
+    (tmp_path / "t.csv").write_text("\n".join(lines))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        found = dma.read_dma(tmp_path / "t.csv", dma.parse_shift("auto:293.15")).found
+    assert np.all(np.isposinf(found.sigma)) and not np.any(np.isnan(found.shift_sigma))
+    assert found.warnings() and all(f"set {label} (" in found.warnings()[0] for label in found.labels)

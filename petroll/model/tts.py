@@ -194,9 +194,12 @@ def find_shifts(sets: list[Isotherm], T_ref: float) -> ShiftFit:
     table = materials.TableShift(tuple(float(t) for t in nodes), tuple(float(v) for v in values))
     shifts, overlaps, misfits = (np.array([getattr(p, name) for p in pairs]) for name in ("d", "overlap",
                                                                                           "misfit"))
-    covariance = _shift_covariance(pairs)
     chain = _chain_jacobian(temperatures, shifts, T_ref)
-    sigma = np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", chain, covariance, chain), 0.0) + RESOLUTION**2)
+    with np.errstate(over="ignore", invalid="ignore"):  # a wild value (1e30 Pa) overflows: unknown, inf
+        covariance = _shift_covariance(pairs)
+        sigma = np.sqrt(np.maximum(np.einsum("ij,jk,ik->i", chain, covariance, chain), 0.0) + RESOLUTION**2)
+    sigma = np.where(np.isfinite(sigma), sigma, np.inf)  # above SIGMA_WARN: warned of, set by set
+    covariance[~np.isfinite(covariance)] = np.inf
     laws = fit_wlf(temperatures, log10_aT, T_ref), fit_arrhenius(temperatures, log10_aT, T_ref)
     return ShiftFit(float(T_ref), tuple(s.label for s in sets), temperatures, log10_aT, shifts, overlaps,
                     misfits, table, *laws, tuple(value + offset for value, offset in zip(log10_aT, offsets)),
