@@ -74,6 +74,20 @@ def test_appended_series_and_fields_read_back_and_earlier_chunks_are_never_rewri
         assert np.allclose(corners[0, :, 1], -dy / 2 + dy * np.arange(NY + 1), atol=1e-14)
 
 
+def test_mesh_corners_written_in_blocks_are_every_cell_corner(comm, shared_dir, monkeypatch):
+    """The mesh is written a block of corner rows at a time (5 rows here; ranks with fewer blocks than
+    another still take part in each collective write): every corner is where the uniform grid puts it."""
+    monkeypatch.setattr("petroll.io.hdf5.BLOCK_BYTES", 5 * 2 * (NY + 1) * 8)
+    grow(shared_dir / "results.h5", comm, 1, 1)
+    if comm.rank == 0:
+        with h5py.File(shared_dir / "results.h5", "r") as f:
+            corners = f["mesh/xy"][()].reshape(NX + 1, NY + 1, 2)
+        dx, dy = 2 / (NX - 1), 2 / (NY - 1)
+        i, j = np.meshgrid(np.arange(NX + 1), np.arange(NY + 1), indexing="ij")
+        assert np.allclose(corners[..., 0], -1 - dx / 2 + dx * i, rtol=0, atol=1e-14)
+        assert np.allclose(corners[..., 1], -dy / 2 + dy * j, rtol=0, atol=1e-14)
+
+
 @pytest.mark.ranks4
 def test_a_resumed_file_keeps_the_given_prefix_and_continues(comm, shared_dir):
     path = shared_dir / "results.h5"

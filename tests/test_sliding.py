@@ -486,3 +486,27 @@ def test_the_sliding_contact_equations_are_numpy_and_solve_without_petsc(tmp_pat
     assert np.abs(np.array(out["product"]) - bordered @ x).max() <= 1e-12 * np.abs(bordered @ x).max()
     exact = np.linalg.solve(bordered, b)
     assert np.abs(np.array(out["solution"]) - exact).max() <= 1e-9 * np.abs(exact).max()
+
+
+def test_the_pressure_spectrum_binned_in_blocks_of_rows_is_the_whole_fields(comm, monkeypatch):
+    """petroll.solver.rough.radial_spectrum bins its half spectrum a few rows at a time (3 here): the
+    same bins as petroll.model.roughness.radial_psd of the whole field (serially, a second algorithm)."""
+    from petroll.model.roughness import radial_psd
+    from petroll.model.grid import Grid
+    from petroll.solver.influence import Convolution
+    from petroll.solver.kernels.periodic import HalfSpace
+    from petroll.solver.partition import RowPartition
+    from petroll.solver.rough import radial_spectrum, spectrum_edges
+
+    monkeypatch.setattr("petroll.solver.rough.SPECTRUM_BLOCK", 3 * 9)
+    nx, ny = 20, 16
+    g = Grid(nx=nx, ny=ny, x0=0.0, x1=1.9e-3, y0=0.0, y1=1.5e-3, periodic=(True, True))
+    field = np.random.default_rng(5).random((nx, ny))
+    conv = Convolution(HalfSpace(g.dx, g.dy, nx, ny), nx, ny, comm)
+    r0, r1 = RowPartition(nx, comm.size).range(comm.rank)
+    q, spectrum, modes = radial_spectrum(conv, field[r0:r1], g, spectrum_edges(g))
+    q_ref, spectrum_ref, modes_ref = radial_psd(field, (g.dx, g.dy), spectrum_edges(g))
+    assert np.array_equal(modes, modes_ref) and modes.sum() == (nx * ny - 4) // 2
+    finite = modes > 0
+    assert np.abs(spectrum[finite] - spectrum_ref[finite]).max() <= 1e-12 * spectrum_ref[finite].max()
+    assert np.allclose(q[finite], q_ref[finite], rtol=1e-14, atol=0)

@@ -19,6 +19,9 @@ BINS = 32
 """Logarithmic wavenumber bins of the pressure spectrum, from the cell's longest wavelength to its
 shortest (2 pi / L to pi sqrt(1/dx^2 + 1/dy^2))."""
 
+SPECTRUM_BLOCK = 1 << 20
+"""Modes binned at once (a block of whole X-frequency rows): the binning makes no field-sized temporaries."""
+
 
 def spectrum_edges(grid, bins: int = BINS) -> np.ndarray:
     """The bins' edges (rad/m) for ``grid``: geometric from 2 pi / (the cell's longer side) to just above the
@@ -39,17 +42,21 @@ def radial_spectrum(conv, local: np.ndarray, grid, edges: np.ndarray):
     my = np.arange(f0, f1)
     ky = 2 * np.pi * my / (ny * grid.dy)
     area = (grid.x1 - grid.x0) * (grid.y1 - grid.y0)
-    power = np.abs(half / (nx * ny)) ** 2 * area / (2 * np.pi) ** 2
-    q = np.broadcast_to(np.hypot(kx, ky[None, :]), power.shape)
-    own = np.ones(power.shape, dtype=bool)  # ky > 0 below Nyquist; ky = 0 or Nyquist: kx > 0 only
-    twins = (my == 0) | ((ny % 2 == 0) & (my == ny // 2))
-    own[:, twins] = (kx > 0)[:, [0] * int(twins.sum())]
-    which = np.digitize(q[own], edges) - 1
-    inside = (which >= 0) & (which < len(edges) - 1)
+    twins = (my == 0) | ((ny % 2 == 0) & (my == ny // 2))  # ky = 0 or Nyquist: only kx > 0 is its own
     bins = len(edges) - 1
-    sums = np.concatenate([np.bincount(which[inside], minlength=bins).astype(float),
-                           np.bincount(which[inside], q[own][inside], bins),
-                           np.bincount(which[inside], power[own][inside], bins)])
+    sums = np.zeros(3 * bins)
+    rows = max(1, SPECTRUM_BLOCK // max(1, half.shape[1]))
+    for a in range(0, nx, rows):
+        k = kx[a : a + rows]
+        power = np.abs(half[a : a + rows] / (nx * ny)) ** 2 * area / (2 * np.pi) ** 2
+        q = np.broadcast_to(np.hypot(k, ky[None, :]), power.shape)
+        own = np.ones(power.shape, dtype=bool)
+        own[:, twins] = (k > 0)[:, [0] * int(twins.sum())]
+        which = np.digitize(q[own], edges) - 1
+        inside = (which >= 0) & (which < bins)
+        sums += np.concatenate([np.bincount(which[inside], minlength=bins).astype(float),
+                                np.bincount(which[inside], q[own][inside], bins),
+                                np.bincount(which[inside], power[own][inside], bins)])
     conv.comm.Allreduce(MPI.IN_PLACE, sums, op=MPI.SUM)
     count, total_q, total_c = sums[:bins], sums[bins : 2 * bins], sums[2 * bins :]
     with np.errstate(invalid="ignore"):

@@ -222,11 +222,11 @@ class Simulation:
         g, p = self.scene.grid, self.pressure
         profile, v, compliance, delta = self._newest
         if compliance is None:  # a steady solve: v is w
-            source, scale = v, 1.0
-        else:
-            source = compliance * p if v is None else compliance * p + v
+            source, scale = v.sum(), 1.0
+        else:  # the sum of compliance p + v
+            source = compliance * p.sum() + (0.0 if v is None else v.sum())
             scale = float(self.solver.influence.kernel.values(0, 0))
-        sums = np.array([np.count_nonzero(p > 0), profile.sum(), source.sum()], dtype=float)
+        sums = np.array([np.count_nonzero(p > 0), profile.sum(), source], dtype=float)
         self.comm.Allreduce(MPI.IN_PLACE, sums, op=MPI.SUM)
         cells = g.nx * g.ny
         conv = self.solver.influence.window(g.nx, g.ny)
