@@ -77,7 +77,7 @@ def test_appended_series_and_fields_read_back_and_earlier_chunks_are_never_rewri
 def test_mesh_corners_written_in_blocks_are_every_cell_corner(comm, shared_dir, monkeypatch):
     """The mesh is written a block of corner rows at a time (5 rows here; ranks with fewer blocks than
     another still take part in each collective write): every corner is where the uniform grid puts it."""
-    monkeypatch.setattr("petroll.io.hdf5.BLOCK_BYTES", 5 * 2 * (NY + 1) * 8)
+    monkeypatch.setattr("petroll.io.hdf5.BLOCK_BYTES", 5 * (NY + 1) * 8)
     grow(shared_dir / "results.h5", comm, 1, 1)
     if comm.rank == 0:
         with h5py.File(shared_dir / "results.h5", "r") as f:

@@ -180,6 +180,15 @@ class RowFile:
             if self.comm.rank == 0 and self.failure is None:  # after a failure: receive, write no more
                 self.file[name][index + (slice(s, s + len(rows)),)] = rows
 
+    def put_rows(self, name: str, r0: int, r1: int, per_row: int, make) -> None:
+        """Rows r0:r1 of this rank (each ``per_row`` dataset rows, from r0 * per_row on) written a block of
+        chunk_rows(per_row) at a time, ``make(a, b)`` giving rows a:b: the whole is never in memory.
+        Collective (every rank writes as many blocks, some empty)."""
+        rows = chunk_rows(per_row)
+        for a in range(r0, r0 + self.comm.allreduce(-(-(r1 - r0) // rows), op=max) * rows, rows):
+            a, b = min(a, r1), min(a + rows, r1)
+            self.put(name, (), a * per_row, make(a, b))
+
     def get(self, name: str, index: tuple, start: int, count: int, dtype=np.float64) -> np.ndarray:
         """dataset[index + (start:start + count,)] on each rank (its own rows). Collective."""
         shape = None

@@ -301,11 +301,7 @@ class ResultsFile:
                     chunks=(min((nx + 1) * (ny + 1), chunk_rows(2) // 2), 2), **PACKED).attrs["units"] = "m"
                 self._mark(h, 0, 0, complete=False)
             last = r1 + 1 if r1 == nx else r1  # the last rank writes the corners' last row too
-            rows = chunk_rows(2 * (ny + 1))  # corner rows of a block: the mesh is never whole in memory
-            blocks = f.comm.allreduce(-(-(last - r0) // rows), op=max)  # put is collective: as many on each rank
-            for a in range(r0, r0 + blocks * rows, rows):
-                a, b = min(a, last), min(a + rows, last)
-                f.put("mesh/xy", (), a * (ny + 1), cell_corners(self.x, self.y, a, b))
+            f.put_rows("mesh/xy", r0, last, ny + 1, lambda a, b: cell_corners(self.x, self.y, a, b))
             if then is not None:
                 then(f)
 
