@@ -25,6 +25,13 @@ stops changing (no variable clipped or put back) the gradient and f are updated 
 gradient is recomputed at least every ``-tao_pk_refresh`` (25) iterations, so that an updated gradient
 differs from a fresh one by round-off only (about 1e-15 of its scale, far below any useful gatol): the
 stop is judged on it, with no confirming evaluation (which would cost one application per solve).
+Beside its applications an iteration streams its vectors through memory in five passes (the free set,
+free gradient, <g, g> and the residual, the gradient's update folded in; the direction's <g, C^-1 g>; the
+direction; d.g and d.H d; the step, projection and re-entries; under load control a sixth, the
+multiplier's shift, after the first, which sums g over the free set), each doing all its elementwise work on a
+block of :data:`BLOCK` values before the next block: about 20 reads and writes of a vector's length per
+iteration, and no work array of that length but the free set's mask (g - lambda is made a block at a
+time). Dots and sums are summed per block by numpy (one thread; the last digits depend on BLOCK).
 
 Load control (Polonsky & Keer's force-controlled form): with ``total`` set on the context, the solve also
 holds sum x = total (bounds must then be x >= 0, no upper bound). Its multiplier lambda (the mean gradient
@@ -187,8 +194,9 @@ class PolonskyKeer:
         lam, pending = 0.0, 0.0  # pending: a step whose g - step H d is still to be made (H d in hd)
         while True:
             xa = x.array_r
-            # g - pending H d; the free set, the gradient there into hd (0 elsewhere)
-            count, gsum = 0, 0.0
+            # g - pending H d; the free set, the gradient there into hd (0 elsewhere); without load control
+            # (no multiplier) also <gf, gf> and the residual's max norm
+            count, gsum, gg, res = 0, 0.0, 0.0, 0.0
             with hd as gf, g as gw:
                 for s in blocks:
                     if pending:
@@ -196,19 +204,22 @@ class PolonskyKeer:
                     box.free(xa[s], free[s], s)
                     count += np.count_nonzero(free[s])
                     np.multiply(gw[s], ones(s), out=gf[s])
-                    gsum += gf[s].sum() if load is not None else 0.0
+                    if load is None:
+                        gg += dot(gf[s], gf[s])
+                        res = max(res, box.residual(xa[s], gw[s], r_b[:s.stop - s.start], s))
+                    else:
+                        gsum += gf[s].sum()
             count = total(count)
             lam = self._multiplier(comm, total(gsum), g.array_r, count)
-            # gf -= lambda on the free variables; <gf, gf>; the residual's max norm
-            gg, res = 0.0, 0.0
-            with hd as gf:
-                ga = g.array_r
-                for s in blocks:
-                    gfs = gf[s]
-                    if lam:
-                        gfs -= np.multiply(ones(s), lam, out=r_b[:s.stop - s.start])
-                    gg += dot(gfs, gfs)
-                    res = max(res, box.residual(xa[s], shifted(ga, s, lam), r_b[:s.stop - s.start], s))
+            if load is not None:  # gf -= lambda on the free variables; <gf, gf>; the residual's max norm
+                with hd as gf:
+                    ga = g.array_r
+                    for s in blocks:
+                        gfs = gf[s]
+                        if lam:
+                            gfs -= np.multiply(ones(s), lam, out=r_b[:s.stop - s.start])
+                        gg += dot(gfs, gfs)
+                        res = max(res, box.residual(xa[s], shifted(ga, s, lam), r_b[:s.stop - s.start], s))
             res = comm.allreduce(res, op=MPI.MAX)
             first = res if first is None else first
             tao.setIterationNumber(its)
