@@ -46,10 +46,13 @@ def heights_out_of_scale(heights: np.ndarray) -> str | None:
     """Why a map's finite heights (m) lie outside MAGNITUDES: the largest |height| above it, or a relief
     (highest - lowest) that is not zero but below it (a flat map is refused elsewhere, if at all); None
     when they lie within."""
-    finite = heights[np.isfinite(heights)]
-    if not finite.size:
+    finite = np.isfinite(heights)
+    if not finite.all():  # else the array itself: no copy of a whole map
+        heights = heights[finite]
+    if not heights.size:
         return None
-    largest, relief = float(np.abs(finite).max()), float(np.ptp(finite))
+    low, high = float(heights.min()), float(heights.max())
+    largest, relief = max(high, -low), high - low
     if largest > MAGNITUDES[1]:
         return f"height {scale_message(largest, 'm')}"
     if 0 < relief < MAGNITUDES[0]:

@@ -146,8 +146,11 @@ class HeightMap(Body):
         values = np.zeros(valid.shape)
         if not valid.any():
             return values, valid
-        if not (dx or dy) and (at := self._at_samples(uc, vc, in_x, in_y)) is not None:
-            return np.where(valid, self.heights[at], 0.0), valid
+        if dx + dy <= 1 and (at := self._at_samples(uc, vc, in_x, in_y)) is not None:
+            if not (dx or dy):
+                return np.where(valid, self.heights[at], 0.0), valid
+            if (slopes := self._slopes_at_samples(at, 0 if dx else 1)) is not None:
+                return np.where(valid, slopes, 0.0), valid
         if (u.ndim == 2 and v.ndim == 2 and u.shape[1] == 1 and v.shape[0] == 1
                 and np.all(np.diff(uc[in_x[:, 0], 0]) >= 0) and np.all(np.diff(vc[0, in_y[0]]) >= 0)):
             rows, cols = in_x[:, 0], in_y[0]
@@ -171,6 +174,33 @@ class HeightMap(Body):
             index.append(np.clip(nearest.astype(np.intp), 0, self.heights.shape[axis] - 1))
         return tuple(index)
 
+    def _slopes_at_samples(self, at: tuple, axis: int) -> np.ndarray | None:
+        """S's slope along ``axis`` at the samples ``at`` (a pair of index arrays that broadcast), or None where
+        that axis has fewer than 4 samples (S not cubic along it). On a line of samples along ``axis`` S is
+        the not-a-knot cubic spline through that line's samples (a missing sample takes its nearest finite
+        one's, as for the whole spline), so its slopes there come from :func:`spline_slopes` over the lines
+        the samples lie on only: no spline of the whole map and no derivative spline."""
+        n = self.heights.shape[axis]
+        if n < 4:
+            return None
+        across = at[1 - axis]
+        lines, where = np.unique(across, return_inverse=True)
+        values = self._filled(self.heights.take(lines, axis=1 - axis))
+        slopes = spline_slopes(values, self.cell[axis], axis)
+        where = where.reshape(np.shape(across))
+        return slopes[(at[0], where) if axis == 0 else (where, at[1])]
+
+    def _filled(self, heights: np.ndarray) -> np.ndarray:
+        """``heights`` (the map's or some of its whole lines) with every missing (+inf) sample replaced by its
+        nearest finite one's, for the splines; the array itself when none is missing."""
+        finite = np.isfinite(heights)
+        if finite.all():
+            return heights
+        from scipy import ndimage  # here, not at the top: only maps with holes need it
+
+        nearest = ndimage.distance_transform_edt(~finite, return_distances=False, return_indices=True)
+        return heights[tuple(nearest)]
+
     def _spline(self, dx: int, dy: int):
         """S's spline (scipy's RectBivariateSpline, on coordinates from the first sample; a missing sample
         takes its nearest finite one's), or its derivative's of orders (dx, dy) (equal degrees along both
@@ -180,15 +210,10 @@ class HeightMap(Body):
         if (dx, dy) != (0, 0):
             made = self._spline(0, 0).partial_derivative(dx, dy)
         else:
-            from scipy import ndimage  # here, not at the top: a scene without a map never imports them
-            from scipy.interpolate import RectBivariateSpline
+            from scipy.interpolate import RectBivariateSpline  # here: a scene without a map never imports it
 
-            heights, (hx, hy) = self.heights, self.cell
-            nx, ny = heights.shape
-            finite = np.isfinite(heights)
-            if not finite.all():
-                nearest = ndimage.distance_transform_edt(~finite, return_distances=False, return_indices=True)
-                heights = heights[tuple(nearest)]
+            (hx, hy), (nx, ny) = self.cell, self.heights.shape
+            heights = self._filled(self.heights)
             made = RectBivariateSpline(np.arange(nx) * hx, np.arange(ny) * hy, heights,
                                        kx=min(3, nx - 1), ky=min(3, ny - 1), s=0)
         self._splines[dx, dy] = made
@@ -308,13 +333,13 @@ class HeightMap(Body):
         return piece
 
     def _estimate_radius(self) -> float:
-        z = self.heights - self.heights[np.isfinite(self.heights)].min()
-        hx, hy = self.cell
-        fallback = 0.5 * max((z.shape[0] - 1) * hx, (z.shape[1] - 1) * hy)
-        i, j = np.unravel_index(np.argmin(np.where(np.isfinite(z), z, np.inf)), z.shape)
+        heights, (hx, hy) = self.heights, self.cell
+        fallback = 0.5 * max((heights.shape[0] - 1) * hx, (heights.shape[1] - 1) * hy)
+        i, j = np.unravel_index(np.argmin(heights), heights.shape)  # +inf (no surface) is never the least
+        lowest = heights[i, j]
         radii = []
         for axis, (k, h) in enumerate(((i, hx), (j, hy))):
-            line = z[:, j] if axis == 0 else z[i, :]
+            line = (heights[:, j] if axis == 0 else heights[i, :]) - lowest  # Z along the line
             n = line.size
             # a wide stencil (up to n/8 samples) smooths facets and roughness; narrow it until finite
             step = min(k, n - 1 - k, max(1, n // 8))  # 0 at the map's edge
@@ -335,6 +360,38 @@ class HeightMap(Body):
         lowest sample (the one radius if only one is positive); half the larger extent if neither is."""
         return self._radius_hint
 
+
+
+def spline_slopes(values: np.ndarray, h: float, axis: int) -> np.ndarray:
+    """The slopes at the samples of the not-a-knot cubic splines through ``values`` (finite, at spacing ``h``,
+    at least 4 along ``axis``) along ``axis``, each line of samples its own spline: the same values as the
+    derivative of FITPACK's interpolating spline there (to round-off), from one banded solve for all lines.
+
+    With y_i the samples of a line and m_i the slopes, the C2 conditions at the inner samples are
+    m_(i-1) + 4 m_i + m_(i+1) = 3 (y_(i+1) - y_(i-1)) / h, and not-a-knot (equal third derivatives
+    6 (h (m_i + m_(i+1)) - 2 (y_(i+1) - y_i)) / h^3 on the first two and on the last two intervals) closes
+    them: m_0 - m_2 = 2 (2 y_1 - y_0 - y_2) / h and m_(n-1) - m_(n-3) = 2 (y_(n-1) - 2 y_(n-2) + y_(n-3)) / h.
+    (scipy's CubicSpline solves the same system but then builds every interval's four coefficients: several
+    times the work and the memory on a whole map.)"""
+    from scipy.linalg import solve_banded
+
+    y = np.asfortranarray(np.moveaxis(values, axis, 0))  # LAPACK's layout: each line contiguous
+    n = y.shape[0]
+    rhs = np.empty(y.shape, order="F")
+    np.subtract(y[2:], y[:-2], out=rhs[1:-1])
+    rhs[1:-1] *= 3.0 / h
+    rhs[0] = 2.0 * (2.0 * y[1] - y[0] - y[2]) / h
+    rhs[-1] = 2.0 * (y[-1] - 2.0 * y[-2] + y[-3]) / h
+    band = np.zeros((5, n))  # band[2 + i - j, j] = A[i, j]
+    band[1, 2:] = 1.0  # A[i, i + 1], i = 1 ... n - 2
+    band[2] = 4.0  # A[i, i]
+    band[3, :-2] = 1.0  # A[i, i - 1], i = 1 ... n - 2
+    band[2, [0, -1]] = 1.0  # A[0, 0], A[n-1, n-1]
+    band[1, 1] = 0.0  # A[0, 1]
+    band[0, 2] = -1.0  # A[0, 2]
+    band[3, -2] = 0.0  # A[n-1, n-2]
+    band[4, -3] = -1.0  # A[n-1, n-3]
+    return np.moveaxis(solve_banded((2, 2), band, rhs, overwrite_b=True, check_finite=False), 0, axis)
 
 
 LOCAL_FIT = 8
