@@ -290,8 +290,9 @@ def test_a_map_s_slopes_at_its_samples_are_the_spline_s_derivatives(shape, holes
     banded solve) are FITPACK's interpolating spline's derivatives there (scipy's RectBivariateSpline, s = 0,
     fitted here on the map with each missing sample replaced by its nearest finite one's), to 1e-12 of the
     largest, 0 where the map has no surface; off the samples (shifted a third of a cell) the same spline's
-    derivatives still; along an axis of 2 or 3 samples (not cubic) FITPACK's own as before. The heights are
-    a random map (a wrong end condition or an axis swapped is off by order 1)."""
+    derivatives still, and on a small lattice off the samples first (3 x 3 points: the spline's local
+    piece) too; along an axis of 2 or 3 samples (not cubic) FITPACK's own as before. The heights are a random
+    map (a wrong end condition or an axis swapped is off by order 1)."""
     from scipy import ndimage
     from scipy.interpolate import RectBivariateSpline
 
@@ -308,9 +309,10 @@ def test_a_map_s_slopes_at_its_samples_are_the_spline_s_derivatives(shape, holes
     u, v = np.arange(shape[0]) * hx, np.arange(shape[1]) * hy
     spline = RectBivariateSpline(u, v, heights[tuple(nearest)], kx=kx, ky=ky, s=0)
     x0, y0 = body._origin
-    for shift in (0.0, 1 / 3):
-        x = (u[:-1] + shift * hx if shift else u)[:, None] + x0
-        y = (v[:-1] + shift * hy if shift else v)[None, :] + y0
+    middle = (u[shape[0] // 3 : shape[0] // 3 + 3], v[shape[1] // 3 : shape[1] // 3 + 3])
+    for shift, (along_x, along_y) in ((0.2, middle), (0.0, (u, v)), (1 / 3, (u[:-1], v[:-1]))):
+        x = (along_x + shift * hx)[:, None] + x0
+        y = (along_y + shift * hy)[None, :] + y0
         got = body.slope(x, y)
         for axis, (dx, dy), k in ((0, (1, 0), kx), (1, (0, 1), ky)):
             if k == 1:  # FITPACK cannot differentiate a linear axis: the map takes the ends' difference

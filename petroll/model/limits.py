@@ -89,7 +89,8 @@ def contact_slope(scene, delta: float, points: int = 201) -> float:
 
     The profile is sampled on a ``points`` x ``points`` lattice (not the grid's cells, which may be coarser
     than the contact) over the part of the grid within 4 equivalent contact radii sqrt(2 R delta) of the
-    body (R: its radius hint): the cost is bounded whatever the grid."""
+    body (R: its radius hint), its slopes on the part of the lattice around those points only: the cost is
+    bounded whatever the grid."""
     g, (sx, sy) = scene.grid, scene.position
     reach = 4 * math.sqrt(2 * max(float(scene.body.radius_hint), 0.0) * delta)
     if not math.isfinite(reach) or reach <= 0:
@@ -101,8 +102,10 @@ def contact_slope(scene, delta: float, points: int = 201) -> float:
         inside = z <= 0.5 * delta
         if not np.any(inside):
             return 0.0
-        gx, gy = scene.body.slope(x, y)
-        return float(np.max(np.hypot(gx, gy)[inside]))
+        rows, cols = np.flatnonzero(inside.any(axis=1)), np.flatnonzero(inside.any(axis=0))
+        box = slice(rows[0], rows[-1] + 1), slice(cols[0], cols[-1] + 1)  # the lattice around the inside
+        gx, gy = scene.body.slope(x[box[0]], y[:, box[1]])
+        return float(np.max(np.hypot(gx, gy)[inside[box]]))
 
 
 def largest_penetration(scene) -> tuple[float, bool]:

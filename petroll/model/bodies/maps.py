@@ -175,11 +175,11 @@ class HeightMap(Body):
         return tuple(index)
 
     def _slopes_at_samples(self, at: tuple, axis: int) -> np.ndarray | None:
-        """S's slope along ``axis`` at the samples ``at`` (a pair of index arrays that broadcast), or None where
-        that axis has fewer than 4 samples (S not cubic along it). On a line of samples along ``axis`` S is
-        the not-a-knot cubic spline through that line's samples (a missing sample takes its nearest finite
-        one's, as for the whole spline), so its slopes there come from :func:`spline_slopes` over the lines
-        the samples lie on only: no spline of the whole map and no derivative spline."""
+        """S's slope along ``axis`` at the samples ``at`` (a pair of index arrays that broadcast), or None
+        where that axis has fewer than 4 samples (S not cubic along it). On a line of samples along ``axis``
+        S is the not-a-knot cubic spline through that line's samples (a missing sample takes its nearest
+        finite one's, as for the whole spline), so its slopes there come from :func:`spline_slopes` over the
+        lines the samples lie on only: no spline of the whole map and no derivative spline."""
         n = self.heights.shape[axis]
         if n < 4:
             return None
@@ -233,6 +233,14 @@ class HeightMap(Body):
             return (spline(u, end, grid=grid) - spline(u, 0.0, grid=grid)) / end
         if kx != ky:  # scipy's derivative splines need equal degrees: FITPACK's derivative, O(samples) a call
             return self._spline(0, 0)(u, v, dx, dy, grid=grid)
+        if (dx or dy) and grid and (dx, dy) not in self._splines:
+            (hx, hy), (nx, ny) = self.cell, self.heights.shape
+            bounds = [(int(u[0] // hx), min(int(u[-1] // hx) + 1, nx - 1)),
+                      (int(v[0] // hy), min(int(v[-1] // hy) + 1, ny - 1))]
+            if (bounds[0][1] - bounds[0][0] + 1) * (bounds[1][1] - bounds[1][0] + 1) * SMALL_BOX <= nx * ny:
+                from scipy.interpolate import bisplev
+
+                return np.reshape(bisplev(u, v, self._local_tck(bounds)[0], dx, dy), (len(u), len(v)))
         return self._spline(dx, dy)(u, v, grid=grid)
 
     def height(self, x, y):
@@ -302,19 +310,8 @@ class HeightMap(Body):
         axis of two samples (S linear) the derivative is the difference of its ends."""
         from scipy.interpolate import bisplev
 
-        spline = self._spline(0, 0)
-        knots, (kx, ky) = spline.get_knots(), spline.degrees  # the whole knot vectors, ends repeated
-        c = spline.get_coeffs().reshape(len(knots[0]) - kx - 1, len(knots[1]) - ky - 1)
-        local, ends = [], []
-        for (lo, hi), t, k, h in zip(bounds, knots, (kx, ky), self.cell):
-            # the pieces [t_l, t_l+1] that meet the box, l from first to last; each uses coefficients l-k..l
-            first = int(np.clip(np.searchsorted(t, lo * h, "right") - 1, k, len(t) - k - 2))
-            last = int(np.clip(np.searchsorted(t, hi * h, "left") - 1, k, len(t) - k - 2))
-            local.append((first, last))
-            ends.append((t[first], t[last + 1]))
-        (fx, lx), (fy, ly) = local
-        tck = [knots[0][fx - kx : lx + kx + 2], knots[1][fy - ky : ly + ky + 2],
-               c[fx - kx : lx + 1, fy - ky : ly + 1].ravel(), kx, ky]
+        tck, ends = self._local_tck(bounds)
+        kx, ky = tck[3:]
 
         def piece(u: float, v: float) -> tuple[float, float, float]:
             value = float(bisplev(u, v, tck))
@@ -331,6 +328,26 @@ class HeightMap(Body):
             return value, gx, gy
 
         return piece
+
+    def _local_tck(self, bounds) -> tuple[list, list]:
+        """S's local piece over the box ``bounds`` ((i0, i1), (j0, j1), in samples): FITPACK's (tx, ty, c, kx,
+        ky) of the knots and coefficients of the spline's polynomial pieces over the box only (the same
+        polynomials there), and each axis's (start, end) of those pieces (coordinates from the first
+        sample)."""
+        spline = self._spline(0, 0)
+        knots, (kx, ky) = spline.get_knots(), spline.degrees  # the whole knot vectors, ends repeated
+        c = spline.get_coeffs().reshape(len(knots[0]) - kx - 1, len(knots[1]) - ky - 1)
+        local, ends = [], []
+        for (lo, hi), t, k, h in zip(bounds, knots, (kx, ky), self.cell):
+            # the pieces [t_l, t_l+1] that meet the box, l from first to last; each uses coefficients l-k..l
+            first = int(np.clip(np.searchsorted(t, lo * h, "right") - 1, k, len(t) - k - 2))
+            last = int(np.clip(np.searchsorted(t, hi * h, "left") - 1, k, len(t) - k - 2))
+            local.append((first, last))
+            ends.append((t[first], t[last + 1]))
+        (fx, lx), (fy, ly) = local
+        tck = [knots[0][fx - kx : lx + kx + 2], knots[1][fy - ky : ly + ky + 2],
+               c[fx - kx : lx + 1, fy - ky : ly + 1].ravel(), kx, ky]
+        return tck, ends
 
     def _estimate_radius(self) -> float:
         heights, (hx, hy) = self.heights, self.cell
@@ -360,6 +377,11 @@ class HeightMap(Body):
         lowest sample (the one radius if only one is positive); half the larger extent if neither is."""
         return self._radius_hint
 
+
+
+SMALL_BOX = 4
+"""Slopes asked for on a lattice whose samples' box holds at most 1/SMALL_BOX of the map's samples are read
+from the spline's local piece over that box (O(box)); larger ones make and keep S's derivative's spline."""
 
 
 def spline_slopes(values: np.ndarray, h: float, axis: int) -> np.ndarray:
