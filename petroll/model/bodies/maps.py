@@ -70,9 +70,11 @@ class HeightMap(Body):
     -inf are refused.
 
     Cost: heights asked for at the samples themselves (within :data:`ON_SAMPLE` of a cell) are the samples
-    (less the lowest point); the spline is fitted on first use elsewhere (FITPACK, O(samples) once), its
-    derivatives' splines on the first slopes asked for, and every evaluation after that is local (each point
-    reads its 4 x 4 coefficients).
+    (less the lowest point), slopes there the splines' through the lines of samples they lie on
+    (:func:`spline_slopes`, one banded solve per axis, kept); the spline is fitted on first use elsewhere (FITPACK,
+    O(samples) once), slopes on a lattice over a small part of the map (:data:`SMALL_BOX`) are read from
+    its local piece there, and its derivatives' splines are made on the first slopes asked for over more;
+    every evaluation after that is local (each point reads its 4 x 4 coefficients).
     """
 
     heights: np.ndarray
@@ -80,7 +82,8 @@ class HeightMap(Body):
     center: tuple[float, float] = (0.0, 0.0)
     _: KW_ONLY
     source: InitVar[str] = PYTHON_SOURCE
-    _splines: dict = field(init=False, repr=False)  # (dx, dy): S's spline or its derivative's, once made
+    _splines: dict = field(init=False, repr=False)  # (dx, dy): S's spline or its derivative's, once made;
+    # ("at samples", axis): S's slopes at every sample
     _lowest: float = field(init=False, repr=False)
     _ok: np.ndarray = field(init=False, repr=False)
     _origin: tuple[float, float] = field(init=False, repr=False)
@@ -178,17 +181,15 @@ class HeightMap(Body):
         """S's slope along ``axis`` at the samples ``at`` (a pair of index arrays that broadcast), or None
         where that axis has fewer than 4 samples (S not cubic along it). On a line of samples along ``axis``
         S is the not-a-knot cubic spline through that line's samples (a missing sample takes its nearest
-        finite one's, as for the whole spline), so its slopes there come from :func:`spline_slopes` over the
-        lines the samples lie on only: no spline of the whole map and no derivative spline."""
-        n = self.heights.shape[axis]
-        if n < 4:
+        finite one's, as for the whole spline), so its slopes there come from :func:`spline_slopes`: no
+        spline of the whole map and no derivative spline; made for every sample on first use and kept (as a
+        derivative's spline would be: a step's resisting force asks for them at every step)."""
+        if self.heights.shape[axis] < 4:
             return None
-        across = at[1 - axis]
-        lines, where = np.unique(across, return_inverse=True)
-        values = self._filled(self.heights.take(lines, axis=1 - axis))
-        slopes = spline_slopes(values, self.cell[axis], axis)
-        where = where.reshape(np.shape(across))
-        return slopes[(at[0], where) if axis == 0 else (where, at[1])]
+        key = ("at samples", axis)
+        if key not in self._splines:
+            self._splines[key] = spline_slopes(self._filled(self.heights), self.cell[axis], axis)
+        return self._splines[key][at]
 
     def _filled(self, heights: np.ndarray) -> np.ndarray:
         """``heights`` (the map's or some of its whole lines) with every missing (+inf) sample replaced by its
