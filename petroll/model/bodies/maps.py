@@ -71,10 +71,10 @@ class HeightMap(Body):
 
     Cost: heights asked for at the samples themselves (within :data:`ON_SAMPLE` of a cell) are the samples
     (less the lowest point), slopes there the splines' through the lines of samples they lie on
-    (:func:`spline_slopes`, one banded solve per axis, kept); the spline is fitted on first use elsewhere (FITPACK,
-    O(samples) once), slopes on a lattice over a small part of the map (:data:`SMALL_BOX`) are read from
-    its local piece there, and its derivatives' splines are made on the first slopes asked for over more;
-    every evaluation after that is local (each point reads its 4 x 4 coefficients).
+    (:func:`spline_slopes`, one banded solve per axis, kept); the spline is fitted on first use elsewhere
+    (FITPACK, O(samples) once), slopes on a lattice over a small part of the map (:data:`SMALL_BOX`) are
+    read from its local piece there, and its derivatives' splines are made on the first slopes asked for
+    over more; every evaluation after that is local (each point reads its 4 x 4 coefficients).
     """
 
     heights: np.ndarray
@@ -192,8 +192,8 @@ class HeightMap(Body):
         return self._splines[key][at]
 
     def _filled(self, heights: np.ndarray) -> np.ndarray:
-        """``heights`` (the map's or some of its whole lines) with every missing (+inf) sample replaced by its
-        nearest finite one's, for the splines; the array itself when none is missing."""
+        """``heights`` (the map's samples) with every missing (+inf) sample replaced by its nearest finite
+        one's, for the splines; the array itself when none is missing."""
         finite = np.isfinite(heights)
         if finite.all():
             return heights
