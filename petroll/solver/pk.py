@@ -26,11 +26,11 @@ gradient is recomputed at least every ``-tao_pk_refresh`` (25) iterations, so th
 differs from a fresh one by round-off only (about 1e-15 of its scale, far below any useful gatol): the
 stop is judged on it, with no confirming evaluation (which would cost one application per solve).
 Beside its applications an iteration streams its vectors through memory in five passes (the free set,
-free gradient, <g, g> and the residual, the gradient's update folded in; the direction's <g, C^-1 g>; the
-direction; d.g and d.H d; the step, projection and re-entries; under load control a sixth, the
-multiplier's shift, after the first, which sums g over the free set), each doing all its elementwise work on a
-block of :data:`BLOCK` values before the next block: about 20 reads and writes of a vector's length per
-iteration, and no work array of that length but the free set's mask (g - lambda is made a block at a
+the free gradient, <g, g> and the residual, the gradient's update folded in; <g, C^-1 g>; the direction;
+d.g and d.H d; the step, projection and re-entries); under load control six (the first sums g over the free
+set, a second shifts it by the multiplier and takes <g, g> and the residual), each doing all its work
+on a block of :data:`BLOCK` values before the next block: about 20 reads and writes of a vector's length
+per iteration, and no work array of that length but the free set's mask (g - lambda is made a block at a
 time). Dots and sums are summed per block by numpy (one thread; the last digits depend on BLOCK).
 
 Load control (Polonsky & Keer's force-controlled form): with ``total`` set on the context, the solve also
