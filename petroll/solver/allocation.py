@@ -5,9 +5,12 @@ and ``mallopt(M_TRIM_THRESHOLD, -1)``: from then on glibc maps no block of its o
 the one brk heap, which never shrinks and fragments (docs/benchmarks.md, *The allocator*). A run whose QP
 covers the whole grid (``Topology.whole``: periodic grids) holds several field-sized arrays at once and
 makes field-sized temporaries around them, and there the heap's holes add to the peak. While such a run
-goes, blocks of :data:`BLOCK` and more that no free part of the heap holds are mapped, each returned to
-the system when it is freed. The price is a fresh mapping's pages, zeroed at first touch: a threshold of
-4 MiB for every run cost rolling runs 40-50 % wall time, whence whole-grid runs only and 16 MiB.
+goes (petroll.driver.run), and while ``petroll run`` reads a scene (petroll.cli: its grid is unknown until
+read, and a read allocates its arrays once), blocks of :data:`BLOCK` and more that no free part of the
+heap holds are mapped, each returned to the system when it is freed. The price is a fresh mapping's pages,
+zeroed at first touch: a threshold of 4 MiB for every run cost rolling runs 40-50 % wall time (their
+steps allocate anew each time), whence whole-grid runs only and 16 MiB (docs/benchmarks.md, *Memory per
+rank*).
 """
 
 from __future__ import annotations
