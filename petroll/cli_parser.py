@@ -110,10 +110,10 @@ def _study_verbs(verbs) -> None:
     bench.add_argument("--ranks", type=_ranks, help="mpi, memory and sliding only: rank counts to run side by "
                        "side as mpirun children, e.g. 1,2 (default: mpi: the current communicator only; memory: "
                        "1,2,4; sliding: 1,2, its memory and time per rank instead of its default tables)")
-    bench.add_argument("--sides", type=_ranks, help="memory and sliding only: grid sides (cells) to measure, "
-                       "e.g. 1024,2048,4096 (memory's default; sliding: 2048,4096)")
-    bench.add_argument("--steady", action="store_true", help="memory only: the steady state solved directly "
-                       "([time] mode = \"steady\") instead of rolled steps")
+    bench.add_argument("--sides", type=_ranks, help="memory, sliding and mpi --steady only: grid sides (cells) "
+                       "to measure, e.g. 1024,2048,4096 (memory's default; sliding: 2048,4096; mpi: 2048)")
+    bench.add_argument("--steady", action="store_true", help="memory and mpi only: the steady state solved "
+                       "directly ([time] mode = \"steady\") instead of rolled steps")
     bench.add_argument("--quick", action="store_true", help="the smallest sizes and one repeat, in seconds: "
                        "shows that the benchmark runs and writes its files (peers: petroll's solver only, "
                        "nothing installed); measures nothing")

@@ -66,6 +66,19 @@ def test_mpi_forces_agree_between_rank_counts(tmp_path):
     assert (tmp_path / "mpi.csv").exists() and (tmp_path / "mpi.png").exists()
 
 
+def test_mpi_steady_solves_the_memory_scenes_steady_state_on_each_rank_count(tmp_path):
+    """bench mpi --steady: the force of each rank count's steady solve is that of the scene run by
+    petroll.run (serially, a second path through the driver)."""
+    import petroll
+    from petroll.bench.memory import memory_scene
+
+    rows = mpi_scaling(tmp_path, ranks=(1, 2), repeats=1, steady=True, sides=(256,))
+    direct = petroll.run(memory_scene(256, 0, steady=True), out=tmp_path / "direct").series["force"][-1]
+    assert [r["ranks"] for r in rows] == [1, 2] and rows[0]["cells"] == 256 * 256
+    assert all(abs(r["force"] / direct - 1) < 1e-9 for r in rows)
+    assert (tmp_path / "mpi_steady.csv").exists() and not (tmp_path / "mpi.csv").exists()
+
+
 @pytest.mark.slow
 def test_warm_start_bench_same_answer_fewer_applications(tmp_path):
     from petroll.bench.solvers import warm_starts

@@ -7,6 +7,18 @@ import pytest
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 
 
+def test_sides_and_steady_are_refused_where_a_benchmark_has_none(comm, capsys):
+    from petroll.cli import main
+
+    for args, message in [(["tao", "--steady"], "petroll bench tao: --steady applies to petroll bench memory and "
+                                                "mpi only"),
+                          (["mpi", "--sides", "512"], "petroll bench mpi: --sides applies with --steady only (the "
+                                                      "rolling windows are fixed)")]:
+        assert main(["bench", *args, "--quick"]) == 2
+        if comm.rank == 0:
+            assert capsys.readouterr().err == f"petroll: error: {message}\n"
+
+
 @pytest.mark.slow
 @pytest.mark.serial
 def test_prefixed_tao_options_override_the_scene_and_failures_are_one_clear_line(tmp_path, cli):

@@ -70,12 +70,16 @@ def test_convolution_equals_dense_matrix(comm, nx, ny, workers, monkeypatch):
 
 @pytest.mark.ranks4
 @pytest.mark.parametrize("cap", [None, 0])
-def test_applications_in_the_kept_work_array_keep_their_results(comm, cap, monkeypatch):
+@pytest.mark.parametrize("aliased", [None, 1])
+def test_applications_in_the_kept_work_array_keep_their_results(comm, cap, aliased, monkeypatch):
     """Applications of convolutions of three shapes, each applied twice, their results all kept: each equals
     the dense matrix's product, whether the spectra are transformed in the kept work array (default) or,
-    above Convolution.WORKSPACE (cap 0), in arrays of their own."""
+    above Convolution.WORKSPACE (cap 0), in arrays of their own, and whether their rows are padded
+    (partition.ALIASED 1: every row one value longer than its columns, as rows of 256 values are)."""
     if cap is not None:
         monkeypatch.setattr(Convolution, "WORKSPACE", cap)
+    if aliased is not None:
+        monkeypatch.setattr("petroll.solver.partition.ALIASED", aliased)
     dx, dy = 0.3, 0.2
     results = []
     for nx, ny in [(13, 7), (5, 24), (13, 7), (9, 1)]:
@@ -182,6 +186,10 @@ def test_transposes_give_every_rank_its_block_of_the_whole_field(comm, dtype, nx
     assert np.array_equal(rows_to_columns(field[r0:r1], rows, cols, comm), field[:, c0:c1])
     columns = np.ascontiguousarray(field[:, c0:c1])
     assert np.array_equal(columns_to_rows(columns, rows, cols, comm), field[r0:r1])
+    for view in (np.s_[:, : c1 - c0], np.s_[:, : 2 * (c1 - c0) : 2]):  # of wider rows; every other value
+        wider = np.full((nx, 2 * (c1 - c0) + 3), np.nan, dtype=dtype)
+        wider[view] = columns
+        assert np.array_equal(columns_to_rows(wider[view], rows, cols, comm), field[r0:r1])
 
 
 @pytest.mark.parallel

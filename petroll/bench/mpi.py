@@ -1,7 +1,9 @@
-"""MPI scaling of the rolling step.
+"""MPI scaling of the rolling step and of the direct steady solve.
 
 ``petroll bench mpi [--ranks 1,2] [--out DIR]``: time per rolling step (median of the warm steps) and
-the convolutions' share of it on the growth scenes of windows 256^2 and 1024^2 cells. Without
+the convolutions' share of it on the growth scenes of windows 256^2 and 1024^2 cells; ``--steady
+[--sides 2048]``: the time of the direct steady solve of ``bench memory --steady``'s scene (runs/sphere.toml
+on side x side cells, [time] mode = "steady"), DIR/mpi_steady.csv and .png. Without
 ``--ranks``: on the current communicator (``mpirun -n K petroll bench mpi``). With ``--ranks``: rank
 counts side by side, each an ``mpirun -n K`` child of this process, alternating the counts over the
 repeats so that machine noise hits all of them; speedup T1 / TK, parallel efficiency T1 / (K TK), and the
@@ -28,15 +30,19 @@ from petroll.bench.rolling import roll, rolling_scene
 from petroll.studies.tables import new_figure, save_figure, write_table
 
 
-def mpi_steps(windows: tuple[int, ...], steps: int, skip: int, comm: MPI.Comm) -> list[dict]:
+def mpi_steps(windows: tuple[int, ...], steps: int, skip: int, comm: MPI.Comm,
+              steady: bool = False) -> list[dict]:
     """Time per warm rolling step on ``comm`` for each window size (collective): the wall times of the
     steps from ``skip`` on (s, slowest rank), their median applications, the convolutions' share of the
-    time, the force of every step (N) and the last mu_r."""
+    time, the force of every step (N) and the last mu_r. ``steady``: the direct steady solve (one step)
+    of a grid of each side instead (petroll.bench.memory.memory_scene)."""
+    from petroll.bench.memory import memory_scene
+
     out = []
     for n in windows:
-        done = roll(rolling_scene(n, steps), comm)
+        done = roll(memory_scene(n, 0, steady=True) if steady else rolling_scene(n, steps), comm)
         seconds = done["seconds"][skip:]
-        out.append(dict(window=n, cells=float(done["cells"][skip:].mean()),
+        out.append(dict(window=n, cells=float(n * n) if steady else float(done["cells"][skip:].mean()),
                         seconds=[float(s) for s in seconds],
                         applications=float(np.median(done["applications"][skip:])),
                         convolution_share=float(done["convolution"][skip:].sum() / seconds.sum()),
@@ -46,14 +52,17 @@ def mpi_steps(windows: tuple[int, ...], steps: int, skip: int, comm: MPI.Comm) -
 
 def mpi_scaling(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, windows: tuple[int, ...] = (256, 1024),
                 ranks: tuple[int, ...] | None = None, steps: int = 6, skip: int = 3,
-                repeats: int = 2) -> list[dict]:
+                repeats: int = 2, steady: bool = False, sides: tuple[int, ...] = (2048,)) -> list[dict]:
     """Time per rolling step against the rank count; returns the rows (numeric). ``ranks`` None: on
     ``comm``; otherwise each count runs as ``mpirun -n K`` children of this (single) process, ``repeats``
     times, the counts alternating in order. Times are medians over all timed steps of all repeats; the
     force difference is the largest relative one over all steps from the first rank count's. Writes
-    mpi.csv and mpi.png (rank 0)."""
+    mpi.csv and mpi.png (rank 0). ``steady``: the direct steady solves of grids of ``sides`` instead
+    (``windows``, ``steps`` and ``skip`` unused), written to mpi_steady.csv and .png."""
+    if steady:
+        windows, skip = sides, 0
     if ranks is None:
-        measured = {comm.size: [mpi_steps(windows, steps, skip, comm)]}
+        measured = {comm.size: [mpi_steps(windows, steps, skip, comm, steady)]}
         ranks = (comm.size,)
     else:
         if comm.size != 1:
@@ -62,7 +71,7 @@ def mpi_scaling(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, windows: tup
         measured = {k: [] for k in ranks}
         for repeat in range(repeats):
             for k in (ranks if repeat % 2 == 0 else ranks[::-1]):
-                measured[k].append(_mpirun_steps(k, windows, steps, skip))
+                measured[k].append(_mpirun_steps(k, windows, steps, skip, steady))
     rows = []
     for i, n in enumerate(windows):
         runs = {k: [m[i] for m in measured[k]] for k in ranks}  # the repeats of each rank count
@@ -82,18 +91,18 @@ def mpi_scaling(out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, windows: tup
                       applications=f"{r['applications']:.0f}", speedup=f"{r['speedup']:.2f}",
                       convolution_share=f"{r['convolution_share']:.0%}", efficiency=f"{r['efficiency']:.0%}",
                       force=f"{r['force']:.10g}", force_difference=f"{r['force_difference']:.1e}",
-                      mu_r=f"{r['mu_r']:.8g}") for r in rows], out / "mpi.csv")
-        _plot_mpi(rows, out / "mpi.png")
+                      mu_r=f"{r['mu_r']:.8g}") for r in rows], out / f"mpi{'_steady' if steady else ''}.csv")
+        _plot_mpi(rows, out / f"mpi{'_steady' if steady else ''}.png", steady)
     return rows
 
 
-def _mpirun_steps(k: int, windows: tuple[int, ...], steps: int, skip: int) -> list[dict]:
+def _mpirun_steps(k: int, windows: tuple[int, ...], steps: int, skip: int, steady: bool) -> list[dict]:
     """:func:`mpi_steps` on ``k`` ranks, an ``mpirun -n k`` child running this module."""
     env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
                OMPI_MCA_btl_vader_single_copy_mechanism="none")
     command = ["mpirun", "-n", str(k), *(["--oversubscribe"] if k > (os.cpu_count() or 1) else []),
                sys.executable, "-m", "petroll.bench.mpi", ",".join(map(str, windows)), str(steps),
-               str(skip)]
+               str(skip), "steady" if steady else "transient"]
     done = subprocess.run(command, env=env, capture_output=True, text=True)
     if done.returncode != 0:
         tail = " ".join((done.stderr or done.stdout).strip().splitlines()[-3:])
@@ -101,31 +110,33 @@ def _mpirun_steps(k: int, windows: tuple[int, ...], steps: int, skip: int) -> li
     return json.loads(done.stdout.strip().splitlines()[-1])
 
 
-def _plot_mpi(rows: list[dict], path: pathlib.Path) -> None:
+def _plot_mpi(rows: list[dict], path: pathlib.Path, steady: bool) -> None:
     figure = new_figure(5.5, 4.2)
     if figure is None:
         return
     ax = figure.subplots()
     for window in dict.fromkeys(r["window"] for r in rows):
         pts = [r for r in rows if r["window"] == window]
-        ax.plot([r["ranks"] for r in pts], [r["step_s"] for r in pts], "o-", label=f"window {window} cells")
+        ax.plot([r["ranks"] for r in pts], [r["step_s"] for r in pts], "o-",
+                label=f"{'grid' if steady else 'window'} {window} cells")
         ideal = [pts[0]["step_s"] * pts[0]["ranks"] / r["ranks"] for r in pts]
         ax.plot([r["ranks"] for r in pts], ideal, "k:", lw=0.8)
     ax.set_xlabel("MPI ranks")
-    ax.set_ylabel("time per rolling step (s)")
+    ax.set_ylabel("time of the steady solve (s)" if steady else "time per rolling step (s)")
     ax.set_yscale("log")
     ax.set_xticks(sorted({r["ranks"] for r in rows}))
-    ax.set_title("median warm step (dotted: ideal)", fontsize=9)
+    ax.set_title(f"{'steady solve' if steady else 'median warm step'} (dotted: ideal)", fontsize=9)
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=8)
     save_figure(figure, path)
 
 
-if __name__ == "__main__":  # the child of ``bench mpi --ranks``: WINDOWS STEPS SKIP, one JSON line on rank 0
+if __name__ == "__main__":  # the child of ``bench mpi --ranks``: WINDOWS STEPS SKIP steady|transient, one JSON line
+
     import petsc4py
 
     petsc4py.init([])
     measured = mpi_steps(tuple(int(w) for w in sys.argv[1].split(",")), int(sys.argv[2]), int(sys.argv[3]),
-                         MPI.COMM_WORLD)
+                         MPI.COMM_WORLD, sys.argv[4] == "steady")
     if MPI.COMM_WORLD.rank == 0:
         print(json.dumps(measured))

@@ -25,7 +25,7 @@ QUICK = {
     "precision": dict(steps_per_cell=(0.25, 4), reference=8, grids=(0.5, 1), grid_scale=0.5, distance=0.5e-3,
                       short=0),
     "growth": dict(windows=(24, 32), steps=6, track_window=16, track_steps=40, track_skip=10, track_span=10),
-    "mpi": dict(windows=(24,), steps=5, repeats=1),
+    "mpi": dict(windows=(24,), steps=5, repeats=1, sides=(256,)),
     "memory": dict(sides=(256,), steps=2),
     "append": dict(side=16, steps=30, block=10),
     "layer": dict(repeats=1, cases=(("conveyor-idler.toml", 1e-3, ((6.0, "bonded"),)),)),
@@ -50,10 +50,12 @@ def run(which: str, out: pathlib.Path, comm: MPI.Comm = MPI.COMM_WORLD, quick: b
     if ranks is not None and which not in ("mpi", "memory", "sliding"):
         raise PetrollError(f"petroll bench {which}: --ranks applies to petroll bench mpi, memory and sliding "
                            "only")
-    if sides is not None and which not in ("memory", "sliding"):
-        raise PetrollError(f"petroll bench {which}: --sides applies to petroll bench memory and sliding only")
-    if steady and which != "memory":
-        raise PetrollError(f"petroll bench {which}: --steady applies to petroll bench memory only")
+    if sides is not None and which not in ("memory", "sliding", "mpi"):
+        raise PetrollError(f"petroll bench {which}: --sides applies to petroll bench memory, sliding and mpi only")
+    if sides is not None and which == "mpi" and not steady:
+        raise PetrollError("petroll bench mpi: --sides applies with --steady only (the rolling windows are fixed)")
+    if steady and which not in ("memory", "mpi"):
+        raise PetrollError(f"petroll bench {which}: --steady applies to petroll bench memory and mpi only")
     if which == "sliding" and (ranks or sides):  # memory and time per rank of the rough sliding solve
         from petroll.bench import rough
 

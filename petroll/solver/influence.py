@@ -33,7 +33,7 @@ from petroll.model.grid import Grid
 from petroll.model.materials import Layer
 from petroll.solver.fft_work import fft_cost, tally
 from petroll.solver.kernels import Kernel, grid_kernel
-from petroll.solver.partition import RowPartition, columns_to_rows, rows_to_columns
+from petroll.solver.partition import RowPartition, columns_to_rows, padded_columns, rows_to_columns
 
 
 def dense_influence(coefficients: np.ndarray) -> np.ndarray:
@@ -209,15 +209,16 @@ class Convolution:
         return self.backward(self._product(x), overwrite=True)
 
     def _product(self, x: np.ndarray) -> np.ndarray:
-        """The padded DFT of A x (x's, times the kernel's), in the kept work array where it fits."""
+        """The padded DFT of A x (x's, times the kernel's), in the kept work array where it fits, its rows
+        padded where their length would slow the transforms along X (petroll.solver.partition.padded_columns)."""
         columns = int(self.freqs.counts[self.comm.rank])
-        need = self.lx * columns
-        workspace = None
+        need = self.lx * (columns + 1)
+        buffer = None
         if need <= self.WORKSPACE:
             if Convolution._scratch.size < need:
                 Convolution._scratch = np.empty(need, dtype=complex)
-            workspace = Convolution._scratch[:need].reshape(self.lx, columns)
-        spectrum = self.forward(x, workspace)
+            buffer = Convolution._scratch
+        spectrum = self.forward(x, padded_columns(self.lx, columns, complex, buffer))
         spectrum *= self.spectrum
         return spectrum
 

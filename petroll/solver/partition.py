@@ -112,17 +112,37 @@ def rows_to_columns(a: np.ndarray, rows: RowPartition, cols: RowPartition, comm)
 
 def columns_to_rows(a: np.ndarray, rows: RowPartition, cols: RowPartition, comm) -> np.ndarray:
     """All rows of the local columns -> local rows (all columns): the inverse of :func:`rows_to_columns`.
-    Each rank's rows arrive straight in their columns of the result (an MPI vector type places them)."""
+    ``a`` may be a view of the first columns of wider rows (:func:`padded_columns`): each rank's rows leave
+    from there and arrive straight in their columns of the result (MPI vector types pick and place them)."""
     if comm.size == 1:
         return a
-    a = np.ascontiguousarray(a)
-    my_rows = rows.counts[comm.rank]
+    if a.strides[1] != a.itemsize or a.strides[0] % a.itemsize:
+        a = np.ascontiguousarray(a)
+    lead = a.strides[0] // a.itemsize  # values from one row's start to the next's
+    my_rows, width = rows.counts[comm.rank], a.shape[1]
+    # the rows' memory, from the first value to the last (the padding between rows included, never sent)
+    flat = np.lib.stride_tricks.as_strided(a, shape=(max(0, (a.shape[0] - 1) * lead + width),),
+                                           strides=(a.itemsize,), writeable=False)
     out = np.empty((my_rows, cols.n), dtype=a.dtype)
-    comm.Alltoallw([a, (rows.counts * a.shape[1], rows.starts[:-1] * a.shape[1] * a.itemsize),
-                     [from_numpy_dtype(a.dtype)] * comm.size],
-                    [out, (np.ones(comm.size, int), cols.starts[:-1] * a.itemsize),
-                     _column_blocks(a.dtype, my_rows, cols)])
+    comm.Alltoallw([flat, (np.ones(comm.size, int), rows.starts[:-1] * lead * a.itemsize),
+                    _blocks(a.dtype, rows.counts, width, lead)],
+                   [out, (np.ones(comm.size, int), cols.starts[:-1] * a.itemsize),
+                    _column_blocks(a.dtype, my_rows, cols)])
     return out
+
+
+def padded_columns(n_rows: int, width: int, dtype=complex, buffer: np.ndarray | None = None) -> np.ndarray:
+    """An (n_rows, width) array whose rows are ALIASED values apart rounded off by one where ``width`` is a
+    multiple of ALIASED (a view of wider rows): transforms along axis 0 then run 1.4-1.6x faster than
+    on rows 4 KiB apart, which map onto the same cache sets (measured: scipy.fft.fft along axis 0 of
+    2079 x 512 complex values, 27 us per column against 18). In ``buffer`` (1-D, of ``dtype``) if given."""
+    lead = width + 1 if width % ALIASED == 0 else width
+    whole = np.empty(n_rows * lead, dtype=dtype) if buffer is None else buffer[: n_rows * lead]
+    return whole.reshape(n_rows, lead)[:, :width]
+
+
+ALIASED = 256
+"""Row lengths (complex values: 4 KiB) at which :func:`padded_columns` pads its rows."""
 
 
 KEPT_BLOCK_TYPES = 32
@@ -134,12 +154,20 @@ _block_types: dict[tuple, list] = {}
 
 def _column_blocks(dtype: np.dtype, n_rows: int, cols: RowPartition) -> list:
     """For each rank r, the (committed) MPI type of an n_rows x cols.counts[r] block of a row-major array
-    with cols.n columns; kept for the next transpose of the same shape (the least recently used freed)."""
-    key = (np.dtype(dtype).str, n_rows, cols.n, cols.size)
+    with cols.n columns (:func:`_blocks`)."""
+    return _blocks(dtype, np.full(cols.size, n_rows), cols.counts, cols.n)
+
+
+def _blocks(dtype: np.dtype, n_rows, widths, lead: int) -> list:
+    """For each rank r, the (committed) MPI type of an n_rows[r] x widths[r] block of a row-major array whose
+    rows are ``lead`` values apart (scalars for every rank alike); kept for the next transpose of the same
+    shape (the least recently used freed)."""
+    n_rows, widths = np.broadcast_arrays(np.asarray(n_rows), np.asarray(widths))
+    key = (np.dtype(dtype).str, tuple(n_rows.ravel()), tuple(widths.ravel()), lead)
     types = _block_types.pop(key, None)
     if types is None:
         base = from_numpy_dtype(dtype)
-        types = [base.Create_vector(n_rows, int(width), cols.n).Commit() for width in cols.counts]
+        types = [base.Create_vector(int(n), int(w), lead).Commit() for n, w in zip(n_rows, widths)]
     _block_types[key] = types  # the newest last
     while len(_block_types) > KEPT_BLOCK_TYPES:
         for block in _block_types.pop(next(iter(_block_types))):
