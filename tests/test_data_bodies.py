@@ -281,3 +281,44 @@ def test_a_map_off_the_cells_finds_its_lowest_point_on_the_spline_s_local_pieces
     want = spline_minimum_searched(heights, h)
     assert want <= heights.min()
     assert abs(body._lowest - want) <= 1e-9 * h
+
+
+@pytest.mark.parametrize("shape", [(4, 4), (5, 9), (31, 26), (3, 7), (2, 6)])
+@pytest.mark.parametrize("holes", [False, True])
+def test_a_map_s_slopes_at_its_samples_are_the_spline_s_derivatives(shape, holes):
+    """Slopes asked for at the samples themselves (from the splines through the lines of samples, one
+    banded solve) are FITPACK's interpolating spline's derivatives there (scipy's RectBivariateSpline, s = 0,
+    fitted here on the map with each missing sample replaced by its nearest finite one's), to 1e-12 of the
+    largest, 0 where the map has no surface; off the samples (shifted a third of a cell) the same spline's
+    derivatives still, and on a small lattice off the samples first (3 x 3 points: the spline's local
+    piece) too; along an axis of 2 or 3 samples (not cubic) FITPACK's own as before. The heights are a random
+    map (a wrong end condition or an axis swapped is off by order 1)."""
+    from scipy import ndimage
+    from scipy.interpolate import RectBivariateSpline
+
+    from petroll.model.bodies import HeightMap
+
+    hx, hy = 0.7e-3, 1.3e-3
+    heights = np.random.default_rng(sum(shape)).normal(size=shape) * 1e-4
+    if holes:
+        heights[1, 2] = heights[-1, -1] = np.inf
+    body = HeightMap(heights, (hx, hy))
+    finite = np.isfinite(heights)
+    nearest = ndimage.distance_transform_edt(~finite, return_distances=False, return_indices=True)
+    kx, ky = min(3, shape[0] - 1), min(3, shape[1] - 1)
+    u, v = np.arange(shape[0]) * hx, np.arange(shape[1]) * hy
+    spline = RectBivariateSpline(u, v, heights[tuple(nearest)], kx=kx, ky=ky, s=0)
+    x0, y0 = body._origin
+    middle = (u[shape[0] // 3 : shape[0] // 3 + 3], v[shape[1] // 3 : shape[1] // 3 + 3])
+    for shift, (along_x, along_y) in ((0.2, middle), (0.0, (u, v)), (1 / 3, (u[:-1], v[:-1]))):
+        x = (along_x + shift * hx)[:, None] + x0
+        y = (along_y + shift * hy)[None, :] + y0
+        got = body.slope(x, y)
+        for axis, (dx, dy), k in ((0, (1, 0), kx), (1, (0, 1), ky)):
+            if k == 1:  # FITPACK cannot differentiate a linear axis: the map takes the ends' difference
+                continue
+            want = spline(x[:, 0] - x0, y[0] - y0, dx=dx, dy=dy)
+            where = np.isfinite(body.height(x, y))  # in a cell with a surface (its four corners finite)
+            scale = np.abs(want[where]).max()
+            assert np.abs(got[axis][where] - want[where]).max() <= 1e-12 * scale
+            assert not got[axis][~where].any()

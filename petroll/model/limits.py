@@ -46,10 +46,13 @@ def heights_out_of_scale(heights: np.ndarray) -> str | None:
     """Why a map's finite heights (m) lie outside MAGNITUDES: the largest |height| above it, or a relief
     (highest - lowest) that is not zero but below it (a flat map is refused elsewhere, if at all); None
     when they lie within."""
-    finite = heights[np.isfinite(heights)]
-    if not finite.size:
+    finite = np.isfinite(heights)
+    if not finite.all():  # else the array itself: no copy of a whole map
+        heights = heights[finite]
+    if not heights.size:
         return None
-    largest, relief = float(np.abs(finite).max()), float(np.ptp(finite))
+    low, high = float(heights.min()), float(heights.max())
+    largest, relief = max(high, -low), high - low
     if largest > MAGNITUDES[1]:
         return f"height {scale_message(largest, 'm')}"
     if 0 < relief < MAGNITUDES[0]:
@@ -86,7 +89,8 @@ def contact_slope(scene, delta: float, points: int = 201) -> float:
 
     The profile is sampled on a ``points`` x ``points`` lattice (not the grid's cells, which may be coarser
     than the contact) over the part of the grid within 4 equivalent contact radii sqrt(2 R delta) of the
-    body (R: its radius hint): the cost is bounded whatever the grid."""
+    body (R: its radius hint), its slopes on the part of the lattice around those points only: the cost is
+    bounded whatever the grid."""
     g, (sx, sy) = scene.grid, scene.position
     reach = 4 * math.sqrt(2 * max(float(scene.body.radius_hint), 0.0) * delta)
     if not math.isfinite(reach) or reach <= 0:
@@ -98,8 +102,10 @@ def contact_slope(scene, delta: float, points: int = 201) -> float:
         inside = z <= 0.5 * delta
         if not np.any(inside):
             return 0.0
-        gx, gy = scene.body.slope(x, y)
-        return float(np.max(np.hypot(gx, gy)[inside]))
+        rows, cols = np.flatnonzero(inside.any(axis=1)), np.flatnonzero(inside.any(axis=0))
+        box = slice(rows[0], rows[-1] + 1), slice(cols[0], cols[-1] + 1)  # the lattice around the inside
+        gx, gy = scene.body.slope(x[box[0]], y[:, box[1]])
+        return float(np.max(np.hypot(gx, gy)[inside[box]]))
 
 
 def largest_penetration(scene) -> tuple[float, bool]:

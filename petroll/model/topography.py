@@ -219,7 +219,9 @@ def read_topography(path: str | os.PathLike, *, fmt: str | None = None,
         raise SceneError(source, cell_key, cell, f"required for a {fmt} file: the spacing in m, a number or "
                          "[hx, hy]")
     if fmt == "npy":
-        heights = read_npy(path, source, "one 2-D numeric array (not .npz)", key).astype(float)
+        heights = read_npy(path, source, "one 2-D numeric array (not .npz)", key).astype(float, copy=False)
     else:
         heights = _read_text(path, source, key, "a matrix of heights")
-    return Topography(_checked(heights * UNITS[unit], path, source, key), (float(cell[0]), float(cell[1])))
+    if UNITS[unit] != 1.0:  # metres: the array as read (a map's samples are copied once, by the body)
+        heights = heights * UNITS[unit]
+    return Topography(_checked(heights, path, source, key), (float(cell[0]), float(cell[1])))

@@ -70,9 +70,11 @@ class HeightMap(Body):
     -inf are refused.
 
     Cost: heights asked for at the samples themselves (within :data:`ON_SAMPLE` of a cell) are the samples
-    (less the lowest point); the spline is fitted on first use elsewhere (FITPACK, O(samples) once), its
-    derivatives' splines on the first slopes asked for, and every evaluation after that is local (each point
-    reads its 4 x 4 coefficients).
+    (less the lowest point), slopes there the splines' through the lines of samples they lie on
+    (:func:`spline_slopes`, one banded solve per axis, kept); the spline is fitted on first use elsewhere
+    (FITPACK, O(samples) once), slopes on a lattice over a small part of the map (:data:`SMALL_BOX`) are
+    read from its local piece there, and its derivatives' splines are made on the first slopes asked for
+    over more; every evaluation after that is local (each point reads its 4 x 4 coefficients).
     """
 
     heights: np.ndarray
@@ -80,7 +82,8 @@ class HeightMap(Body):
     center: tuple[float, float] = (0.0, 0.0)
     _: KW_ONLY
     source: InitVar[str] = PYTHON_SOURCE
-    _splines: dict = field(init=False, repr=False)  # (dx, dy): S's spline or its derivative's, once made
+    _splines: dict = field(init=False, repr=False)  # (dx, dy): S's spline or its derivative's, once made;
+    # ("at samples", axis): S's slopes at every sample
     _lowest: float = field(init=False, repr=False)
     _ok: np.ndarray = field(init=False, repr=False)
     _origin: tuple[float, float] = field(init=False, repr=False)
@@ -146,8 +149,11 @@ class HeightMap(Body):
         values = np.zeros(valid.shape)
         if not valid.any():
             return values, valid
-        if not (dx or dy) and (at := self._at_samples(uc, vc, in_x, in_y)) is not None:
-            return np.where(valid, self.heights[at], 0.0), valid
+        if dx + dy <= 1 and (at := self._at_samples(uc, vc, in_x, in_y)) is not None:
+            if not (dx or dy):
+                return np.where(valid, self.heights[at], 0.0), valid
+            if (slopes := self._slopes_at_samples(at, 0 if dx else 1)) is not None:
+                return np.where(valid, slopes, 0.0), valid
         if (u.ndim == 2 and v.ndim == 2 and u.shape[1] == 1 and v.shape[0] == 1
                 and np.all(np.diff(uc[in_x[:, 0], 0]) >= 0) and np.all(np.diff(vc[0, in_y[0]]) >= 0)):
             rows, cols = in_x[:, 0], in_y[0]
@@ -171,6 +177,31 @@ class HeightMap(Body):
             index.append(np.clip(nearest.astype(np.intp), 0, self.heights.shape[axis] - 1))
         return tuple(index)
 
+    def _slopes_at_samples(self, at: tuple, axis: int) -> np.ndarray | None:
+        """S's slope along ``axis`` at the samples ``at`` (a pair of index arrays that broadcast), or None
+        where that axis has fewer than 4 samples (S not cubic along it). On a line of samples along ``axis``
+        S is the not-a-knot cubic spline through that line's samples (a missing sample takes its nearest
+        finite one's, as for the whole spline), so its slopes there come from :func:`spline_slopes`: no
+        spline of the whole map and no derivative spline; made for every sample on first use and kept (as a
+        derivative's spline would be: a step's resisting force asks for them at every step)."""
+        if self.heights.shape[axis] < 4:
+            return None
+        key = ("at samples", axis)
+        if key not in self._splines:
+            self._splines[key] = spline_slopes(self._filled(self.heights), self.cell[axis], axis)
+        return self._splines[key][at]
+
+    def _filled(self, heights: np.ndarray) -> np.ndarray:
+        """``heights`` (the map's samples) with every missing (+inf) sample replaced by its nearest finite
+        one's, for the splines; the array itself when none is missing."""
+        finite = np.isfinite(heights)
+        if finite.all():
+            return heights
+        from scipy import ndimage  # here, not at the top: only maps with holes need it
+
+        nearest = ndimage.distance_transform_edt(~finite, return_distances=False, return_indices=True)
+        return heights[tuple(nearest)]
+
     def _spline(self, dx: int, dy: int):
         """S's spline (scipy's RectBivariateSpline, on coordinates from the first sample; a missing sample
         takes its nearest finite one's), or its derivative's of orders (dx, dy) (equal degrees along both
@@ -180,15 +211,10 @@ class HeightMap(Body):
         if (dx, dy) != (0, 0):
             made = self._spline(0, 0).partial_derivative(dx, dy)
         else:
-            from scipy import ndimage  # here, not at the top: a scene without a map never imports them
-            from scipy.interpolate import RectBivariateSpline
+            from scipy.interpolate import RectBivariateSpline  # here: a scene without a map never imports it
 
-            heights, (hx, hy) = self.heights, self.cell
-            nx, ny = heights.shape
-            finite = np.isfinite(heights)
-            if not finite.all():
-                nearest = ndimage.distance_transform_edt(~finite, return_distances=False, return_indices=True)
-                heights = heights[tuple(nearest)]
+            (hx, hy), (nx, ny) = self.cell, self.heights.shape
+            heights = self._filled(self.heights)
             made = RectBivariateSpline(np.arange(nx) * hx, np.arange(ny) * hy, heights,
                                        kx=min(3, nx - 1), ky=min(3, ny - 1), s=0)
         self._splines[dx, dy] = made
@@ -208,6 +234,14 @@ class HeightMap(Body):
             return (spline(u, end, grid=grid) - spline(u, 0.0, grid=grid)) / end
         if kx != ky:  # scipy's derivative splines need equal degrees: FITPACK's derivative, O(samples) a call
             return self._spline(0, 0)(u, v, dx, dy, grid=grid)
+        if (dx or dy) and grid and (dx, dy) not in self._splines:
+            (hx, hy), (nx, ny) = self.cell, self.heights.shape
+            bounds = [(int(u[0] // hx), min(int(u[-1] // hx) + 1, nx - 1)),
+                      (int(v[0] // hy), min(int(v[-1] // hy) + 1, ny - 1))]
+            if (bounds[0][1] - bounds[0][0] + 1) * (bounds[1][1] - bounds[1][0] + 1) * SMALL_BOX <= nx * ny:
+                from scipy.interpolate import bisplev
+
+                return np.reshape(bisplev(u, v, self._local_tck(bounds)[0], dx, dy), (len(u), len(v)))
         return self._spline(dx, dy)(u, v, grid=grid)
 
     def height(self, x, y):
@@ -277,19 +311,8 @@ class HeightMap(Body):
         axis of two samples (S linear) the derivative is the difference of its ends."""
         from scipy.interpolate import bisplev
 
-        spline = self._spline(0, 0)
-        knots, (kx, ky) = spline.get_knots(), spline.degrees  # the whole knot vectors, ends repeated
-        c = spline.get_coeffs().reshape(len(knots[0]) - kx - 1, len(knots[1]) - ky - 1)
-        local, ends = [], []
-        for (lo, hi), t, k, h in zip(bounds, knots, (kx, ky), self.cell):
-            # the pieces [t_l, t_l+1] that meet the box, l from first to last; each uses coefficients l-k..l
-            first = int(np.clip(np.searchsorted(t, lo * h, "right") - 1, k, len(t) - k - 2))
-            last = int(np.clip(np.searchsorted(t, hi * h, "left") - 1, k, len(t) - k - 2))
-            local.append((first, last))
-            ends.append((t[first], t[last + 1]))
-        (fx, lx), (fy, ly) = local
-        tck = [knots[0][fx - kx : lx + kx + 2], knots[1][fy - ky : ly + ky + 2],
-               c[fx - kx : lx + 1, fy - ky : ly + 1].ravel(), kx, ky]
+        tck, ends = self._local_tck(bounds)
+        kx, ky = tck[3:]
 
         def piece(u: float, v: float) -> tuple[float, float, float]:
             value = float(bisplev(u, v, tck))
@@ -307,14 +330,34 @@ class HeightMap(Body):
 
         return piece
 
+    def _local_tck(self, bounds) -> tuple[list, list]:
+        """S's local piece over the box ``bounds`` ((i0, i1), (j0, j1), in samples): FITPACK's (tx, ty, c, kx,
+        ky) of the knots and coefficients of the spline's polynomial pieces over the box only (the same
+        polynomials there), and each axis's (start, end) of those pieces (coordinates from the first
+        sample)."""
+        spline = self._spline(0, 0)
+        knots, (kx, ky) = spline.get_knots(), spline.degrees  # the whole knot vectors, ends repeated
+        c = spline.get_coeffs().reshape(len(knots[0]) - kx - 1, len(knots[1]) - ky - 1)
+        local, ends = [], []
+        for (lo, hi), t, k, h in zip(bounds, knots, (kx, ky), self.cell):
+            # the pieces [t_l, t_l+1] that meet the box, l from first to last; each uses coefficients l-k..l
+            first = int(np.clip(np.searchsorted(t, lo * h, "right") - 1, k, len(t) - k - 2))
+            last = int(np.clip(np.searchsorted(t, hi * h, "left") - 1, k, len(t) - k - 2))
+            local.append((first, last))
+            ends.append((t[first], t[last + 1]))
+        (fx, lx), (fy, ly) = local
+        tck = [knots[0][fx - kx : lx + kx + 2], knots[1][fy - ky : ly + ky + 2],
+               c[fx - kx : lx + 1, fy - ky : ly + 1].ravel(), kx, ky]
+        return tck, ends
+
     def _estimate_radius(self) -> float:
-        z = self.heights - self.heights[np.isfinite(self.heights)].min()
-        hx, hy = self.cell
-        fallback = 0.5 * max((z.shape[0] - 1) * hx, (z.shape[1] - 1) * hy)
-        i, j = np.unravel_index(np.argmin(np.where(np.isfinite(z), z, np.inf)), z.shape)
+        heights, (hx, hy) = self.heights, self.cell
+        fallback = 0.5 * max((heights.shape[0] - 1) * hx, (heights.shape[1] - 1) * hy)
+        i, j = np.unravel_index(np.argmin(heights), heights.shape)  # +inf (no surface) is never the least
+        lowest = heights[i, j]
         radii = []
         for axis, (k, h) in enumerate(((i, hx), (j, hy))):
-            line = z[:, j] if axis == 0 else z[i, :]
+            line = (heights[:, j] if axis == 0 else heights[i, :]) - lowest  # Z along the line
             n = line.size
             # a wide stencil (up to n/8 samples) smooths facets and roughness; narrow it until finite
             step = min(k, n - 1 - k, max(1, n // 8))  # 0 at the map's edge
@@ -335,6 +378,43 @@ class HeightMap(Body):
         lowest sample (the one radius if only one is positive); half the larger extent if neither is."""
         return self._radius_hint
 
+
+
+SMALL_BOX = 4
+"""Slopes asked for on a lattice whose samples' box holds at most 1/SMALL_BOX of the map's samples are read
+from the spline's local piece over that box (O(box)); larger ones make and keep S's derivative's spline."""
+
+
+def spline_slopes(values: np.ndarray, h: float, axis: int) -> np.ndarray:
+    """The slopes at the samples of the not-a-knot cubic splines through ``values`` (finite, at spacing ``h``,
+    at least 4 along ``axis``) along ``axis``, each line of samples its own spline: the same values as the
+    derivative of FITPACK's interpolating spline there (to round-off), from one banded solve for all lines.
+
+    With y_i the samples of a line and m_i the slopes, the C2 conditions at the inner samples are
+    m_(i-1) + 4 m_i + m_(i+1) = 3 (y_(i+1) - y_(i-1)) / h, and not-a-knot (equal third derivatives
+    6 (h (m_i + m_(i+1)) - 2 (y_(i+1) - y_i)) / h^3 on the first two and on the last two intervals) closes
+    them: m_0 - m_2 = 2 (2 y_1 - y_0 - y_2) / h and m_(n-1) - m_(n-3) = 2 (y_(n-1) - 2 y_(n-2) + y_(n-3)) / h.
+    (scipy's CubicSpline solves the same system but then builds every interval's four coefficients: several
+    times the work and the memory on a whole map.)"""
+    from scipy.linalg import solve_banded
+
+    y = np.asfortranarray(np.moveaxis(values, axis, 0))  # LAPACK's layout: each line contiguous
+    n = y.shape[0]
+    rhs = np.empty(y.shape, order="F")
+    np.subtract(y[2:], y[:-2], out=rhs[1:-1])
+    rhs[1:-1] *= 3.0 / h
+    rhs[0] = 2.0 * (2.0 * y[1] - y[0] - y[2]) / h
+    rhs[-1] = 2.0 * (y[-1] - 2.0 * y[-2] + y[-3]) / h
+    band = np.zeros((5, n))  # band[2 + i - j, j] = A[i, j]
+    band[1, 2:] = 1.0  # A[i, i + 1], i = 1 ... n - 2
+    band[2] = 4.0  # A[i, i]
+    band[3, :-2] = 1.0  # A[i, i - 1], i = 1 ... n - 2
+    band[2, [0, -1]] = 1.0  # A[0, 0], A[n-1, n-1]
+    band[1, 1] = 0.0  # A[0, 1]
+    band[0, 2] = -1.0  # A[0, 2]
+    band[3, -2] = 0.0  # A[n-1, n-2]
+    band[4, -3] = -1.0  # A[n-1, n-3]
+    return np.moveaxis(solve_banded((2, 2), band, rhs, overwrite_b=True, check_finite=False), 0, axis)
 
 
 LOCAL_FIT = 8
