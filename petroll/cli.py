@@ -349,13 +349,15 @@ def _main(args: argparse.Namespace, comm) -> int:
     from petroll.io.checkpoint import RunInterrupted, StopRequest
     from petroll.io.results import Results
     from petroll.model.scene import load_scene
+    from petroll.solver.allocation import LargeBlocksMapped
     from petroll.studies.target import asks_target, targeted
 
     start = time.perf_counter()
     if args.verb == "restart":
         scene, checkpoint, out = _restart_inputs(args, comm)
     else:
-        scene, checkpoint, out = load_scene(args.scene), None, args.out
+        with LargeBlocksMapped(True):  # a scene read allocates once, its grid unknown until read
+            scene, checkpoint, out = load_scene(args.scene), None, args.out
         if asks_target(scene):  # its pilot before the note: the note says the grid chosen for the target
             scene = targeted(scene, comm)
         if scene.sizing is not None and comm.rank == 0:  # the grid petroll chose, before the run

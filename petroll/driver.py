@@ -29,6 +29,7 @@ from petroll.model.limits import PetrollWarning, negative_friction
 from petroll.model.preflight import check_run
 from petroll.model.scene import Scene
 from petroll.records import StepRecord, series_rows
+from petroll.solver.allocation import LargeBlocksMapped
 from petroll.solver.rough import BINS
 from petroll.solver.simulation import Simulation
 from petroll.studies.target import asks_target, targeted
@@ -84,8 +85,9 @@ def run(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, out: str | pathlib.Path |
     collective = True  # raised on every rank alike (or returned): the ranks wait for the lock's release
     try:
         run_id, inputs = _run_identity(out, scene, comm, restart, overwrite)
-        return _run(scene, comm, out, (run_id, inputs), progress, restart, stop, on_step, steady_start,
-                    preflight, estimate_error)
+        with LargeBlocksMapped(scene.grid.topology.whole):
+            return _run(scene, comm, out, (run_id, inputs), progress, restart, stop, on_step, steady_start,
+                        preflight, estimate_error)
     except BaseException as exc:
         collective = isinstance(exc, (PetrollError, RunInterrupted))
         raise

@@ -274,16 +274,17 @@ class Simulation:
         ``dissipation`` that power (mu_r from the dissipation; force_x, force_y stay the lateral force:
         petroll.records.lateral_friction)."""
         g, comm, p = self.scene.grid, self.comm, solution.pressure
-        x, y = g.offsets(self.x, self.y, sx, sy)
+        rows, columns = np.nonzero(p)  # the cells that carry pressure: the sums over them are the grid's
+        carried = p[rows, columns]
+        x, y = g.offsets(self.x[rows, 0], self.y[0, columns], sx, sy)
         slope_x, slope_y = self.scene.body.slope(x, y)
         d = self.direction
-        along = x * d[0] + y * d[1]
-        contact = p > 0
-        sums = np.array([p.sum(), (p * slope_x).sum(), (p * slope_y).sum(), (p * x).sum(), (p * y).sum(),
+        contact = carried > 0
+        along = x[contact] * d[0] + y[contact] * d[1]
+        sums = np.array([p.sum(), carried @ slope_x, carried @ slope_y, carried @ x, carried @ y,
                          contact.sum()], dtype=float)
         comm.Allreduce(MPI.IN_PLACE, sums, op=MPI.SUM)
-        extremes = np.array([p.max(initial=0.0), np.max(along, where=contact, initial=-np.inf),
-                             -np.min(along, where=contact, initial=np.inf)])
+        extremes = np.array([p.max(initial=0.0), along.max(initial=-np.inf), -along.min(initial=np.inf)])
         comm.Allreduce(MPI.IN_PLACE, extremes, op=MPI.MAX)
         total, px, py, mx, my, cells = sums
         area = g.cell_area

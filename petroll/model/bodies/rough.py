@@ -39,21 +39,25 @@ CHUNK_BYTES = 1 << 25
 """Size of the columns' spectra transformed at once while rows' coefficients are made (bytes)."""
 
 
-def _spectral_slopes(spectrum: np.ndarray, shape: tuple[int, int],
-                     cell: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
-    """(dh/dx, dh/dy) of the trigonometric interpolant of periodic samples of ``shape``, given their
-    ``spectrum`` (scipy.fft.rfft2; overwritten), at the samples (Nyquist frequencies, whose derivative a
-    real lattice cannot carry, left out). Beside the two slopes, one product with the spectrum."""
-    nx, ny = shape
-    kx = 2.0 * np.pi * scipy.fft.fftfreq(nx, cell[0])
-    ky = 2.0 * np.pi * scipy.fft.rfftfreq(ny, cell[1])
-    if nx % 2 == 0:
-        kx[nx // 2] = 0.0
-    if ny % 2 == 0:
-        ky[-1] = 0.0
-    along_x = scipy.fft.irfft2(1j * kx[:, None] * spectrum, s=shape, overwrite_x=True)
-    spectrum *= 1j * ky[None, :]
-    return along_x, scipy.fft.irfft2(spectrum, s=shape, overwrite_x=True)
+def _spectral_slope(heights: np.ndarray, cell: tuple[float, float], axis: int) -> np.ndarray:
+    """dh/dx (``axis`` 0) or dh/dy (1) of the trigonometric interpolant of the periodic samples ``heights``
+    at the samples (the Nyquist frequency, whose derivative a real lattice cannot carry, left out): 1-D
+    transforms along ``axis``, :data:`CHUNK_BYTES` of spectra at a time; beside the result no field-sized
+    array."""
+    n, across = heights.shape[axis], heights.shape[1 - axis]
+    multiplier = 2j * np.pi * scipy.fft.rfftfreq(n, cell[axis])
+    if n % 2 == 0:
+        multiplier[-1] = 0.0
+    if axis == 0:
+        multiplier = multiplier[:, None]
+    out = np.empty(heights.shape)
+    width = max(1, CHUNK_BYTES // (16 * n))
+    for start in range(0, across, width):
+        block = (slice(None), slice(start, start + width)) if axis == 0 else slice(start, start + width)
+        spectrum = scipy.fft.rfft(heights[block], axis=axis)
+        spectrum *= multiplier
+        out[block] = scipy.fft.irfft(spectrum, n=n, axis=axis)
+    return out
 
 
 def _multipliers(n: int, h: float) -> tuple[np.ndarray, np.ndarray]:
@@ -133,8 +137,8 @@ class PeriodicSurface(Body):
         set_(self, "_lowest", 0.0)
         set_(self, "_lowest", self._spline_minimum())
         # the summits' radius of curvature ~ 1 / rms curvature (first guesses only)
-        slopes = _spectral_slopes(self._spectrum(), heights.shape, cell)
-        curvature = np.gradient(slopes[0], cell[0], axis=0) + np.gradient(slopes[1], cell[1], axis=1)
+        curvature = (np.gradient(_spectral_slope(heights, cell, 0), cell[0], axis=0)
+                     + np.gradient(_spectral_slope(heights, cell, 1), cell[1], axis=1))
         rms = math.sqrt(float(np.mean(curvature**2)))
         set_(self, "_radius_hint", 1.0 / rms if rms > 0.0 else max(heights.shape) * max(cell))
 
@@ -207,18 +211,19 @@ class PeriodicSurface(Body):
 
     def _at_samples(self, which, at: tuple[np.ndarray, np.ndarray]):
         """:meth:`_interpolate`'s values on the samples ``at`` (:meth:`_on_samples`): the samples less
-        ``lowest``, the spectral slopes there (which the slopes' spline passes through)."""
+        ``lowest``, the spectral slopes there (which the slopes' spline passes through; each slope made on
+        the whole lattice, then gathered: one field-sized array at a time)."""
         nx, ny = self.heights.shape
         i, j = at
         whole = (i.shape == (nx, 1) and j.shape == (1, ny) and np.array_equal(i[:, 0], np.arange(nx))
                  and np.array_equal(j[0], np.arange(ny)))  # the whole lattice in order: no gather
-        out, slopes = [], None
+        out = []
         for w in np.atleast_1d(which):
             if w == 0:
                 out.append(self.heights - self._lowest if whole else self.heights[i, j] - self._lowest)
-                continue
-            slopes = slopes or _spectral_slopes(self._spectrum(), self.heights.shape, self.cell)
-            out.append(slopes[w - 1] if whole else slopes[w - 1][i, j])
+            else:
+                slope = _spectral_slope(self.heights, self.cell, w - 1)
+                out.append(slope if whole else slope[i, j])
         return out[0] if np.ndim(which) == 0 else tuple(out)
 
     def _interpolate(self, which, x, y):
