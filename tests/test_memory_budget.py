@@ -35,7 +35,7 @@ SLACK = 1.6
 
 BUDGET = SLACK * 8 * sum(DOUBLES.values())
 """Bytes per cell (155): the arrays above, with SLACK. Measured 2026-12-08: 124-127 on one rank, 173-190
-on two (with TRANSPOSES: 221 allowed); the code before issue 40 item 5 needed 257 on one rank (ten PETSc
+on two (with TRANSPOSES: 206 allowed); the code before issue 40 item 5 needed 257 on one rank (ten PETSc
 vectors, the spline's coefficients of every row, the kept spectrum and sorted heights, the interference
 and the cold start during the solve, pk's temporaries)."""
 
