@@ -26,7 +26,7 @@ DOUBLES = {
     "the surface's samples and the step's profile (the interference and cold start go once posed)": 2,
     "the operator's and the preconditioner's kernel spectra (half spectra of reals)": 1,
     "an application's complex half spectrum, the kept work array it is copied into, its real result": 3,
-    "pk's kept g - lambda (load control) and masks (free and re-entering variables)": 1.25,
+    "pk's mask of the free variables (a byte per cell; g - lambda is made a block at a time)": 0.125,
 }
 """The arrays alive at a periodic load-controlled pk solve's peak, in doubles (8 bytes) per cell."""
 
@@ -34,8 +34,8 @@ SLACK = 1.6
 """Allowed for the heap's fragmentation (glibc's heap never shrinks under PETSc: docs/benchmarks.md)."""
 
 BUDGET = SLACK * 8 * sum(DOUBLES.values())
-"""Bytes per cell (170): the arrays above, with SLACK. Measured 2026-12-08: 124-127 on one rank, 173-190
-on two (with TRANSPOSES: 221 allowed); the code before issue 40 item 5 needed 257 on one rank (ten PETSc
+"""Bytes per cell (155): the arrays above, with SLACK. Measured 2026-12-08: 124-127 on one rank, 173-190
+on two (with TRANSPOSES: 206 allowed); the code before issue 40 item 5 needed 257 on one rank (ten PETSc
 vectors, the spline's coefficients of every row, the kept spectrum and sorted heights, the interference
 and the cold start during the solve, pk's temporaries)."""
 

@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 from petsc4py import PETSc
 
+from petroll.solver import pk
 from petroll.solver.pk import PolonskyKeer
 
 N = 60
@@ -126,9 +127,18 @@ def test_pk_takes_uniform_bounds_from_its_context_where_tao_has_none(comm, taos,
     assert np.abs(ours - finite).max() <= 1e-10 * max(1.0, np.abs(finite).max())
 
 
+@pytest.fixture(params=["one", 7])
+def block(request, monkeypatch):
+    """pk's passes over a rank's values in one block, or in blocks of 7 (several, the last one shorter)."""
+    if request.param != "one":
+        monkeypatch.setattr(pk, "BLOCK", request.param)
+    assert pk.BLOCK >= N or N % pk.BLOCK
+    return pk.BLOCK
+
+
 @pytest.mark.parametrize("bounds", ["finite", "infinite", "mixed", "none"])
 @pytest.mark.parametrize("seed", [1, 2])
-def test_pk_agrees_with_a_dense_active_set_solver(comm, taos, bounds, seed):
+def test_pk_agrees_with_a_dense_active_set_solver(comm, taos, bounds, seed, block):
     h, b, lo, hi = random_qp(seed, bounds)
     reference = active_set_oracle(h, b, lo, hi)
     assert natural_residual(h, b, reference, lo, hi) <= 1e-12  # the oracle solved its KKT conditions
@@ -245,7 +255,7 @@ def load_oracle(h, b, total):
 
 
 @pytest.mark.parametrize("seed", [5, 6])
-def test_pk_load_control_agrees_with_an_oracle(comm, taos, seed):
+def test_pk_load_control_agrees_with_an_oracle(comm, taos, seed, block):
     """pk with ``total`` (sum x held): the solution and the multiplier against bisection on the multiplier
     around the dense active-set solver, and the force exactly held."""
     h, b, _, _ = random_qp(seed, "none")

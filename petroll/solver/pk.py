@@ -25,6 +25,13 @@ stops changing (no variable clipped or put back) the gradient and f are updated 
 gradient is recomputed at least every ``-tao_pk_refresh`` (25) iterations, so that an updated gradient
 differs from a fresh one by round-off only (about 1e-15 of its scale, far below any useful gatol): the
 stop is judged on it, with no confirming evaluation (which would cost one application per solve).
+Beside its applications an iteration streams its vectors through memory in five passes (the free set,
+the free gradient, <g, g> and the residual, the gradient's update folded in; <g, C^-1 g>; the direction;
+d.g and d.H d; the step, projection and re-entries); under load control six (the first sums g over the free
+set, a second shifts it by the multiplier and takes <g, g> and the residual), each doing all its work
+on a block of :data:`BLOCK` values before the next block: about 20 reads and writes of a vector's length
+per iteration, and no work array of that length but the free set's mask (g - lambda is made a block at a
+time). Dots and sums are summed per block by numpy (one thread; the last digits depend on BLOCK).
 
 Load control (Polonsky & Keer's force-controlled form): with ``total`` set on the context, the solve also
 holds sum x = total (bounds must then be x >= 0, no upper bound). Its multiplier lambda (the mean gradient
@@ -48,6 +55,11 @@ H is not positive definite; the context's ``breakdown`` says so in words).
 from __future__ import annotations
 
 import numpy as np
+
+BLOCK = 1 << 16
+"""Values per block of an iteration's fused passes: each pass over the vectors does all its elementwise work
+on one block (a 512 KiB slice of each vector, several of them in the cache) before the next, so that a
+vector is streamed from memory about once per pass rather than once per numpy call."""
 
 PK_PYTHON_TYPE = "petroll.solver.pk.PolonskyKeer"
 """pk's name for TAO: -<prefix>tao_type python -<prefix>tao_python_type petroll.solver.pk.PolonskyKeer."""
@@ -127,20 +139,38 @@ class PolonskyKeer:
         g = tao.getGradient()[0]  # left holding the gradient at the solution
         own = [] if g.handle else [x.duplicate()]  # none given to TAO: a vector of its own
         g = own[0] if own else g
-        # three work vectors: d the direction; hd the free gradient, then H d; z scratch, then C^-1 of the
-        # free gradient
+        # three work vectors: d the direction; hd the free gradient, then H d; z C^-1 of the free gradient
         d, hd, z = (x.duplicate() for _ in range(3))
         n = x.getLocalSize()
-        # work arrays, written in place each iteration: g - lambda (load control only), masks (the residual
-        # goes into z, free until the PC writes it)
-        shifted = np.empty(n) if self.total is not None else None
-        free, reenter = np.empty(n, dtype=bool), np.empty(n, dtype=bool)
+        # the free set, and a block's work arrays (g - lambda, the residual, products, a mask)
+        free = np.empty(n, dtype=bool)
+        blocks = [slice(i, min(i + BLOCK, n)) for i in range(0, n, BLOCK)]
+        ga_b, r_b, p_b, free_b = (np.empty(min(n, BLOCK)) for _ in range(4))
+        mask_b = np.empty(min(n, BLOCK), dtype=bool)
         with x as xw:
-            box.project(xw)
+            box.project(xw, slice(None))
         self.breakdown = ""
 
         def total(value) -> float:
             return comm.allreduce(float(value))
+
+        def dot(a: np.ndarray, b: np.ndarray) -> float:
+            """a . b of two blocks, by numpy's pairwise sum on one thread (a threaded BLAS dot costs 10 times
+            more on a block in the cache when the cores are busy, and its sum depends on the thread count)."""
+            return float(np.multiply(a, b, out=p_b[:a.size]).sum())
+
+        def ones(s: slice) -> np.ndarray:
+            """The free set on the block s as 1.0 and 0.0 (in free_b): numpy multiplies by a float mask 3
+            times faster than by a boolean one, and a ufunc's where= or a masked sum is 30 times slower."""
+            out = free_b[:s.stop - s.start]
+            np.copyto(out, free[s])
+            return out
+
+        def shifted(ga: np.ndarray, s: slice, lam: float) -> np.ndarray:
+            """g - lambda on the block s (in ga_b; g itself without load control)."""
+            if not lam:
+                return ga[s]
+            return np.subtract(ga[s], lam, out=ga_b[:s.stop - s.start])
 
         load = self.total
         if load is not None:
@@ -160,19 +190,37 @@ class PolonskyKeer:
             return tao.computeObjectiveGradient(x, g)
 
         f = evaluate()
-        conjugate, previous_gz, previous_count, its, step, first = False, 1.0, 0, 0, 0.0, None
+        conjugate, previous_gz, its, step, first = False, 1.0, 0, 0.0, None
+        lam, pending = 0.0, 0.0  # pending: a step whose g - step H d is still to be made (H d in hd)
         while True:
             xa = x.array_r
-            box.free(xa, free)
-            count = total(np.count_nonzero(free))
-            with hd as gf:  # the gradient on the free variables, 0 elsewhere (in hd until H d is written)
-                np.multiply(g.array_r, free, out=gf)
-                lam = self._multiplier(comm, gf, g.array_r, count)
-                if lam:
-                    np.subtract(gf, lam, out=gf, where=free)
-            ga = np.subtract(g.array_r, lam, out=shifted) if lam else g.array_r
-            with z as scratch:  # z is free until the PC writes into it
-                res = box.residual(xa, ga, scratch, comm)
+            # g - pending H d; the free set, the gradient there into hd (0 elsewhere); without load control
+            # (no multiplier) also <gf, gf> and the residual's max norm
+            count, gsum, gg, res = 0, 0.0, 0.0, 0.0
+            with hd as gf, g as gw:
+                for s in blocks:
+                    if pending:
+                        gw[s] -= pending * gf[s]
+                    box.free(xa[s], free[s], s)
+                    count += np.count_nonzero(free[s])
+                    np.multiply(gw[s], ones(s), out=gf[s])
+                    if load is None:
+                        gg += dot(gf[s], gf[s])
+                        res = max(res, box.residual(xa[s], gw[s], r_b[:s.stop - s.start], s))
+                    else:
+                        gsum += gf[s].sum()
+            count = total(count)
+            lam = self._multiplier(comm, total(gsum), g.array_r, count)
+            if load is not None:  # gf -= lambda on the free variables; <gf, gf>; the residual's max norm
+                with hd as gf:
+                    ga = g.array_r
+                    for s in blocks:
+                        gfs = gf[s]
+                        if lam:
+                            gfs -= np.multiply(ones(s), lam, out=r_b[:s.stop - s.start])
+                        gg += dot(gfs, gfs)
+                        res = max(res, box.residual(xa[s], shifted(ga, s, lam), r_b[:s.stop - s.start], s))
+            res = comm.allreduce(res, op=MPI.MAX)
             first = res if first is None else first
             tao.setIterationNumber(its)
             tao.monitor(its, f, res, 0.0, step)
@@ -194,33 +242,44 @@ class PolonskyKeer:
                 break
             its += 1
             gf = hd.array_r
-            gg = total(np.dot(gf, gf))
+            gg = total(gg)
             steepest = not gg > 0
             if not steepest:  # conjugate gradients on the free variables
                 if preconditioned:
                     pc.apply(hd, z)
                 else:
                     hd.copy(z)
-                with z as za:  # C^-1 gf on the free variables, 0 elsewhere
-                    np.multiply(za, free, out=za)
-                    if load is not None:  # onto sum d = 0 over the free variables
-                        np.subtract(za, total(za.sum()) / count, out=za, where=free)
-                za = z.array_r
-                gz = total(np.dot(gf, za))
-                if conjugate:  # za + beta d on the free variables, 0 elsewhere
-                    d.aypx(gz / previous_gz, z)
-                    if count != previous_count:  # fewer free: some reached a bound exactly (none left it)
-                        with d as da:
-                            np.multiply(da, free, out=da)
-                else:
-                    z.copy(d)
-                previous_gz, previous_count = gz, count
+                # d <- the free part of C^-1 gf (z), less its mean there under load control, + beta d;
+                # <gf, z - mean> = <gf, z>: gf sums to 0 over the free variables (lambda is its mean there)
+                za, gz, zsum = z.array_r, 0.0, 0.0
+                for s in blocks:
+                    gz += dot(gf[s], za[s])
+                    if load is not None:
+                        zsum += dot(za[s], ones(s))
+                mean = total(zsum) / count if load is not None else 0.0
+                gz = total(gz)
+                beta = gz / previous_gz if conjugate else 0.0  # conjugate: none clipped, none put back
+                with d as da:
+                    for s in blocks:
+                        zs = np.subtract(za[s], mean, out=r_b[:s.stop - s.start]) if mean else za[s]
+                        if conjugate:
+                            da[s] *= beta
+                            da[s] += zs
+                        else:
+                            da[s] = zs
+                        da[s] *= ones(s)
+                previous_gz = gz
             else:  # nothing free, or a stationary free part: projected steepest descent
                 with d as da:
-                    box.residual(xa, ga, da, comm)
+                    for s in blocks:
+                        box.residual(xa[s], shifted(g.array_r, s, lam), da[s], s)
             hessian.mult(d, hd)
-            da, hda = d.array_r, hd.array_r
-            gd, dhd = total(np.dot(ga, da)), total(np.dot(da, hda))
+            da, hda, ga = d.array_r, hd.array_r, g.array_r
+            gd, dhd = 0.0, 0.0
+            for s in blocks:
+                gd += dot(shifted(ga, s, lam), da[s])
+                dhd += dot(da[s], hda[s])
+            gd, dhd = total(gd), total(dhd)
             if not dhd > 0:
                 reason = Reason.DIVERGED_NAN if not np.isfinite(dhd) else Reason.DIVERGED_USER
                 self.breakdown = (f"breakdown at iteration {its}: d^T H d = {dhd:.3g} along a search direction "
@@ -230,39 +289,48 @@ class PolonskyKeer:
             # the step along the gradient of a direction preconditioned by C^-1: scaled by <g, C^-1 g> / <g, g>
             # (the same first-order decrease as the conjugate step's)
             along = step if steepest else step * gz / gg
-            x.axpy(-step, d)
-            with x as new:  # x - step d, projected, re-entries put back
-                clipped = box.outside(new)
-                box.project(new)
-                box.reentering(new, ga, reenter, free)  # (free: scratch, unused until the next iteration)
-                back = np.flatnonzero(reenter)
-                new[back] = box.clip(new[back] - along * ga[back], back)
-                changed = comm.allreduce(bool(back.size) or clipped, op=MPI.LOR)
-                if changed and load is not None:
-                    np.multiply(new, load / total(new.sum()), out=new)
+            # x - step d, projected, re-entries put back
+            clipped, back, held = False, 0, 0.0
+            with x as new:
+                ga = g.array_r
+                for s in blocks:
+                    xs, gs, m = new[s], shifted(ga, s, lam), mask_b[:s.stop - s.start]
+                    xs -= step * da[s]
+                    clipped = clipped or box.outside(xs, s)
+                    box.project(xs, s)
+                    box.reentering(xs, gs, m, s)
+                    at = np.flatnonzero(m)
+                    if at.size:
+                        back += at.size
+                        xs[at] = box.clip(xs[at] - along * gs[at], s, at)
+                    held += xs.sum() if load is not None else 0.0
+            changed = comm.allreduce(bool(back) or clipped, op=MPI.LOR)
+            if changed and load is not None:
+                x.scale(load / total(held))
             conjugate = not (changed or steepest)
+            pending = 0.0
             if changed or its % self.refresh == 0:
                 f = evaluate()
-            else:  # exact for a quadratic and an unchanged free set, up to round-off
+            else:  # exact for a quadratic and an unchanged free set, up to round-off (g: in the next pass)
                 f += -step * gd + 0.5 * step * step * dhd
-                g.axpy(-step, hd)
+                pending = step
         self.multiplier = lam
         tao.setIterationNumber(its)
         tao.setConvergedReason(reason)
         for v in (d, hd, z, *own):
             v.destroy()
 
-    def _multiplier(self, comm, gf: np.ndarray, g: np.ndarray, count: int) -> float:
-        """lambda, the load constraint's multiplier: the mean gradient over the free variables (``gf``: the
-        gradient there, 0 elsewhere; ``count`` of them over all ranks), or without free variables the least
-        gradient ``g``; 0 without load control."""
+    def _multiplier(self, comm, gsum: float, g: np.ndarray, count: int) -> float:
+        """lambda, the load constraint's multiplier: the mean gradient over the free variables (``gsum``: its
+        sum there over all ranks; ``count`` of them), or without free variables the least gradient ``g``; 0
+        without load control."""
         from mpi4py import MPI
 
         if self.total is None:
             return 0.0
         if count == 0:
             return comm.allreduce(float(g.min(initial=np.inf)), op=MPI.MIN)
-        return comm.allreduce(float(gf.sum())) / count
+        return gsum / count
 
     @staticmethod
     def _bounds(tao, x, uniform: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
@@ -290,57 +358,54 @@ def _bound(vector, n: int, side: float, missing: float) -> np.ndarray:
 
 
 class _Box:
-    """The bounds lo <= x <= hi (this rank's), the operations of an iteration on them written into given
-    arrays (no temporaries of the vectors' size); where the bounds are x >= 0 alone (the contact QP's:
-    ``nonnegative``) by comparisons with 0 and np.maximum (0.23 ms against clip's 3.0 ms with array bounds,
-    on 2 10^5 values)."""
+    """The bounds lo <= x <= hi (this rank's), the operations of an iteration on them for a block ``s`` (a
+    slice of this rank's variables) of the arrays, written into given arrays; where the bounds are x >= 0
+    alone (the contact QP's: ``nonnegative``) by comparisons with 0 and np.maximum (0.23 ms against clip's
+    3.0 ms with array bounds, on 2 10^5 values)."""
 
     def __init__(self, lo: np.ndarray, hi: np.ndarray):
         self.lo, self.hi = lo, hi
         self.nonnegative = bool(np.all(lo == 0) and np.all(hi == np.inf))
 
-    def project(self, v: np.ndarray) -> None:
+    def project(self, v: np.ndarray, s: slice) -> None:
         """v <- P(v), the projection onto the bounds."""
         if self.nonnegative:
             np.maximum(v, 0.0, out=v)
         else:
-            np.clip(v, self.lo, self.hi, out=v)
+            np.clip(v, self.lo[s], self.hi[s], out=v)
 
-    def clip(self, values: np.ndarray, at: np.ndarray) -> np.ndarray:
-        """``values`` of the variables at the indices ``at`` projected onto their bounds."""
-        return np.clip(values, self.lo[at], self.hi[at])
+    def clip(self, values: np.ndarray, s: slice, at: np.ndarray) -> np.ndarray:
+        """``values`` of the variables at the indices ``at`` of the block projected onto their bounds."""
+        return np.clip(values, self.lo[s][at], self.hi[s][at])
 
-    def free(self, x: np.ndarray, out: np.ndarray) -> None:
+    def free(self, x: np.ndarray, out: np.ndarray, s: slice) -> None:
         """out <- the variables strictly between their bounds."""
-        np.greater(x, self.lo, out=out)
+        np.greater(x, self.lo[s], out=out)
         if not self.nonnegative:
-            out &= x < self.hi
+            out &= x < self.hi[s]
 
-    def outside(self, v: np.ndarray) -> bool:
+    def outside(self, v: np.ndarray, s: slice) -> bool:
         """Whether P changes any of the values ``v`` (one below lo or above hi)."""
         if self.nonnegative:
             return bool(v.min(initial=0.0) < 0)
-        return bool(np.any(v < self.lo) or np.any(v > self.hi))
+        return bool(np.any(v < self.lo[s]) or np.any(v > self.hi[s]))
 
-    def reentering(self, x: np.ndarray, g: np.ndarray, out: np.ndarray, scratch: np.ndarray) -> None:
-        """out <- the variables at a bound whose gradient ``g`` points into the box (``scratch``: a boolean
-        work array)."""
-        np.less_equal(x, self.lo, out=out)
-        out &= np.less(g, 0.0, out=scratch)
+    def reentering(self, x: np.ndarray, g: np.ndarray, out: np.ndarray, s: slice) -> None:
+        """out <- the variables at a bound whose gradient ``g`` points into the box."""
+        np.less_equal(x, self.lo[s], out=out)
+        out &= g < 0.0
         if not self.nonnegative:
-            out |= (x >= self.hi) & (g > 0)
+            out |= (x >= self.hi[s]) & (g > 0)
 
-    def residual(self, x: np.ndarray, g: np.ndarray, out: np.ndarray, comm) -> float:
-        """out <- the projected gradient x - P(x - g); returns its max norm over all ranks."""
-        from mpi4py import MPI
-
+    def residual(self, x: np.ndarray, g: np.ndarray, out: np.ndarray, s: slice) -> float:
+        """out <- the projected gradient x - P(x - g); returns its max norm."""
         if self.nonnegative:  # x - max(x - g, 0) = min(x, g)
             np.minimum(x, g, out=out)
         else:
             np.subtract(x, g, out=out)
-            self.project(out)
+            self.project(out, s)
             np.subtract(x, out, out=out)
-        return comm.allreduce(max(float(out.max(initial=0.0)), -float(out.min(initial=0.0))), op=MPI.MAX)
+        return max(float(out.max(initial=0.0)), -float(out.min(initial=0.0)))
 
 
 def tao_reasons():
