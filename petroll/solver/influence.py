@@ -33,6 +33,7 @@ from petroll.model.grid import Grid
 from petroll.model.materials import Layer
 from petroll.solver.fft_work import fft_cost, tally
 from petroll.solver.kernels import Kernel, grid_kernel
+from petroll.solver import partition
 from petroll.solver.partition import RowPartition, columns_to_rows, padded_columns, rows_to_columns
 
 
@@ -210,15 +211,17 @@ class Convolution:
 
     def _product(self, x: np.ndarray) -> np.ndarray:
         """The padded DFT of A x (x's, times the kernel's), in the kept work array where it fits, its rows
-        padded where their length would slow the transforms along X (petroll.solver.partition.padded_columns)."""
+        padded where their length would slow the transforms along X (partition.padded_columns); beyond it
+        in an array of its own only where rows need padding, else in the transform's (in place unpadded)."""
         columns = int(self.freqs.counts[self.comm.rank])
         need = self.lx * (columns + 1)
-        buffer = None
         if need <= self.WORKSPACE:
             if Convolution._scratch.size < need:
                 Convolution._scratch = np.empty(need, dtype=complex)
-            buffer = Convolution._scratch
-        spectrum = self.forward(x, padded_columns(self.lx, columns, complex, buffer))
+            into = padded_columns(self.lx, columns, complex, Convolution._scratch)
+        else:
+            into = padded_columns(self.lx, columns) if columns % partition.ALIASED == 0 else None
+        spectrum = self.forward(x, into)
         spectrum *= self.spectrum
         return spectrum
 
